@@ -1,0 +1,178 @@
+"""Trajectory of one linear spring-dashpot contact, in every damping regime.
+
+In the units of the design notes (time in 1/ω0, speed in v* = g/ω0, length in g/ω0²) the
+compression during contact obeys ξ'' = −1 − ξ − 2ζξ' with gravity and ξ'' = −ξ − 2ζξ' without.
+Both are built from the two fundamental solutions of the damped oscillator x'' + 2ζx' + x = 0,
+
+.. math::
+
+    C(t) = e^{-\\zeta t}\\cosh(st), \\qquad S(t) = e^{-\\zeta t}\\frac{\\sinh(st)}{s},
+    \\qquad s^2 = \\zeta^2 - 1,
+
+with C(0) = 1, C'(0) = −ζ, S(0) = 0, S'(0) = 1. Both are entire functions of s², real on either
+side of ζ = 1 (cos/sin of ωt with ω² = 1 − ζ² below, S = t e^{−t} at ζ = 1 exactly), so one
+formulation covers the under-, critically and over-damped regimes. Every function used here is a
+combination ``x(t) = P·C(t) + Q·S(t)``; its derivative is again of that form (see
+:func:`derivative`), which is what makes extrema and brackets available in closed form.
+
+References
+----------
+.. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface"
+   (the paper this project grew from), eq. (2)-(4).
+.. [2] T. Schwager and T. Pöschel, "Coefficient of restitution and linear-dashpot model
+   revisited", Granular Matter 9, 465-469 (2007).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["Damping", "basis", "combination", "derivative", "first_zero"]
+
+
+class Damping:
+    """Regime quantities of the damping ratio ζ, computed once without cancellation.
+
+    Parameters
+    ----------
+    zeta : array_like
+        Damping ratio ζ = β/ω0 (dimensionless), ζ >= 0.
+
+    Attributes
+    ----------
+    s2 : ndarray
+        s² = ζ² − 1, computed as (ζ − 1)(ζ + 1) so that it keeps its digits near ζ = 1.
+    omega : ndarray
+        Dimensionless damped frequency ω/ω0 = √(1 − ζ²) where ζ < 1, else 0.
+    s : ndarray
+        √(ζ² − 1) where ζ > 1, else 0.
+    under, critical, over : ndarray of bool
+        Regime masks.
+    """
+
+    def __init__(self, zeta):
+        self.zeta = np.asarray(zeta, dtype=float)
+        self.s2 = (self.zeta - 1.0) * (self.zeta + 1.0)
+        self.under = self.s2 < 0.0
+        self.over = self.s2 > 0.0
+        self.critical = ~(self.under | self.over)
+        self.omega = np.sqrt(np.where(self.under, -self.s2, 0.0))
+        self.s = np.sqrt(np.where(self.over, self.s2, 0.0))
+        # Half period π/ω of the underdamped oscillation; inf where there is no oscillation.
+        with np.errstate(divide="ignore"):
+            self.half_period = np.where(self.under, np.pi / np.where(self.under, self.omega, 1.0),
+                                        np.inf)
+
+
+def basis(damping: Damping, t):
+    """Fundamental solutions C(t) and S(t) of x'' + 2ζx' + x = 0.
+
+    Parameters
+    ----------
+    damping : Damping
+        Damping ratio and its regime quantities.
+    t : array_like
+        Dimensionless time ω0·t >= 0, finite.
+
+    Returns
+    -------
+    C, S : ndarray
+        C(0) = 1, C'(0) = −ζ; S(0) = 0, S'(0) = 1.
+
+    Notes
+    -----
+    Overdamped: C = ½e^{−λt}(1 + e^{−2st}), S = e^{−λt}(1 − e^{−2st})/(2s) with the slow rate
+    λ = ζ − s written as 1/(ζ + s) (no cancellation at large ζ) and 1 − e^{−2st} as −expm1(−2st)
+    (no cancellation near ζ = 1⁺). Underdamped: C = e^{−ζt}cos ωt, S = e^{−ζt}sin(ωt)/ω, where
+    sin(ωt)/ω keeps full relative accuracy even for tiny ω. Critical: C = e^{−t}, S = t·e^{−t}.
+    """
+    zeta, omega, s = damping.zeta, damping.omega, damping.s
+    t = np.asarray(t, dtype=float)
+    decay = np.exp(-zeta * t)
+    safe_omega = np.where(damping.under, omega, 1.0)
+    c_under = decay * np.cos(omega * t)
+    s_under = decay * np.sin(safe_omega * t) / safe_omega
+    safe_s = np.where(damping.over, s, 1.0)
+    slow = np.exp(-t / (zeta + s))
+    fast_ratio = np.exp(-2.0 * s * t)
+    c_over = 0.5 * slow * (1.0 + fast_ratio)
+    s_over = slow * (-np.expm1(-2.0 * safe_s * t)) / (2.0 * safe_s)
+    c = np.where(damping.under, c_under, np.where(damping.over, c_over, decay))
+    S = np.where(damping.under, s_under, np.where(damping.over, s_over, t * decay))
+    return c, S
+
+
+def combination(damping: Damping, p, q, t):
+    """Evaluate x(t) = p·C(t) + q·S(t).
+
+    Parameters
+    ----------
+    damping : Damping
+    p, q : array_like
+        Coefficients; p = x(0) and q + ... follow from the initial state (dimensionless).
+    t : array_like
+        Dimensionless time, finite and >= 0.
+
+    Returns
+    -------
+    ndarray
+    """
+    c, S = basis(damping, t)
+    return p * c + q * S
+
+
+def derivative(damping: Damping, p, q):
+    """Coefficients of x'(t) for x(t) = p·C(t) + q·S(t).
+
+    Uses C' = −ζC + s²S and S' = C − ζS.
+
+    Returns
+    -------
+    dp, dq : ndarray
+        x'(t) = dp·C(t) + dq·S(t).
+    """
+    zeta = damping.zeta
+    return q - zeta * p, damping.s2 * p - zeta * q
+
+
+def first_zero(damping: Damping, p, q):
+    """Smallest t > 0 with p·C(t) + q·S(t) = 0, in closed form; inf where there is none.
+
+    Parameters
+    ----------
+    damping : Damping
+    p, q : array_like
+        Coefficients of the combination (not both zero).
+
+    Returns
+    -------
+    ndarray
+        Dimensionless time of the first zero. Subsequent zeros of an underdamped combination
+        follow at intervals of π/ω (``damping.half_period``); critically and over-damped
+        combinations have at most one.
+
+    Notes
+    -----
+    With the sign normalised so that p >= 0 (and q > 0 where p = 0), the zero solves
+    S/C = p/(−q). Below ζ = 1, S/C = tan(ωt)/ω, so ωt = atan2(ωp, −q) when q < 0 and
+    π − atan2(ωp, q) otherwise; at ζ = 1, S/C = t; above, S/C = tanh(st)/s, which takes values
+    in [0, 1/s) only. None of the forms divides by a small ω or s.
+    """
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    flip = (p < 0.0) | ((p == 0.0) & (q < 0.0))
+    p = np.where(flip, -p, p)
+    q = np.where(flip, -q, q)
+    falling = q < 0.0
+    abs_q = np.abs(q)
+    omega = damping.omega
+    safe_omega = np.where(damping.under, omega, 1.0)
+    angle = np.arctan2(safe_omega * p, abs_q)
+    t_under = np.where(falling, angle, np.pi - angle) / safe_omega
+    safe_q = np.where(falling, abs_q, 1.0)
+    t_critical = np.where(falling, p / safe_q, np.inf)
+    safe_s = np.where(damping.over, damping.s, 1.0)
+    ratio = safe_s * p / safe_q
+    reachable = falling & (ratio < 1.0)
+    t_over = np.where(reachable, np.arctanh(np.where(reachable, ratio, 0.0)) / safe_s, np.inf)
+    return np.where(damping.under, t_under, np.where(damping.over, t_over, t_critical))
