@@ -2,11 +2,26 @@
 
 from importlib.metadata import PackageNotFoundError, version
 
-from .physics import MODELS, Collision, collide, critical_velocity
+from .physics import (
+    MODELS,
+    BounceSequence,
+    Collision,
+    bounce_sequence,
+    collide,
+    contact_coefficients,
+    contact_from_restitution,
+    critical_velocity,
+    dimensionless_parameters,
+    natural_parameters,
+    restitution_from_contact,
+)
 
 try:
     __version__ = version("dashpot")
 except PackageNotFoundError:  # running from a source tree without installation
     __version__ = "0+unknown"
 
-__all__ = ["MODELS", "Collision", "collide", "critical_velocity", "__version__"]
+__all__ = ["MODELS", "BounceSequence", "Collision", "bounce_sequence", "collide",
+           "contact_coefficients", "contact_from_restitution", "critical_velocity",
+           "dimensionless_parameters", "natural_parameters", "restitution_from_contact",
+           "__version__"]

@@ -3,3 +3,15 @@
 from .models import MODELS, Collision, collide, critical_velocity
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
+from .sequence import BounceSequence, bounce_sequence  # noqa: E402
+from .units import (  # noqa: E402
+    contact_coefficients,
+    contact_from_restitution,
+    dimensionless_parameters,
+    natural_parameters,
+    restitution_from_contact,
+)
+
+__all__ += ["BounceSequence", "bounce_sequence", "contact_coefficients",
+            "contact_from_restitution", "dimensionless_parameters", "natural_parameters",
+            "restitution_from_contact"]

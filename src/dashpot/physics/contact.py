@@ -93,7 +93,7 @@ def basis(damping: Damping, t):
     c_under = decay * np.cos(omega * t)
     s_under = decay * np.sin(safe_omega * t) / safe_omega
     safe_s = np.where(damping.over, s, 1.0)
-    slow = np.exp(-t / (zeta + s))
+    slow = np.exp(-t / np.where(damping.over, zeta + s, 1.0))
     fast_ratio = np.exp(-2.0 * s * t)
     c_over = 0.5 * slow * (1.0 + fast_ratio)
     s_over = slow * (-np.expm1(-2.0 * safe_s * t)) / (2.0 * safe_s)

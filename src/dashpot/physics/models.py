@@ -129,7 +129,7 @@ def _iia_contact_time(d: Damping):
     safe_omega = np.where(d.under, d.omega, 1.0)
     safe_s = np.where(d.over, d.s, 1.0)
     t_under = 2.0 * np.arctan2(d.omega, d.zeta) / safe_omega
-    t_over = 2.0 * np.log1p((d.zeta - 1.0) + d.s) / safe_s
+    t_over = 2.0 * np.log1p(np.where(d.over, (d.zeta - 1.0) + d.s, 0.0)) / safe_s
     return np.where(d.under, t_under, np.where(d.over, t_over, 2.0))
 
 
