@@ -25,13 +25,15 @@ References
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 __all__ = ["Damping", "basis", "combination", "derivative", "first_zero"]
 
 
 class Damping:
-    """Regime quantities of the damping ratio ζ, computed once without cancellation.
+    """Regime quantities of the damping ratio ζ, computed on first use without cancellation.
 
     Parameters
     ----------
@@ -48,20 +50,38 @@ class Damping:
         √(ζ² − 1) where ζ > 1, else 0.
     under, critical, over : ndarray of bool
         Regime masks.
+    half_period : ndarray
+        π/ω where ζ < 1, else inf.
     """
 
     def __init__(self, zeta):
         self.zeta = np.asarray(zeta, dtype=float)
         self.s2 = (self.zeta - 1.0) * (self.zeta + 1.0)
-        self.under = self.s2 < 0.0
-        self.over = self.s2 > 0.0
-        self.critical = ~(self.under | self.over)
-        self.omega = np.sqrt(np.where(self.under, -self.s2, 0.0))
-        self.s = np.sqrt(np.where(self.over, self.s2, 0.0))
-        # Half period π/ω of the underdamped oscillation; inf where there is no oscillation.
-        with np.errstate(divide="ignore"):
-            self.half_period = np.where(self.under, np.pi / np.where(self.under, self.omega, 1.0),
-                                        np.inf)
+
+    @cached_property
+    def under(self):
+        return self.s2 < 0.0
+
+    @cached_property
+    def over(self):
+        return self.s2 > 0.0
+
+    @cached_property
+    def critical(self):
+        return self.s2 == 0.0
+
+    @cached_property
+    def omega(self):
+        return np.sqrt(np.maximum(-self.s2, 0.0))
+
+    @cached_property
+    def s(self):
+        return np.sqrt(np.maximum(self.s2, 0.0))
+
+    @cached_property
+    def half_period(self):
+        # π/ω of the underdamped oscillation; inf where there is no oscillation.
+        return np.where(self.under, np.pi / np.where(self.under, self.omega, 1.0), np.inf)
 
 
 def basis(damping: Damping, t):
@@ -85,21 +105,29 @@ def basis(damping: Damping, t):
     λ = ζ − s written as 1/(ζ + s) (no cancellation at large ζ) and 1 − e^{−2st} as −expm1(−2st)
     (no cancellation near ζ = 1⁺). Underdamped: C = e^{−ζt}cos ωt, S = e^{−ζt}sin(ωt)/ω, where
     sin(ωt)/ω keeps full relative accuracy even for tiny ω. Critical: C = e^{−t}, S = t·e^{−t}.
+    Each regime is evaluated only on its own points.
     """
-    zeta, omega, s = damping.zeta, damping.omega, damping.s
-    t = np.asarray(t, dtype=float)
-    decay = np.exp(-zeta * t)
-    safe_omega = np.where(damping.under, omega, 1.0)
-    c_under = decay * np.cos(omega * t)
-    s_under = decay * np.sin(safe_omega * t) / safe_omega
-    safe_s = np.where(damping.over, s, 1.0)
-    slow = np.exp(-t / np.where(damping.over, zeta + s, 1.0))
-    fast_ratio = np.exp(-2.0 * s * t)
-    c_over = 0.5 * slow * (1.0 + fast_ratio)
-    s_over = slow * (-np.expm1(-2.0 * safe_s * t)) / (2.0 * safe_s)
-    c = np.where(damping.under, c_under, np.where(damping.over, c_over, decay))
-    S = np.where(damping.under, s_under, np.where(damping.over, s_over, t * decay))
+    t = np.broadcast_to(np.asarray(t, dtype=float), damping.zeta.shape)
+    if damping.under.all():  # the common case in root finding: skip the masking
+        return _basis_under(damping.zeta, damping.omega, t)
+    c = np.empty(t.shape)
+    S = np.empty(t.shape)
+    under, over, critical = damping.under, damping.over, damping.critical
+    c[under], S[under] = _basis_under(damping.zeta[under], damping.omega[under], t[under])
+    zeta, s, t_over = damping.zeta[over], damping.s[over], t[over]
+    slow = np.exp(-t_over / (zeta + s))
+    c[over] = 0.5 * slow * (1.0 + np.exp(-2.0 * s * t_over))
+    S[over] = slow * (-np.expm1(-2.0 * s * t_over)) / (2.0 * s)
+    t_critical = t[critical]
+    c[critical] = np.exp(-t_critical)
+    S[critical] = t_critical * c[critical]
     return c, S
+
+
+def _basis_under(zeta, omega, t):
+    decay = np.exp(-zeta * t)
+    phase = omega * t
+    return decay * np.cos(phase), decay * np.sin(phase) / omega
 
 
 def combination(damping: Damping, p, q, t):

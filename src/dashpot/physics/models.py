@@ -99,6 +99,80 @@ def _find_root(func, lower, upper, args):
     return result.x
 
 
+def _newton_in_bracket(value_and_slope, lower, upper, args, *, increasing, start,
+                       max_iter=200):
+    """Root of a function monotone on [lower, upper], by Newton steps kept inside the bracket.
+
+    The hot path of :func:`collide`. With slope and curvature available in closed form, Newton
+    converges quadratically from a good start (typically 2-3 evaluations, against ~17 for
+    Chandrupatla's derivative-free method), which is what makes 10⁶ impacts per second
+    possible. Any step leaving the current bracket is replaced by bisection, so convergence is
+    guaranteed. Iteration stops when f is at its rounding level, when the step is below 4 ulp,
+    when the bracket closes, or when the step just taken leaves an error |f''|·δ²/(2|f'|)
+    (the quadratic convergence estimate) below one ulp of the root.
+
+    Parameters
+    ----------
+    value_and_slope : callable
+        ``value_and_slope(t, *args) -> (f, f', f'', scale)`` on arrays, where `scale` is the
+        size of the terms summed in f (its rounding error is a few ulp of `scale`).
+    lower, upper : ndarray
+        Bracket with sign(f(lower)) = −sign(f(upper)).
+    args : tuple of ndarray
+        Per-point parameters, the shape of `lower`.
+    increasing : bool
+        Whether f rises across the bracket.
+    start : ndarray
+        First iterate, inside the bracket.
+    """
+    lower, upper = lower.copy(), upper.copy()
+    root = start.copy()
+    active = np.arange(root.size)
+    sign = 1.0 if increasing else -1.0
+    tiny = np.finfo(float).eps
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        t = root[active]
+        lo, hi = lower[active], upper[active]
+        value, slope, curvature, scale = value_and_slope(t, *(a[active] for a in args))
+        value, slope = sign * value, sign * slope
+        below = value < 0.0
+        lo = np.where(below, t, lo)
+        hi = np.where(below, hi, t)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = value / slope
+        candidate = t - step
+        inside = (candidate > lo) & (candidate < hi) & np.isfinite(candidate)
+        # A Newton step below a few ulp means the root is found to the precision of f itself;
+        # testing the step, not the new iterate, avoids bisecting on rounding noise.
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            remaining = np.abs(curvature) * step * step / (2.0 * np.abs(slope))
+        converged = ((np.abs(value) <= 4.0 * tiny * scale)
+                     | (np.abs(step) <= 4.0 * tiny * np.abs(t))
+                     | (inside & (remaining <= tiny * np.abs(candidate))))
+        root[active] = np.where(converged, np.where(value == 0.0, t, candidate),
+                                np.where(inside, candidate, 0.5 * (lo + hi)))
+        lower[active], upper[active] = lo, hi
+        done = converged | (hi - lo <= 4.0 * tiny * np.abs(t))
+        active = active[~done]
+    return root
+
+
+def _start_guess(lower, upper, value_lower, value_upper, gravity_free_time, vtilde):
+    """First iterate for Newton's method inside [lower, upper].
+
+    At high impact speed gravity is a small correction, O(1/ṽ), and the gravity-free twin's
+    closed-form end time is nearly the root. Otherwise, between consecutive extrema an
+    oscillation is close to a half cosine wave: with end values a and b, rising or falling, the
+    root is at the fraction arccos((a + b)/(b − a))/π of the bracket.
+    """
+    fast = (vtilde > 20.0) & (gravity_free_time > lower) & (gravity_free_time < upper)
+    ratio = np.clip((value_lower + value_upper) / (value_upper - value_lower), -1.0, 1.0)
+    phase = np.arccos(ratio) / np.pi
+    return np.where(fast, gravity_free_time, lower + np.clip(phase, 0.05, 0.95) * (upper - lower))
+
+
 def _stable_p0_over_v(zeta, omega2, vtilde):
     """(ṽ² − 2ζṽ + 1)/ṽ = ((ṽ − ζ)² + 1 − ζ²)/ṽ, without overflow or cancellation."""
     shifted = vtilde - zeta
@@ -151,6 +225,17 @@ def _ib_excess(t, zeta, vtilde):
     return combination(Damping(zeta), 1.0, zeta - vtilde, t) - 1.0
 
 
+def _ib_excess_and_slope(t, zeta, vtilde):
+    """ξ(t), ξ'(t) = −ṽC + (ζṽ − 1)S and ξ''(t) with gravity, from one evaluation of C, S."""
+    c, S = basis(Damping(zeta), t)
+    drop = (zeta - vtilde) * S
+    excess = c + drop - 1.0
+    slope = -vtilde * c + (zeta * vtilde - 1.0) * S
+    # ξ'' = −1 − ξ − 2ζξ' from the equation of motion.
+    curvature = -1.0 - excess - 2.0 * zeta * slope
+    return excess, slope, curvature, np.abs(c) + np.abs(drop) + 1.0
+
+
 def _ib_bracket(zeta, vtilde):
     """Bracket [t_min, t_max] of Ib's return root and the compression ξ(t_max) deciding capture.
 
@@ -173,8 +258,12 @@ def _model_ib(zeta, vtilde):
     t_min, t_max, xi_max = _ib_bracket(zeta, vtilde)
     rebound = xi_max > 0.0
     tau = np.full(zeta.shape, np.inf)
-    tau[rebound] = _find_root(_ib_excess, t_min[rebound], t_max[rebound],
-                              (zeta[rebound], vtilde[rebound]))
+    lo, hi = t_min[rebound], t_max[rebound]
+    args = (zeta[rebound], vtilde[rebound])
+    start = _start_guess(lo, hi, _ib_excess(lo, *args), xi_max[rebound],
+                         np.pi / Damping(args[0]).omega, args[1])
+    tau[rebound] = _newton_in_bracket(_ib_excess_and_slope, lo, hi, args, increasing=True,
+                                      start=start)
     eps = np.zeros(zeta.shape)
     one_minus = np.ones(zeta.shape)
     z, v, t = zeta[rebound], vtilde[rebound], tau[rebound]
@@ -241,6 +330,44 @@ def _iib_force(t, zeta, vtilde):
     return out
 
 
+def _force_and_slope_cs(t, zeta, p, q, slope_p, slope_q):
+    """f = 1 + pC + qS of model IIb and its slope, with precomputed coefficients (ζ < MODAL_ZETA)."""
+    c, S = basis(Damping(zeta), t)
+    spring, damper = p * c, q * S
+    slope = slope_p * c + slope_q * S
+    # f − 1 = ξ'' solves the homogeneous equation: (f − 1)'' = −(f − 1) − 2ζ(f − 1)'.
+    curvature = -(spring + damper) - 2.0 * zeta * slope
+    return 1.0 + spring + damper, slope, curvature, 1.0 + np.abs(spring) + np.abs(damper)
+
+
+def _force_and_slope_modal(t, slow, fast, slow_amplitude, fast_amplitude):
+    """f = 1 + A·e^{−λs·t} + B·e^{−λf·t} of model IIb and its slope (ζ >= MODAL_ZETA)."""
+    slow_part = slow_amplitude * np.exp(-slow * t)
+    fast_part = fast_amplitude * np.exp(-fast * t)
+    return (1.0 + slow_part + fast_part, -slow * slow_part - fast * fast_part,
+            slow * slow * slow_part + fast * fast * fast_part,
+            1.0 + np.abs(slow_part) + np.abs(fast_part))
+
+
+def _iib_release_time(zeta, vtilde, lower, upper, force_upper):
+    """Release time of IIb in its bracket: Newton's method per regime, coefficients hoisted."""
+    start = _start_guess(lower, upper, _iib_force(lower, zeta, vtilde), force_upper,
+                         _iia_contact_time(Damping(zeta)), vtilde)
+    tau = np.empty(zeta.shape)
+    modal, (zm, vm, lo_m, hi_m, st_m), (zc, vc, lo_c, hi_c, st_c) = _split(
+        zeta, zeta, vtilde, lower, upper, start)
+    d = Damping(zc)
+    p, q = _iib_force_coefficients(d, vc)
+    coefficients = (zc, p, q) + tuple(derivative(d, p, q))
+    tau[~modal] = _newton_in_bracket(_force_and_slope_cs, lo_c, hi_c, coefficients,
+                                     increasing=False, start=st_c)
+    slow, fast, a, b = _eigenmodes(zm, vm)
+    modes = (slow, fast, slow * slow * a, fast * fast * b)
+    tau[modal] = _newton_in_bracket(_force_and_slope_modal, lo_m, hi_m, modes, increasing=False,
+                                    start=st_m)
+    return tau
+
+
 def _eta_slope(t, zeta, vtilde):
     """ξ'(t) with gravity: −ṽC + (ζṽ − 1)S, or −λs·a·e^{−λs·t} − λf·b·e^{−λf·t}."""
     modal, (tm, zm, vm), (tc, zc, vc) = _split(zeta, t, zeta, vtilde)
@@ -295,8 +422,8 @@ def _release_state(zeta, vtilde):
     t_lo, t_hi, force_min = _iib_bracket(zeta, vtilde)
     released = force_min < 0.0
     tau = np.full(zeta.shape, np.inf)
-    tau[released] = _find_root(_iib_force, t_lo[released], t_hi[released],
-                               (zeta[released], vtilde[released]))
+    tau[released] = _iib_release_time(zeta[released], vtilde[released], t_lo[released],
+                                      t_hi[released], force_min[released])
     z, v, t = zeta[released], vtilde[released], tau[released]
     vf = _eta_slope(t, z, v)
     speed = np.zeros(zeta.shape)
