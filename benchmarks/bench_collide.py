@@ -1,0 +1,183 @@
+"""Speed against accuracy of ``dashpot.collide``, per model and method.
+
+Prints one table: for each model and method (exact; ode at rtol 1e-6, 1e-9, 1e-12) the maximum
+relative error against the committed 40-digit reference (tests/reference/collide_reference.csv),
+the evaluations per second on one core, and the ratio against a per-point baseline:
+
+* exact vs scipy.optimize.brentq called point by point on the same closed-form end condition
+  (the straightforward way to write it), after the same closed-form bracketing;
+* ode vs scipy.integrate.solve_ivp called point by point with a terminal event.
+
+Timings are CPU time (time.process_time) of the best of three runs, so that other load on the
+machine distorts them less. Run with ``make bench``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+import dashpot
+from dashpot.physics import models as exact_models
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "tests" / "reference" / "collide_reference.csv"
+N_POINTS = 100_000  # points per exact timing run
+N_ODE = 5_000  # points per vectorized ode timing run
+N_BASELINE = 2_000  # points for the per-point brentq baseline
+N_BASELINE_ODE = 200  # points for the per-point solve_ivp baseline
+ODE_TOLERANCES = (1e-6, 1e-9, 1e-12)
+
+
+def workload(n, seed=1):
+    """Log-uniform ζ in [1e-3, 10] and ṽ in [0.1, 1e6]: light to heavy damping, slow to fast."""
+    rng = np.random.default_rng(seed)
+    return 10 ** rng.uniform(-3, 1, n), 10 ** rng.uniform(-1, 6, n)
+
+
+def cpu_rate(func, n, repeats=3):
+    """Evaluations per CPU second of `func()`, which evaluates `n` points (best of `repeats`)."""
+    best = math.inf
+    for _ in range(repeats):
+        start = time.process_time()
+        func()
+        best = min(best, time.process_time() - start)
+    return n / max(best, 1e-9)
+
+
+def load_reference():
+    rows = {}
+    if not REFERENCE.exists():
+        return rows
+    with REFERENCE.open() as handle:
+        for row in csv.DictReader(handle):
+            if row.get("kind", "grid") != "grid":
+                continue
+            rows.setdefault(row["model"], []).append(row)
+    return rows
+
+
+def max_errors(model, rows, method, rtol=None, ode_subset=False):
+    """Largest relative errors in ε, 1 − ε and contact time over the reference rows."""
+    zeta = np.array([float(r["zeta"]) for r in rows])
+    vtilde = np.array([float(r["vtilde"]) for r in rows])
+    keep = np.ones(zeta.size, bool)
+    if ode_subset:
+        # The stacked integration is not meant for contacts lasting 1e4 natural periods
+        # (ζ within 1e-6 of 1) or for extreme speeds; the table says so in its header.
+        keep = (zeta >= 1e-4) & (zeta <= 100) & (np.abs(zeta - 1) > 1e-5) & (vtilde <= 1e6)
+    zeta, vtilde = zeta[keep], vtilde[keep]
+    selected = [r for r, k in zip(rows, keep) if k]
+    captured = np.array([r["captured"] == "1" for r in selected])
+    eps_ref = np.array([float(r["eps"]) for r in selected])
+    one_minus_ref = np.array([float(r["one_minus_eps"]) for r in selected])
+    tau_ref = np.array([float(r["contact_time"]) for r in selected])
+    result = dashpot.collide(model, zeta, vtilde, method=method, rtol=rtol)
+    both = ~captured & ~result.captured & (eps_ref > 1e-300)
+    mismatched_capture = int(np.sum(captured != result.captured))
+
+    def rel(got, ref):
+        return float(np.max(np.abs(got[both] / ref[both] - 1.0))) if both.any() else 0.0
+
+    return (rel(result.eps, eps_ref), rel(result.one_minus_eps, one_minus_ref),
+            rel(result.contact_time, tau_ref), mismatched_capture, int(both.sum()))
+
+
+# --- baselines ---------------------------------------------------------------------------------
+
+def brentq_baseline(model, zeta, vtilde):
+    """Per-point brentq on the closed-form end condition (after the same bracketing)."""
+    if model in ("Ia", "IIa"):
+        # Closed forms: the per-point baseline is plain math in a loop.
+        out = []
+        for z in zeta:
+            omega = math.sqrt((1 - z) * (1 + z)) if z < 1 else 0.0
+            tau = math.pi / omega if model == "Ia" and omega else 2 * math.atan2(omega, z) / max(
+                omega, 1e-300)
+            out.append(math.exp(-z * tau))
+        return out
+    if model == "Ib":
+        lower, upper, xi_max = exact_models._ib_bracket(zeta, vtilde)
+        func = exact_models._ib_excess
+        usable = xi_max > 0
+    else:
+        lower, upper, force_min = exact_models._iib_bracket(zeta, vtilde)
+        func = exact_models._iib_force
+        usable = force_min < 0
+    roots = []
+    for z, v, lo, hi, ok in zip(zeta, vtilde, lower, upper, usable):
+        if not ok:
+            roots.append(math.inf)
+            continue
+        z_, v_ = np.array([z]), np.array([v])
+        roots.append(brentq(lambda t: func(np.array([t]), z_, v_)[0], lo, hi, xtol=1e-300,
+                            rtol=4 * np.finfo(float).eps))
+    return roots
+
+
+def solve_ivp_baseline(model, zeta, vtilde, rtol):
+    """Per-point solve_ivp with a terminal event at the end of contact."""
+    gravity = 1.0 if model in ("Ib", "IIb", "hybrid") else 0.0
+    force_end = model not in ("Ia", "Ib")
+    out = []
+    for z, v in zip(zeta, vtilde):
+        def rhs(_t, y, z=z):
+            return [y[1], -gravity - y[0] - 2 * z * y[1]]
+
+        def event(_t, y, z=z):
+            return y[0] + 2 * z * y[1] if force_end else y[0]
+
+        event.terminal = True
+        event.direction = 1
+        sol = solve_ivp(rhs, (0, 200.0), [0.0, -v], rtol=rtol, atol=1e-3 * rtol * max(v, 1),
+                        events=event, method="DOP853")
+        out.append(sol.t_events[0][0] if sol.t_events[0].size else math.inf)
+    return out
+
+
+def main():
+    reference = load_reference()
+    zeta, vtilde = workload(N_POINTS)
+    header = (f"{'model':7s} {'method':12s} {'max|Δε/ε|':>10s} {'max|Δ(1-ε)|':>12s} "
+              f"{'max|Δτ/τ|':>10s} {'capture≠':>8s} {'points':>7s} {'eval/s':>10s} "
+              f"{'baseline/s':>10s} {'ratio':>7s}")
+    print(f"reference: {REFERENCE.relative_to(ROOT)} "
+          f"({'found' if reference else 'MISSING: errors not measured'})")
+    print(f"workload: ζ log-uniform in [1e-3, 10], ṽ log-uniform in [0.1, 1e6]; exact on "
+          f"{N_POINTS} points, ode on {N_ODE}; baselines on {N_BASELINE} (brentq) and "
+          f"{N_BASELINE_ODE} (solve_ivp) points; CPU time, best of 3")
+    print("ode errors are over reference rows with 1e-4 <= ζ <= 100, |ζ - 1| > 1e-5, ṽ <= 1e6")
+    print(header)
+    print("-" * len(header))
+    for model in dashpot.MODELS:
+        base_z, base_v = zeta[:N_BASELINE], vtilde[:N_BASELINE]
+        baseline = cpu_rate(lambda: brentq_baseline(model, base_z, base_v), N_BASELINE, 1)
+        rate = cpu_rate(lambda: dashpot.collide(model, zeta, vtilde), N_POINTS)
+        errors = (max_errors(model, reference[model], "exact") if model in reference
+                  else (math.nan,) * 3 + (0, 0))
+        print(f"{model:7s} {'exact':12s} {errors[0]:10.1e} {errors[1]:12.1e} {errors[2]:10.1e} "
+              f"{errors[3]:8d} {errors[4]:7d} {rate:10.3g} {baseline:10.3g} "
+              f"{rate / baseline:7.1f}")
+        ode_z, ode_v = zeta[:N_ODE], vtilde[:N_ODE]
+        for rtol in ODE_TOLERANCES:
+            base_ode = cpu_rate(lambda: solve_ivp_baseline(model, ode_z[:N_BASELINE_ODE],
+                                                            ode_v[:N_BASELINE_ODE], rtol),
+                                N_BASELINE_ODE, 1)
+            rate = cpu_rate(lambda: dashpot.collide(model, ode_z, ode_v, method="ode",
+                                                    rtol=rtol), N_ODE, 1)
+            errors = (max_errors(model, reference[model], "ode", rtol, ode_subset=True)
+                      if model in reference else (math.nan,) * 3 + (0, 0))
+            print(f"{'':7s} {f'ode {rtol:.0e}':12s} {errors[0]:10.1e} {errors[1]:12.1e} "
+                  f"{errors[2]:10.1e} {errors[3]:8d} {errors[4]:7d} {rate:10.3g} "
+                  f"{base_ode:10.3g} {rate / base_ode:7.1f}")
+    print("target: >= 1e6 exact evaluations per second on one core for Ib, IIb and hybrid")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,33 @@
+"""Snakemake adapter: theory curves of every contact model to CSV (no science here)."""
+
+import logging
+import os
+
+import numpy as np
+
+import dashpot
+
+snakemake = globals()["snakemake"]  # injected by Snakemake's script directive
+logging.basicConfig(filename=snakemake.log[0], level=logging.INFO, filemode="w")
+
+
+def write_atomically(path, header, columns):
+    """Write a CSV to a temporary name, then rename, so no half file is ever left behind."""
+    temporary = f"{path}.partial"
+    np.savetxt(temporary, np.column_stack(columns), delimiter=",", header=",".join(header),
+               comments="", fmt="%.17g")
+    os.replace(temporary, path)
+
+
+zeta = np.linspace(0.0, snakemake.params.zeta_max, snakemake.params.points)
+critical = [dashpot.critical_velocity(model, zeta) for model in dashpot.MODELS]
+write_atomically(snakemake.output.critical, ["zeta", *dashpot.MODELS], [zeta, *critical])
+logging.info("critical speeds for %d damping ratios", zeta.size)
+
+header, columns = ["zeta"], [zeta]
+for speed in snakemake.params.speeds:
+    for model in dashpot.MODELS:
+        header.append(f"eps_{model}_v{speed:g}")
+        columns.append(dashpot.collide(model, zeta, float(speed)).eps)
+write_atomically(snakemake.output.restitution, header, columns)
+logging.info("restitution curves at speeds %s", snakemake.params.speeds)
