@@ -271,11 +271,19 @@ def _model_ib(zeta, vtilde):
     c, S = basis(dr, t)
     # ε = ξ'(τ)/ṽ with ξ' = −ṽC + (ζṽ − 1)S; clip the last ulp of a near-tangent return.
     e = np.maximum(-c + z * S - S / v, 0.0)
-    eps[rebound] = e
     # 1 − ε from the decay of P = η'² + 2ζηη' + η² (P(τ) = P(0)e^{−2ζτ}), with η = 1 at both
-    # ends: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms positive: no cancellation.
-    p0_over_v = _stable_p0_over_v(z, -dr.s2, v)
-    one_minus[rebound] = (2.0 * z + p0_over_v * (-np.expm1(-2.0 * z * t)) / (1.0 + e)) / v
+    # ends: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms positive: no cancellation,
+    # and hardly sensitive to the last ulp of τ. ξ'(τ) is: its error is |ξ''|·δτ with
+    # δτ ~ ulp/ξ'(τ), i.e. relative ~ulp/(ṽ²ε²), against ~ulp/ε for 1 − (1 − ε). So ε is taken
+    # from the invariant where ε > ½ or ṽ²ε < 4; two fixed-point passes settle the 1 + ε.
+    dissipated = _stable_p0_over_v(z, -dr.s2, v) * (-np.expm1(-2.0 * z * t))
+    deficit = (2.0 * z + dissipated / (1.0 + e)) / v
+    for _ in range(2):
+        from_invariant = (deficit < 0.5) | (v * e < 4.0 / v)
+        e = np.where(from_invariant, 1.0 - deficit, e)
+        deficit = (2.0 * z + dissipated / (1.0 + e)) / v
+    eps[rebound] = np.where(from_invariant, 1.0 - deficit, e)
+    one_minus[rebound] = deficit
     return dict(eps=eps, one_minus_eps=one_minus, contact_time=tau, captured=~rebound,
                 release_depth=np.where(rebound, 0.0, -1.0), release_speed=eps * vtilde)
 
@@ -407,7 +415,7 @@ def _iib_bracket(zeta, vtilde):
     t_hi[~modal] = np.where(falls_first, t_first, t_first + d.half_period)
     slow, fast, a, b = _eigenmodes(zm, vm)
     falls_first = slow**3 * a + fast**3 * b > 0.0
-    opposite = falls_first & (a * b < 0.0)
+    opposite = falls_first & ((a < 0.0) != (b < 0.0)) & (a != 0.0) & (b != 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_min = (np.log(np.abs(b)) - np.log(np.abs(a)) + 6.0 * np.log(fast)) / (fast - slow)
     t_hi[modal] = np.where(opposite & (t_min > 0.0), t_min, np.inf)
@@ -426,17 +434,21 @@ def _release_state(zeta, vtilde):
                                       t_hi[released], force_min[released])
     z, v, t = zeta[released], vtilde[released], tau[released]
     vf = _eta_slope(t, z, v)
+    # ṽ − vf from the decay of P: at F = 0, ξ = −2ζξ' makes P(τ) = vf² − 2ζvf + 1, so
+    # (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ}). Used where the second factor keeps its digits;
+    # there it also gives vf, better than ξ'(τ) where ε > ½ or ṽ²ε < 4 (see _model_ib).
+    dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
+    for _ in range(3):
+        denominator = v + vf - 2.0 * z
+        usable = denominator > 0.5 * (v + vf)
+        relative = dissipated / np.where(usable, denominator, 1.0)
+        deficit_ = np.where(usable, relative, 1.0 - vf / v)
+        better = usable & ((deficit_ < 0.5) | (vf < 4.0 / v))
+        vf = np.where(better, v * (1.0 - deficit_), vf)
     speed = np.zeros(zeta.shape)
     speed[released] = vf
-    # ṽ − vf from the decay of P: at F = 0, ξ = −2ζξ' makes P(τ) = vf² − 2ζvf + 1, so
-    # (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ}). Used where the second factor keeps its digits.
-    denominator = v + vf - 2.0 * z
-    usable = denominator > 0.5 * (v + vf)
     deficit = np.full(zeta.shape, np.nan)
-    p0_over_v = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v)
-    safe_denominator = np.where(usable, denominator, 1.0)
-    from_invariant = p0_over_v * (-np.expm1(-2.0 * z * t)) / safe_denominator
-    deficit[released] = np.where(usable, from_invariant, 1.0 - vf / v)
+    deficit[released] = deficit_
     return released, tau, speed, deficit
 
 
@@ -452,7 +464,7 @@ def _model_hybrid(zeta, vtilde):
     released, tau_force, vf, deficit = _release_state(zeta, vtilde)
     # Climbing |ξ_f| = 2ζvf under gravity: v1² = vf² − 4ζvf; rebound only if vf > 4ζ.
     rebound = released & (vf > 4.0 * zeta)
-    v1 = np.sqrt(np.where(rebound, vf * (vf - 4.0 * zeta), 0.0))
+    v1 = vf * np.sqrt(np.where(rebound, 1.0 - 4.0 * zeta / np.where(rebound, vf, 1.0), 0.0))
     # Climb time (vf − v1)/g rationalised: 4ζvf/(vf + v1), no cancellation at large ṽ.
     climb = np.where(rebound, 4.0 * zeta * vf / np.where(rebound, vf + v1, 1.0), 0.0)
     eps = v1 / vtilde
