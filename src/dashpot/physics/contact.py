@@ -29,7 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Damping", "basis", "combination", "derivative", "first_zero"]
+__all__ = ["Damping", "basis", "basis_minus_one", "combination", "derivative", "first_zero"]
 
 
 class Damping:
@@ -128,6 +128,39 @@ def _basis_under(zeta, omega, t):
     decay = np.exp(-zeta * t)
     phase = omega * t
     return decay * np.cos(phase), decay * np.sin(phase) / omega
+
+
+def basis_minus_one(damping: Damping, t):
+    """C(t) − 1, without the cancellation of forming C first (C ≈ 1 near t = 0 and 2π/ω).
+
+    Parameters
+    ----------
+    damping : Damping
+    t : array_like
+        Dimensionless time, finite and >= 0.
+
+    Returns
+    -------
+    ndarray
+        C(t) − 1.
+
+    Notes
+    -----
+    Underdamped: e^{−ζt}cos ωt − 1 = expm1(−ζt)·cos ωt − 2 sin²(ωt/2); critical: expm1(−t);
+    overdamped: expm1(−λt) − ½e^{−λt}(1 − e^{−2st}) with λ = 1/(ζ + s). Needed where a
+    trajectory returns close to its start: the contact end of a slow, lightly damped impact,
+    which decides capture near the critical speed.
+    """
+    t = np.broadcast_to(np.asarray(t, dtype=float), damping.zeta.shape)
+    out = np.empty(t.shape)
+    under, over, critical = damping.under, damping.over, damping.critical
+    zeta, phase = damping.zeta[under], damping.omega[under] * t[under]
+    out[under] = np.expm1(-zeta * t[under]) * np.cos(phase) - 2.0 * np.sin(0.5 * phase) ** 2
+    zeta, s, t_over = damping.zeta[over], damping.s[over], t[over]
+    rate = 1.0 / (zeta + s)
+    out[over] = np.expm1(-rate * t_over) + 0.5 * np.exp(-rate * t_over) * np.expm1(-2 * s * t_over)
+    out[critical] = np.expm1(-t[critical])
+    return out
 
 
 def combination(damping: Damping, p, q, t):

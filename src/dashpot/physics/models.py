@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import elementwise
 
 from .._validation import check_model, check_nonnegative, check_positive
-from .contact import Damping, basis, combination, derivative, first_zero
+from .contact import Damping, basis, basis_minus_one, derivative, first_zero
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
 
@@ -222,18 +222,23 @@ def _model_iia(zeta, vtilde):
 
 def _ib_excess(t, zeta, vtilde):
     """ξ(t) with gravity: η(t) − 1 where η = C + (ζ − ṽ)S is the homogeneous part ξ + 1."""
-    return combination(Damping(zeta), 1.0, zeta - vtilde, t) - 1.0
+    d = Damping(zeta)
+    # ξ = (C − 1) + (ζ − ṽ)S: near the critical speed ξ returns to ~0 at C ≈ 1, so C − 1 must
+    # keep its digits (it decides capture at |ṽ/ṽc − 1| ~ 1e-9).
+    return basis_minus_one(d, t) + (zeta - vtilde) * basis(d, t)[1]
 
 
 def _ib_excess_and_slope(t, zeta, vtilde):
     """ξ(t), ξ'(t) = −ṽC + (ζṽ − 1)S and ξ''(t) with gravity, from one evaluation of C, S."""
-    c, S = basis(Damping(zeta), t)
+    d = Damping(zeta)
+    c, S = basis(d, t)
+    offset = basis_minus_one(d, t)
     drop = (zeta - vtilde) * S
-    excess = c + drop - 1.0
+    excess = offset + drop
     slope = -vtilde * c + (zeta * vtilde - 1.0) * S
     # ξ'' = −1 − ξ − 2ζξ' from the equation of motion.
     curvature = -1.0 - excess - 2.0 * zeta * slope
-    return excess, slope, curvature, np.abs(c) + np.abs(drop) + 1.0
+    return excess, slope, curvature, np.abs(offset) + np.abs(drop)
 
 
 def _ib_bracket(zeta, vtilde):
@@ -332,20 +337,24 @@ def _iib_force(t, zeta, vtilde):
     out = np.empty(t.shape)
     d = Damping(zc)
     p, q = _iib_force_coefficients(d, vc)
-    out[~modal] = 1.0 + combination(d, p, q, tc)
+    # 1 + pC + qS = 2ζṽ + p(C − 1) + qS, since 1 + p = 2ζṽ: keeps its digits where the force
+    # touches zero at C ≈ 1 (slow, lightly damped impacts near the critical speed).
+    out[~modal] = 2.0 * zc * vc + p * basis_minus_one(d, tc) + q * basis(d, tc)[1]
     slow, fast, a, b = _eigenmodes(zm, vm)
     out[modal] = 1.0 + slow * slow * a * np.exp(-slow * tm) + fast * fast * b * np.exp(-fast * tm)
     return out
 
 
-def _force_and_slope_cs(t, zeta, p, q, slope_p, slope_q):
-    """f = 1 + pC + qS of model IIb and its slope, with precomputed coefficients (ζ < MODAL_ZETA)."""
-    c, S = basis(Damping(zeta), t)
-    spring, damper = p * c, q * S
+def _force_and_slope_cs(t, zeta, start_force, p, q, slope_p, slope_q):
+    """f = 2ζṽ + p(C − 1) + qS of model IIb, its slope and curvature (ζ < MODAL_ZETA)."""
+    d = Damping(zeta)
+    c, S = basis(d, t)
+    spring, damper = p * basis_minus_one(d, t), q * S
+    value = start_force + spring + damper
     slope = slope_p * c + slope_q * S
     # f − 1 = ξ'' solves the homogeneous equation: (f − 1)'' = −(f − 1) − 2ζ(f − 1)'.
-    curvature = -(spring + damper) - 2.0 * zeta * slope
-    return 1.0 + spring + damper, slope, curvature, 1.0 + np.abs(spring) + np.abs(damper)
+    curvature = 1.0 - value - 2.0 * zeta * slope
+    return value, slope, curvature, start_force + np.abs(spring) + np.abs(damper)
 
 
 def _force_and_slope_modal(t, slow, fast, slow_amplitude, fast_amplitude):
@@ -366,7 +375,7 @@ def _iib_release_time(zeta, vtilde, lower, upper, force_upper):
         zeta, zeta, vtilde, lower, upper, start)
     d = Damping(zc)
     p, q = _iib_force_coefficients(d, vc)
-    coefficients = (zc, p, q) + tuple(derivative(d, p, q))
+    coefficients = (zc, 2.0 * zc * vc, p, q) + tuple(derivative(d, p, q))
     tau[~modal] = _newton_in_bracket(_force_and_slope_cs, lo_c, hi_c, coefficients,
                                      increasing=False, start=st_c)
     slow, fast, a, b = _eigenmodes(zm, vm)
