@@ -104,21 +104,33 @@ def brentq_baseline(model, zeta, vtilde):
         return out
     if model == "Ib":
         lower, upper, xi_max = exact_models._ib_bracket(zeta, vtilde)
-        func = exact_models._ib_excess
         usable = xi_max > 0
     else:
         lower, upper, force_min = exact_models._iib_bracket(zeta, vtilde)
-        func = exact_models._iib_force
         usable = force_min < 0
     roots = []
     for z, v, lo, hi, ok in zip(zeta, vtilde, lower, upper, usable):
         if not ok:
             roots.append(math.inf)
             continue
-        z_, v_ = np.array([z]), np.array([v])
-        roots.append(brentq(lambda t: func(np.array([t]), z_, v_)[0], lo, hi, xtol=1e-300,
+        roots.append(brentq(_scalar_end_condition, lo, hi, args=(model, z, v), xtol=1e-300,
                             rtol=4 * np.finfo(float).eps))
     return roots
+
+
+def _scalar_end_condition(t, model, z, v):
+    """ξ(t) (Ib) or F/(mg) (IIb, hybrid) written the straightforward way, with the math module."""
+    if z < 1:
+        w = math.sqrt((1 - z) * (1 + z))
+        c, s = math.exp(-z * t) * math.cos(w * t), math.exp(-z * t) * math.sin(w * t) / w
+    elif z > 1:
+        w = math.sqrt((z - 1) * (z + 1))
+        c, s = math.exp(-z * t) * math.cosh(w * t), math.exp(-z * t) * math.sinh(w * t) / w
+    else:
+        c, s = math.exp(-t), t * math.exp(-t)
+    if model == "Ib":
+        return c + (z - v) * s - 1.0
+    return 1.0 + (2 * z * v - 1) * c + (z + v * (1 - 2 * z * z)) * s
 
 
 def solve_ivp_baseline(model, zeta, vtilde, rtol):

@@ -29,7 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["Damping", "basis", "basis_minus_one", "combination", "derivative", "first_zero"]
+__all__ = ["Damping", "basis", "combination", "derivative", "first_zero"]
 
 
 class Damping:
@@ -84,8 +84,8 @@ class Damping:
         return np.where(self.under, np.pi / np.where(self.under, self.omega, 1.0), np.inf)
 
 
-def basis(damping: Damping, t):
-    """Fundamental solutions C(t) and S(t) of x'' + 2ζx' + x = 0.
+def basis(damping: Damping, t, *, offset=False):
+    """Fundamental solutions C(t) and S(t) of x'' + 2ζx' + x = 0, and optionally C(t) − 1.
 
     Parameters
     ----------
@@ -93,74 +93,59 @@ def basis(damping: Damping, t):
         Damping ratio and its regime quantities.
     t : array_like
         Dimensionless time ω0·t >= 0, finite.
+    offset : bool, default False
+        Also return C(t) − 1 computed without cancellation (C ≈ 1 near t = 0 and t = 2π/ω,
+        where a slow, lightly damped impact ends and capture is decided).
 
     Returns
     -------
     C, S : ndarray
         C(0) = 1, C'(0) = −ζ; S(0) = 0, S'(0) = 1.
+    C_minus_one : ndarray
+        Only if `offset`.
 
     Notes
     -----
-    Overdamped: C = ½e^{−λt}(1 + e^{−2st}), S = e^{−λt}(1 − e^{−2st})/(2s) with the slow rate
-    λ = ζ − s written as 1/(ζ + s) (no cancellation at large ζ) and 1 − e^{−2st} as −expm1(−2st)
-    (no cancellation near ζ = 1⁺). Underdamped: C = e^{−ζt}cos ωt, S = e^{−ζt}sin(ωt)/ω, where
-    sin(ωt)/ω keeps full relative accuracy even for tiny ω. Critical: C = e^{−t}, S = t·e^{−t}.
-    Each regime is evaluated only on its own points.
+    Underdamped: C = e^{−ζt}cos ωt, S = e^{−ζt}sin(ωt)/ω, where sin(ωt)/ω keeps full relative
+    accuracy even for tiny ω; C − 1 = expm1(−ζt)·cos ωt − 2 sin²(ωt/2). Overdamped:
+    C = ½e^{−λt}(1 + e^{−2st}), S = e^{−λt}(1 − e^{−2st})/(2s), C − 1 = expm1(−λt) +
+    ½e^{−λt}·expm1(−2st), with the slow rate λ = ζ − s written as 1/(ζ + s) (no cancellation
+    at large ζ) and 1 − e^{−2st} as −expm1(−2st) (none near ζ = 1⁺). Critical: C = e^{−t},
+    S = t·e^{−t}, C − 1 = expm1(−t). Each regime is evaluated only on its own points.
     """
     t = np.broadcast_to(np.asarray(t, dtype=float), damping.zeta.shape)
     if damping.under.all():  # the common case in root finding: skip the masking
-        return _basis_under(damping.zeta, damping.omega, t)
-    c = np.empty(t.shape)
-    S = np.empty(t.shape)
+        values = _basis_under(damping.zeta, damping.omega, t, offset)
+        return values if offset else values[:2]
+    out = tuple(np.empty(t.shape) for _ in range(3 if offset else 2))
     under, over, critical = damping.under, damping.over, damping.critical
-    c[under], S[under] = _basis_under(damping.zeta[under], damping.omega[under], t[under])
+    for target, value in zip(out, _basis_under(damping.zeta[under], damping.omega[under],
+                                               t[under], offset)):
+        target[under] = value
     zeta, s, t_over = damping.zeta[over], damping.s[over], t[over]
-    slow = np.exp(-t_over / (zeta + s))
-    c[over] = 0.5 * slow * (1.0 + np.exp(-2.0 * s * t_over))
-    S[over] = slow * (-np.expm1(-2.0 * s * t_over)) / (2.0 * s)
+    rate_t = t_over / (zeta + s)
+    slow = np.exp(-rate_t)
+    fast_minus_one = np.expm1(-2.0 * s * t_over)
+    out[0][over] = 0.5 * slow * (2.0 + fast_minus_one)
+    out[1][over] = slow * (-fast_minus_one) / (2.0 * s)
     t_critical = t[critical]
-    c[critical] = np.exp(-t_critical)
-    S[critical] = t_critical * c[critical]
-    return c, S
+    decay = np.exp(-t_critical)
+    out[0][critical] = decay
+    out[1][critical] = t_critical * decay
+    if offset:
+        out[2][over] = np.expm1(-rate_t) + 0.5 * slow * fast_minus_one
+        out[2][critical] = np.expm1(-t_critical)
+    return out
 
 
-def _basis_under(zeta, omega, t):
+def _basis_under(zeta, omega, t, offset):
     decay = np.exp(-zeta * t)
     phase = omega * t
-    return decay * np.cos(phase), decay * np.sin(phase) / omega
-
-
-def basis_minus_one(damping: Damping, t):
-    """C(t) − 1, without the cancellation of forming C first (C ≈ 1 near t = 0 and 2π/ω).
-
-    Parameters
-    ----------
-    damping : Damping
-    t : array_like
-        Dimensionless time, finite and >= 0.
-
-    Returns
-    -------
-    ndarray
-        C(t) − 1.
-
-    Notes
-    -----
-    Underdamped: e^{−ζt}cos ωt − 1 = expm1(−ζt)·cos ωt − 2 sin²(ωt/2); critical: expm1(−t);
-    overdamped: expm1(−λt) − ½e^{−λt}(1 − e^{−2st}) with λ = 1/(ζ + s). Needed where a
-    trajectory returns close to its start: the contact end of a slow, lightly damped impact,
-    which decides capture near the critical speed.
-    """
-    t = np.broadcast_to(np.asarray(t, dtype=float), damping.zeta.shape)
-    out = np.empty(t.shape)
-    under, over, critical = damping.under, damping.over, damping.critical
-    zeta, phase = damping.zeta[under], damping.omega[under] * t[under]
-    out[under] = np.expm1(-zeta * t[under]) * np.cos(phase) - 2.0 * np.sin(0.5 * phase) ** 2
-    zeta, s, t_over = damping.zeta[over], damping.s[over], t[over]
-    rate = 1.0 / (zeta + s)
-    out[over] = np.expm1(-rate * t_over) + 0.5 * np.exp(-rate * t_over) * np.expm1(-2 * s * t_over)
-    out[critical] = np.expm1(-t[critical])
-    return out
+    cosine = np.cos(phase)
+    values = (decay * cosine, decay * np.sin(phase) / omega)
+    if offset:
+        values += (np.expm1(-zeta * t) * cosine - 2.0 * np.sin(0.5 * phase) ** 2,)
+    return values
 
 
 def combination(damping: Damping, p, q, t):

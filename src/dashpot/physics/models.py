@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import elementwise
 
 from .._validation import check_model, check_nonnegative, check_positive
-from .contact import Damping, basis, basis_minus_one, derivative, first_zero
+from .contact import Damping, basis, derivative, first_zero
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
 
@@ -225,14 +225,14 @@ def _ib_excess(t, zeta, vtilde):
     d = Damping(zeta)
     # ξ = (C − 1) + (ζ − ṽ)S: near the critical speed ξ returns to ~0 at C ≈ 1, so C − 1 must
     # keep its digits (it decides capture at |ṽ/ṽc − 1| ~ 1e-9).
-    return basis_minus_one(d, t) + (zeta - vtilde) * basis(d, t)[1]
+    _, S, offset = basis(d, t, offset=True)
+    return offset + (zeta - vtilde) * S
 
 
 def _ib_excess_and_slope(t, zeta, vtilde):
     """ξ(t), ξ'(t) = −ṽC + (ζṽ − 1)S and ξ''(t) with gravity, from one evaluation of C, S."""
     d = Damping(zeta)
-    c, S = basis(d, t)
-    offset = basis_minus_one(d, t)
+    c, S, offset = basis(d, t, offset=True)
     drop = (zeta - vtilde) * S
     excess = offset + drop
     slope = -vtilde * c + (zeta * vtilde - 1.0) * S
@@ -324,32 +324,15 @@ def _eigenmodes(zeta, vtilde):
     return slow, fast, (fast - vtilde) / (2.0 * s), (vtilde - slow) / (2.0 * s)
 
 
-def _split(zeta, *arrays):
-    """Mask of points evaluated in eigenmodes, and the arrays restricted to each side."""
-    modal = zeta >= MODAL_ZETA
-    return modal, [a[modal] for a in arrays], [a[~modal] for a in arrays]
-
-
-def _iib_force(t, zeta, vtilde):
-    """f(t) = F/(mg) of model IIb (gravity on): 1 + ξ''(t)."""
-    t, zeta, vtilde = np.broadcast_arrays(t, zeta, vtilde)
-    modal, (tm, zm, vm), (tc, zc, vc) = _split(zeta, t, zeta, vtilde)
-    out = np.empty(t.shape)
-    d = Damping(zc)
-    p, q = _iib_force_coefficients(d, vc)
-    # 1 + pC + qS = 2ζṽ + p(C − 1) + qS, since 1 + p = 2ζṽ: keeps its digits where the force
-    # touches zero at C ≈ 1 (slow, lightly damped impacts near the critical speed).
-    out[~modal] = 2.0 * zc * vc + p * basis_minus_one(d, tc) + q * basis(d, tc)[1]
-    slow, fast, a, b = _eigenmodes(zm, vm)
-    out[modal] = 1.0 + slow * slow * a * np.exp(-slow * tm) + fast * fast * b * np.exp(-fast * tm)
-    return out
-
-
 def _force_and_slope_cs(t, zeta, start_force, p, q, slope_p, slope_q):
-    """f = 2ζṽ + p(C − 1) + qS of model IIb, its slope and curvature (ζ < MODAL_ZETA)."""
+    """f = 2ζṽ + p(C − 1) + qS of model IIb, its slope, curvature and rounding scale.
+
+    Written with C − 1 (1 + p = 2ζṽ) so that f keeps its digits where it touches zero at C ≈ 1
+    (slow, lightly damped impacts near the critical speed). For ζ < MODAL_ZETA.
+    """
     d = Damping(zeta)
-    c, S = basis(d, t)
-    spring, damper = p * basis_minus_one(d, t), q * S
+    c, S, offset = basis(d, t, offset=True)
+    spring, damper = p * offset, q * S
     value = start_force + spring + damper
     slope = slope_p * c + slope_q * S
     # f − 1 = ξ'' solves the homogeneous equation: (f − 1)'' = −(f − 1) − 2ζ(f − 1)'.
@@ -358,7 +341,7 @@ def _force_and_slope_cs(t, zeta, start_force, p, q, slope_p, slope_q):
 
 
 def _force_and_slope_modal(t, slow, fast, slow_amplitude, fast_amplitude):
-    """f = 1 + A·e^{−λs·t} + B·e^{−λf·t} of model IIb and its slope (ζ >= MODAL_ZETA)."""
+    """f = 1 + A·e^{−λs·t} + B·e^{−λf·t} of model IIb and its derivatives (ζ >= MODAL_ZETA)."""
     slow_part = slow_amplitude * np.exp(-slow * t)
     fast_part = fast_amplitude * np.exp(-fast * t)
     return (1.0 + slow_part + fast_part, -slow * slow_part - fast * fast_part,
@@ -366,88 +349,120 @@ def _force_and_slope_modal(t, slow, fast, slow_amplitude, fast_amplitude):
             1.0 + np.abs(slow_part) + np.abs(fast_part))
 
 
-def _iib_release_time(zeta, vtilde, lower, upper, force_upper):
-    """Release time of IIb in its bracket: Newton's method per regime, coefficients hoisted."""
-    start = _start_guess(lower, upper, _iib_force(lower, zeta, vtilde), force_upper,
-                         _iia_contact_time(Damping(zeta)), vtilde)
-    tau = np.empty(zeta.shape)
-    modal, (zm, vm, lo_m, hi_m, st_m), (zc, vc, lo_c, hi_c, st_c) = _split(
-        zeta, zeta, vtilde, lower, upper, start)
-    d = Damping(zc)
-    p, q = _iib_force_coefficients(d, vc)
-    coefficients = (zc, 2.0 * zc * vc, p, q) + tuple(derivative(d, p, q))
-    tau[~modal] = _newton_in_bracket(_force_and_slope_cs, lo_c, hi_c, coefficients,
-                                     increasing=False, start=st_c)
-    slow, fast, a, b = _eigenmodes(zm, vm)
-    modes = (slow, fast, slow * slow * a, fast * fast * b)
-    tau[modal] = _newton_in_bracket(_force_and_slope_modal, lo_m, hi_m, modes, increasing=False,
-                                    start=st_m)
-    return tau
-
-
-def _eta_slope(t, zeta, vtilde):
-    """ξ'(t) with gravity: −ṽC + (ζṽ − 1)S, or −λs·a·e^{−λs·t} − λf·b·e^{−λf·t}."""
-    modal, (tm, zm, vm), (tc, zc, vc) = _split(zeta, t, zeta, vtilde)
-    out = np.empty(t.shape)
-    c, S = basis(Damping(zc), tc)
-    out[~modal] = -vc * c + (zc * vc - 1.0) * S
-    slow, fast, a, b = _eigenmodes(zm, vm)
-    out[modal] = -slow * a * np.exp(-slow * tm) - fast * b * np.exp(-fast * tm)
-    return out
-
-
-def _iib_bracket(zeta, vtilde):
-    """Bracket [t_lo, t_hi] of IIb's release root and the force minimum f(t_hi).
+def _iib_cs(zeta, vtilde):
+    """Bracket and force evaluator of IIb for ζ < MODAL_ZETA (C, S form).
 
     The force first rises or falls (sign of f'(0), or of the next coefficient where f'(0) = 0);
     its first minimum follows the first maximum by half a damped period, or is the first
     extremum itself. Between them f is monotone, and later minima are shallower (the
     oscillation decays), so the ball is released iff f(t_hi) < 0. A critically or over-damped
-    force has at most one extremum: if it rises first it never returns below its start value
-    2ζṽ > 0; if it falls first its minimum is at e^{2st} = −λf³b/(λs³a) (eigenmode form).
+    force has at most one extremum: if it rises first it never returns below f(0) = 2ζṽ > 0.
 
     Returns
     -------
     t_lo, t_hi : ndarray
-    force_min : ndarray
-        f(t_hi), or min(f(0), 1) = min(2ζṽ, 1) where there is no minimum.
+        Bracket of the release (t_hi = inf where there is no force minimum).
+    evaluate : callable
+        ``evaluate(t, mask)`` -> (f, f', f'', scale) at times `t` of the points in `mask`.
+    args : tuple
+        Per-point coefficients for ``_force_and_slope_cs``.
     """
-    modal, (zm, vm), (zc, vc) = _split(zeta, zeta, vtilde)
-    t_lo = np.zeros(zeta.shape)
-    t_hi = np.empty(zeta.shape)
-    d = Damping(zc)
-    p, q = _iib_force_coefficients(d, vc)
+    d = Damping(zeta)
+    p, q = _iib_force_coefficients(d, vtilde)
     slope_p, slope_q = derivative(d, p, q)
     falls_first = (slope_p < 0.0) | ((slope_p == 0.0) & (slope_q < 0.0))
     t_first = first_zero(d, slope_p, slope_q)
-    t_lo[~modal] = np.where(falls_first, 0.0, t_first)
-    t_hi[~modal] = np.where(falls_first, t_first, t_first + d.half_period)
-    slow, fast, a, b = _eigenmodes(zm, vm)
+    t_lo = np.where(falls_first, 0.0, t_first)
+    t_hi = np.where(falls_first, t_first, t_first + d.half_period)
+    return t_lo, t_hi, _force_and_slope_cs, (zeta, 2.0 * zeta * vtilde, p, q, slope_p, slope_q)
+
+
+def _iib_modal(zeta, vtilde):
+    """Bracket and force evaluator of IIb for ζ >= MODAL_ZETA (eigenmode form).
+
+    The force has at most one extremum; if it falls first, its minimum is at
+    e^{2st} = −λf³b/(λs³a), which needs a and b of opposite signs. See :func:`_iib_cs`.
+    """
+    slow, fast, a, b = _eigenmodes(zeta, vtilde)
     falls_first = slow**3 * a + fast**3 * b > 0.0
     opposite = falls_first & ((a < 0.0) != (b < 0.0)) & (a != 0.0) & (b != 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         t_min = (np.log(np.abs(b)) - np.log(np.abs(a)) + 6.0 * np.log(fast)) / (fast - slow)
-    t_hi[modal] = np.where(opposite & (t_min > 0.0), t_min, np.inf)
-    finite = np.isfinite(t_hi)
+    t_hi = np.where(opposite & (t_min > 0.0), t_min, np.inf)
+    return (np.zeros(zeta.shape), t_hi, _force_and_slope_modal,
+            (slow, fast, slow * slow * a, fast * fast * b))
+
+
+def _iib_release(zeta, vtilde, *, solve=True):
+    """Bracket, force minimum and (if `solve`) release time of IIb, by regime.
+
+    Returns
+    -------
+    t_lo, t_hi : ndarray
+        Bracket of the release root.
+    force_min : ndarray
+        f(t_hi), or min(f(0), 1) = min(2ζṽ, 1) where the force has no minimum; the ball is
+        released iff it is negative.
+    tau : ndarray
+        Release time where released, inf elsewhere (only computed if `solve`).
+    """
+    modal = zeta >= MODAL_ZETA
+    t_lo, t_hi = np.zeros(zeta.shape), np.full(zeta.shape, np.inf)
     force_min = np.minimum(2.0 * zeta * vtilde, 1.0)
-    force_min[finite] = _iib_force(t_hi[finite], zeta[finite], vtilde[finite])
+    tau = np.full(zeta.shape, np.inf)
+    for group, regime in ((~modal, _iib_cs), (modal, _iib_modal)):
+        if not group.any():
+            continue
+        idx = np.flatnonzero(group)
+        lo, hi, evaluate, args = regime(zeta[idx], vtilde[idx])
+        t_lo[idx], t_hi[idx] = lo, hi
+        finite = np.isfinite(hi)
+        # One call evaluates f at both ends (the start guess needs f(t_lo)).
+        ends = np.concatenate([lo[finite], hi[finite]])
+        values = evaluate(ends, *(np.tile(a[finite], 2) for a in args))[0]
+        f_lo, f_hi = np.split(values, 2)
+        force_min[idx[finite]] = f_hi
+        if not solve:
+            continue
+        released = f_hi < 0.0
+        keep = np.flatnonzero(finite)[released]
+        lo_r, hi_r = lo[keep], hi[keep]
+        start = _start_guess(lo_r, hi_r, f_lo[released], f_hi[released],
+                             _iia_contact_time(Damping(zeta[idx[keep]])), vtilde[idx[keep]])
+        tau[idx[keep]] = _newton_in_bracket(evaluate, lo_r, hi_r, tuple(a[keep] for a in args),
+                                            increasing=False, start=start)
+    return t_lo, t_hi, force_min, tau
+
+
+def _iib_bracket(zeta, vtilde):
+    """Bracket [t_lo, t_hi] of IIb's release root and the force minimum f(t_hi)."""
+    t_lo, t_hi, force_min, _ = _iib_release(zeta, vtilde, solve=False)
     return t_lo, t_hi, force_min
+
+
+def _eta_slope(t, zeta, vtilde):
+    """ξ'(t) with gravity: −ṽC + (ζṽ − 1)S, or −λs·a·e^{−λs·t} − λf·b·e^{−λf·t}."""
+    modal = zeta >= MODAL_ZETA
+    out = np.empty(t.shape)
+    cs = ~modal
+    c, S = basis(Damping(zeta[cs]), t[cs])
+    out[cs] = -vtilde[cs] * c + (zeta[cs] * vtilde[cs] - 1.0) * S
+    slow, fast, a, b = _eigenmodes(zeta[modal], vtilde[modal])
+    out[modal] = -slow * a * np.exp(-slow * t[modal]) - fast * b * np.exp(-fast * t[modal])
+    return out
 
 
 def _release_state(zeta, vtilde):
     """IIb's release: (released mask, τ, release speed vf, 1 − vf/ṽ), vf = ξ'(τ) at F = 0."""
-    t_lo, t_hi, force_min = _iib_bracket(zeta, vtilde)
+    _, _, force_min, tau = _iib_release(zeta, vtilde)
     released = force_min < 0.0
-    tau = np.full(zeta.shape, np.inf)
-    tau[released] = _iib_release_time(zeta[released], vtilde[released], t_lo[released],
-                                      t_hi[released], force_min[released])
     z, v, t = zeta[released], vtilde[released], tau[released]
     vf = _eta_slope(t, z, v)
     # ṽ − vf from the decay of P: at F = 0, ξ = −2ζξ' makes P(τ) = vf² − 2ζvf + 1, so
     # (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ}). Used where the second factor keeps its digits;
     # there it also gives vf, better than ξ'(τ) where ε > ½ or ṽ²ε < 4 (see _model_ib).
     dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    for _ in range(3):
+    for _ in range(2):
         denominator = v + vf - 2.0 * z
         usable = denominator > 0.5 * (v + vf)
         relative = dissipated / np.where(usable, denominator, 1.0)
