@@ -173,6 +173,31 @@ def _start_guess(lower, upper, value_lower, value_upper, gravity_free_time, vtil
     return np.where(fast, gravity_free_time, lower + np.clip(phase, 0.05, 0.95) * (upper - lower))
 
 
+def _from_invariant(eps, vtilde):
+    """Where the restitution from the decay of the invariant beats the rebound slope ξ'(τ)."""
+    return (eps > 0.5) | (vtilde * eps < 4.0 / vtilde)
+
+
+def _invariant_restitution(zeta, vtilde, tau, *, above=None):
+    """ε from w² − 2ζσw = X/ṽ²·ṽ², the decay of the quadratic invariant over the contact.
+
+    With Y = X/ṽ² = (1 − 2ζ/ṽ)e^{−2ζτ} + expm1(−2ζτ)/ṽ² and a = ζ/ṽ: for the models ending at
+    ξ = 0 (σ = −1, Ib), ε = Y/(a + √(a² + Y)); for release at F = 0 (σ = +1, IIb) the
+    invariant there is vf² − 2ζvf + 1, so ε = a + √(a² + Y), or, where Y < 0 leaves two
+    positive roots, the smaller −Y/(a + √(a² + Y)) unless `above` says the rebound is faster
+    than ζ. Written without cancellation except the one inherent in Y near capture.
+    """
+    decay = np.exp(-2.0 * zeta * tau)
+    ratio = zeta / vtilde
+    y = (1.0 - 2.0 * ratio) * decay + np.expm1(-2.0 * zeta * tau) / vtilde / vtilde
+    root = np.sqrt(np.maximum(ratio * ratio + y, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        smaller = np.where(ratio + root > 0.0, y / (ratio + root), 0.0)
+    if above is None:
+        return np.maximum(smaller, 0.0)
+    return np.where((y >= 0.0) | above, ratio + root, -smaller)
+
+
 def _stable_p0_over_v(zeta, omega2, vtilde):
     """(ṽ² − 2ζṽ + 1)/ṽ = ((ṽ − ζ)² + 1 − ζ²)/ṽ, without overflow or cancellation."""
     shifted = vtilde - zeta
@@ -275,19 +300,18 @@ def _model_ib(zeta, vtilde):
     dr = Damping(z)
     c, S = basis(dr, t)
     # ε = ξ'(τ)/ṽ with ξ' = −ṽC + (ζṽ − 1)S; clip the last ulp of a near-tangent return.
-    e = np.maximum(-c + z * S - S / v, 0.0)
-    # 1 − ε from the decay of P = η'² + 2ζηη' + η² (P(τ) = P(0)e^{−2ζτ}), with η = 1 at both
-    # ends: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms positive: no cancellation,
-    # and hardly sensitive to the last ulp of τ. ξ'(τ) is: its error is |ξ''|·δτ with
-    # δτ ~ ulp/ξ'(τ), i.e. relative ~ulp/(ṽ²ε²), against ~ulp/ε for 1 − (1 − ε). So ε is taken
-    # from the invariant where ε > ½ or ṽ²ε < 4; two fixed-point passes settle the 1 + ε.
+    direct = np.maximum(-c + z * S - S / v, 0.0)
+    # The quadratic invariant P = η'² + 2ζηη' + η² of the homogeneous part η = ξ + 1 decays as
+    # P(τ) = P(0)e^{−2ζτ}. With η = 1 at both ends, w = ṽε solves w² + 2ζw = X with
+    # X = ṽ(ṽ − 2ζ)e^{−2ζτ} + expm1(−2ζτ): hardly sensitive to the last ulp of τ, unlike
+    # ξ'(τ), whose error |ξ''|·δτ with δτ ~ ulp/ξ'(τ) is ~ulp/(ṽ²ε²) relative. Taken where
+    # ε > ½ or ṽ²ε < 4 (slow impacts); scaled by ṽ² so that nothing overflows.
+    e = np.where(_from_invariant(direct, v), _invariant_restitution(z, v, t), direct)
+    # 1 − ε from the same decay: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms
+    # are positive: no cancellation for nearly elastic balls.
     dissipated = _stable_p0_over_v(z, -dr.s2, v) * (-np.expm1(-2.0 * z * t))
     deficit = (2.0 * z + dissipated / (1.0 + e)) / v
-    for _ in range(2):
-        from_invariant = (deficit < 0.5) | (v * e < 4.0 / v)
-        e = np.where(from_invariant, 1.0 - deficit, e)
-        deficit = (2.0 * z + dissipated / (1.0 + e)) / v
-    eps[rebound] = np.where(from_invariant, 1.0 - deficit, e)
+    eps[rebound] = e
     one_minus[rebound] = deficit
     return dict(eps=eps, one_minus_eps=one_minus, contact_time=tau, captured=~rebound,
                 release_depth=np.where(rebound, 0.0, -1.0), release_speed=eps * vtilde)
@@ -458,17 +482,16 @@ def _release_state(zeta, vtilde):
     released = force_min < 0.0
     z, v, t = zeta[released], vtilde[released], tau[released]
     vf = _eta_slope(t, z, v)
-    # ṽ − vf from the decay of P: at F = 0, ξ = −2ζξ' makes P(τ) = vf² − 2ζvf + 1, so
-    # (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ}). Used where the second factor keeps its digits;
-    # there it also gives vf, better than ξ'(τ) where ε > ½ or ṽ²ε < 4 (see _model_ib).
+    # At F = 0, ξ = −2ζξ' makes the invariant P(τ) = vf² − 2ζvf + 1: vf follows from its decay
+    # where that beats ξ'(τ) (see _model_ib), and (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ})
+    # gives 1 − ε where the second factor keeps its digits.
     dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    for _ in range(2):
-        denominator = v + vf - 2.0 * z
-        usable = denominator > 0.5 * (v + vf)
-        relative = dissipated / np.where(usable, denominator, 1.0)
-        deficit_ = np.where(usable, relative, 1.0 - vf / v)
-        better = usable & ((deficit_ < 0.5) | (vf < 4.0 / v))
-        vf = np.where(better, v * (1.0 - deficit_), vf)
+    from_invariant = _from_invariant(vf / v, v)
+    vf = np.where(from_invariant, v * _invariant_restitution(z, v, t, above=vf > z), vf)
+    denominator = v + vf - 2.0 * z
+    usable = denominator > 0.5 * (v + vf)
+    relative = dissipated / np.where(usable, denominator, 1.0)
+    deficit_ = np.where(usable, relative, 1.0 - vf / v)
     speed = np.zeros(zeta.shape)
     speed[released] = vf
     deficit = np.full(zeta.shape, np.nan)
