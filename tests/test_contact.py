@@ -50,3 +50,28 @@ def test_first_zero_is_first(zeta, p, q):
     grid = np.linspace(0.0, t0, 2001)[1:-1]
     values = combination(Damping(np.full(grid.size, zeta)), p, q, grid)
     assert np.all(np.sign(values) == np.sign(values[0]))
+
+
+@pytest.mark.parametrize("zeta", ZETAS)
+def test_basis_minus_one_keeps_its_digits(zeta):
+    """C − 1 near t = 0 and near a full damped period, where C ≈ 1, to relative accuracy."""
+    d = Damping(np.array([zeta]))
+    period = 2 * np.pi / d.omega[0] if d.under[0] else 1.0
+    times = [1e-9, 1e-4, 0.3, period * (1 - 1e-5), period * (1 - 1e-3), period]
+    for t in times:
+        c, S, offset = basis(Damping(np.array([zeta])), np.array([t]), offset=True)
+        with mp.workdps(60):
+            c_ref = mp.mpf(_mp_basis_exact(zeta, t))
+            reference = float(c_ref - 1)
+        # Relative to the size of C − 1, up to the rounding of the phase ωt itself.
+        phase_rounding = 4e-16 * t * abs(float(S[0])) + 1e-300
+        assert offset[0] == pytest.approx(reference, rel=4e-15, abs=phase_rounding)
+        assert c[0] == pytest.approx(1 + reference, rel=1e-15)
+
+
+def _mp_basis_exact(zeta, t):
+    """C(t) at 60 digits (mpf), for differences with 1."""
+    with mp.workdps(60):
+        z, t = mp.mpf(zeta), mp.mpf(t)
+        s = mp.sqrt(mp.mpc(z * z - 1))
+        return mp.re(mp.exp(-z * t) * mp.cosh(s * t))
