@@ -1,0 +1,149 @@
+"""From a table of impacts to a table of bounces: intervals, rebound speeds, per-bounce ε.
+
+Missed and spurious impacts are detected from the physics of a bouncing ball: successive
+intervals shrink roughly geometrically, T_{n+1} ≈ r·T_n with r ≈ ε slowly varying. An interval
+about (1 + r) times longer than predicted hides a missed impact (seen in real phyphox exports);
+an interval split in two parts that add up to the prediction contains a spurious one. Flagged
+rows stay in the table: nothing is dropped silently.
+
+References
+----------
+.. [1] A. D. Bernstein, "Listening to the coefficient of restitution", Am. J. Phys. 45, 41-44
+   (1977): ε from successive flight times, v = g·T/2.
+.. [2] I. Stensgaard and E. Lægsgaard, "Listening to the coefficient of restitution —
+   revisited", Am. J. Phys. 69, 301-305 (2001): the contact duration and the time origin.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ._validation import check_nonnegative, check_positive
+
+__all__ = ["bounce_table", "BOUNCE_COLUMNS"]
+
+BOUNCE_COLUMNS = ("bounce", "start_time", "interval", "interval_uncertainty", "rebound_speed",
+                  "rebound_speed_uncertainty", "restitution", "restitution_uncertainty", "flag")
+
+# A ratio of consecutive intervals this far from the local trend (relative, beyond the timing
+# noise) is not a normal bounce. Real balls change ε by a few % between bounces.
+TREND_TOLERANCE = 0.12
+TREND_WINDOW = 7  # bounces in the running median of interval ratios
+
+
+def _local_ratio(ratios):
+    """Running median of the interval ratios, robust to the outliers it is meant to expose."""
+    series = pd.Series(ratios)
+    first = series.rolling(TREND_WINDOW, center=True, min_periods=1).median()
+    typical = (series / first - 1.0).abs() < 2 * TREND_TOLERANCE
+    second = series.where(typical).rolling(TREND_WINDOW, center=True, min_periods=1).median()
+    return second.fillna(first).to_numpy()
+
+
+def bounce_table(impacts, *, g, contact_duration=0.0):
+    """Intervals, rebound speeds and per-bounce restitution from an impact table.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest` (columns ``time`` and ``time_uncertainty`` in s),
+        sorted by time, at least three impacts.
+    g : float
+        Acceleration pulling the ball back to the surface in m/s² (g·sin θ on an incline).
+    contact_duration : float, default 0
+        Contact duration in s where the scene knows it; subtracted from each interval before
+        the flight-time speed estimate.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per interval n (impact n to n + 1), columns ``BOUNCE_COLUMNS``: ``bounce`` n,
+        ``start_time`` (s), ``interval`` T_n (s) and its 1σ uncertainty, ``rebound_speed``
+        g·(T_n − τ_c)/2 (m/s) and its uncertainty, ``restitution`` T_{n+1}/T_n (NaN for the
+        last interval) and its uncertainty, and ``flag``: "ok", "missed" (an impact is missing
+        inside this interval), "spurious" (this interval ends or starts at an impact that is
+        not one), "irregular" (off the trend for another reason). ``attrs`` hold the notes.
+
+    Notes
+    -----
+    Flight time T = τ_c + 2v/g gives v = g(T − τ_c)/2 [1]_ [2]_; the ratio of successive
+    flight times estimates ε of the impact between them. Uncertainties are propagated from the
+    impact times, with the shared middle impact of a ratio taken into account:
+    σ_r² = (σ_{n+2}² + r²σ_n² + (1 + r)²σ_{n+1}²)/T_n².
+    """
+    g = float(check_positive("g", g))
+    contact_duration = float(check_nonnegative("contact_duration", contact_duration))
+    times = np.asarray(impacts["time"], dtype=float)
+    if times.size < 3:
+        raise ValueError(f"a bounce table needs at least three impacts; got {times.size}")
+    if np.any(np.diff(times) <= 0):
+        raise ValueError("impact times must increase strictly")
+    if "time_uncertainty" in impacts:
+        sigma = np.asarray(impacts["time_uncertainty"], dtype=float)
+        sigma = np.where(np.isfinite(sigma), sigma, 0.0)
+    else:
+        sigma = np.zeros(times.size)
+    intervals = np.diff(times)
+    interval_sigma = np.hypot(sigma[:-1], sigma[1:])
+    ratio = intervals[1:] / intervals[:-1]
+    ratio_sigma = np.sqrt(sigma[2:] ** 2 + (ratio * sigma[:-2]) ** 2
+                          + ((1 + ratio) * sigma[1:-1]) ** 2) / intervals[:-1]
+
+    flags = _flag_intervals(intervals, ratio, ratio_sigma)
+    table = pd.DataFrame({
+        "bounce": np.arange(intervals.size),
+        "start_time": times[:-1],
+        "interval": intervals,
+        "interval_uncertainty": interval_sigma,
+        "rebound_speed": 0.5 * g * (intervals - contact_duration),
+        "rebound_speed_uncertainty": 0.5 * g * interval_sigma,
+        "restitution": np.append(ratio, np.nan),
+        "restitution_uncertainty": np.append(ratio_sigma, np.nan),
+        "flag": flags,
+    })
+    counts = pd.Series(flags).value_counts()
+    table.attrs["notes"] = [
+        f"{counts.get('missed', 0)} interval(s) hide a missed impact, "
+        f"{counts.get('spurious', 0)} involve a spurious one, "
+        f"{counts.get('irregular', 0)} are off the geometric trend otherwise; flagged rows kept",
+        "rebound speed from the flight time g(T - contact)/2 with contact duration "
+        f"{contact_duration:g} s",
+    ]
+    return table
+
+
+def _flag_intervals(intervals, ratio, ratio_sigma):
+    """Classify each interval against the local geometric trend of the intervals.
+
+    ``ratio[k]`` = T_{k+1}/T_k judges interval k + 1 against the prediction T_k·r.
+    """
+    n = intervals.size
+    flags = np.full(n, "ok", dtype=object)
+    if n < 3:
+        return flags
+    trend = _local_ratio(ratio)
+    tolerance = TREND_TOLERANCE + 3 * ratio_sigma / np.maximum(trend, 1e-12)
+    deviation = ratio / trend - 1.0
+    # About (1 + r) times longer than predicted: an impact was missed inside the interval.
+    missed = (np.abs(ratio / (trend * (1.0 + trend)) - 1.0) < tolerance) & (deviation > tolerance)
+    after_missed = np.zeros(ratio.size, bool)
+    after_missed[1:] = missed[:-1]
+    missed &= ~after_missed
+    after_missed[1:] = missed[:-1]
+    # A spurious impact splits interval k+1 into two parts adding up to T_k·r (judged only
+    # after a normal interval: after a merged one every interval looks short).
+    pair_sum = np.append((intervals[1:-1] + intervals[2:]) / intervals[:-2], np.nan)
+    split = np.abs(pair_sum / trend - 1.0) < tolerance
+    spurious_start = (deviation < -tolerance) & split & ~after_missed & ~missed
+    following = np.zeros(n, bool)
+    following[2:] = spurious_start[:-1]
+    flags[1:][missed] = "missed"
+    flags[1:][spurious_start] = "spurious"
+    flags[following] = "spurious"
+    # The ratio after an off-trend interval is off-trend too: blame the first one only.
+    after_flag = np.zeros(ratio.size, bool)
+    after_flag[1:] = (flags[1:-1] != "ok") | spurious_start[:-1]
+    irregular = (np.abs(deviation) > tolerance) & (flags[1:] == "ok") & ~after_flag
+    flags[1:][irregular] = "irregular"
+    return flags
