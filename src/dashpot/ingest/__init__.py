@@ -22,3 +22,65 @@ column                 unit    meaning
 
 IMPACT_COLUMNS = ("time", "time_uncertainty", "amplitude", "impact_speed", "rebound_speed",
                   "speed_uncertainty", "run")
+
+from pathlib import Path
+
+from ..errors import InputError
+
+AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".oga")
+KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
+
+
+def read_impacts(path, *, kind=None, flag_length=None, unit=None, bumper_position=None):
+    """Impact table of any supported recording, choosing the reader from the file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Audio recording (WAV, FLAC, OGG) or lab table (CSV/TSV/semicolon text, .xlsx).
+    kind : {"audio", "phyphox", "timestamps", "motion_sensor", "photogate"}, optional
+        Reader to use; by default audio from the file suffix, tables by their headers.
+    flag_length : float, optional
+        Length of the flag interrupting a photogate, in m (required for photogate logs).
+    unit : {"s", "ms"}, optional
+        Time unit of a timestamp table, where its header does not say.
+    bumper_position : float, optional
+        Position of the bumper in m for motion-sensor exports (else inferred).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The impact table described in this module's docstring.
+
+    Raises
+    ------
+    InputError
+        The file does not exist, is not a supported recording, or its content is unusable.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    if kind is None:
+        if path.suffix.lower() in AUDIO_SUFFIXES:
+            kind = "audio"
+        else:
+            from .tables import sniff_table
+
+            kind = sniff_table(path)
+    if kind not in KINDS:
+        raise InputError(path, f"unknown kind {kind!r}; use one of {', '.join(KINDS)}")
+    if kind == "audio":
+        from .audio import detect_impacts
+
+        return detect_impacts(path)
+    from . import tables
+
+    if kind == "phyphox":
+        return tables.read_phyphox(path)
+    if kind == "timestamps":
+        return tables.read_timestamps(path, unit=unit)
+    if kind == "motion_sensor":
+        return tables.read_motion_sensor(path, bumper_position=bumper_position)
+    if flag_length is None:
+        raise InputError(path, "a photogate log needs the flag length (--flag-length, in m)")
+    return tables.read_photogate(path, flag_length=flag_length)

@@ -125,17 +125,17 @@ def _halley_in_bracket(value_and_slope, lower, upper, args, *, increasing, start
     start : ndarray
         First iterate, inside the bracket.
     """
-    lower, upper = lower.copy(), upper.copy()
     root = start.copy()
+    # The working set shrinks as points converge; it is compacted once per iteration rather
+    # than gathered from the full arrays.
     active = np.arange(root.size)
+    t, lo, hi = start, lower, upper
     sign = 1.0 if increasing else -1.0
     tiny = np.finfo(float).eps
     for _ in range(max_iter):
         if active.size == 0:
             break
-        t = root[active]
-        lo, hi = lower[active], upper[active]
-        value, slope, curvature, third, scale = value_and_slope(t, *(a[active] for a in args))
+        value, slope, curvature, third, scale = value_and_slope(t, *args)
         value, slope, curvature, third = sign * value, sign * slope, sign * curvature, sign * third
         below = value < 0.0
         lo = np.where(below, t, lo)
@@ -156,11 +156,14 @@ def _halley_in_bracket(value_and_slope, lower, upper, args, *, increasing, start
         converged = ((np.abs(value) <= 4.0 * tiny * scale)
                      | (np.abs(step) <= 4.0 * tiny * np.abs(t))
                      | (inside & (remaining <= tiny * np.abs(candidate))))
-        root[active] = np.where(converged, np.where(value == 0.0, t, candidate),
-                                np.where(inside, candidate, 0.5 * (lo + hi)))
-        lower[active], upper[active] = lo, hi
+        new = np.where(converged, np.where(value == 0.0, t, candidate),
+                       np.where(inside, candidate, 0.5 * (lo + hi)))
         done = converged | (hi - lo <= 4.0 * tiny * np.abs(t))
-        active = active[~done]
+        root[active[done]] = new[done]
+        keep = ~done
+        active, t, lo, hi = active[keep], new[keep], lo[keep], hi[keep]
+        args = tuple(a[keep] for a in args)
+    root[active] = t
     return root
 
 
