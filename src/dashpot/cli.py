@@ -33,7 +33,8 @@ def _impacts(args):
     from .ingest import read_impacts
 
     table = read_impacts(args.recording, kind=args.kind, flag_length=args.flag_length,
-                         unit=args.unit, bumper_position=args.bumper_position)
+                         gate_distance=args.gate_distance, unit=args.unit,
+                         bumper_position=args.bumper_position)
     _write_csv_atomically(table, args.output, [args.recording])
     notes = "; ".join(table.attrs.get("notes", []))
     print(f"{args.recording}: {len(table)} impacts -> {args.output}" + (f" ({notes})" if notes
@@ -69,6 +70,8 @@ def build_parser():
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
                                             "photogate"], help="reader (default: detected)")
     impacts.add_argument("--flag-length", type=float, help="photogate flag length in m")
+    impacts.add_argument("--gate-distance", type=float,
+                         help="photogate distance from the bumper in m (exact impact times)")
     impacts.add_argument("--unit", choices=["s", "ms"], help="time unit of a timestamp table")
     impacts.add_argument("--bumper-position", type=float,
                          help="bumper position in m (motion sensor; default inferred)")

@@ -31,7 +31,8 @@ AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".oga")
 KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
 
 
-def read_impacts(path, *, kind=None, flag_length=None, unit=None, bumper_position=None):
+def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=None,
+                 bumper_position=None):
     """Impact table of any supported recording, choosing the reader from the file.
 
     Parameters
@@ -42,6 +43,8 @@ def read_impacts(path, *, kind=None, flag_length=None, unit=None, bumper_positio
         Reader to use; by default audio from the file suffix, tables by their headers.
     flag_length : float, optional
         Length of the flag interrupting a photogate, in m (required for photogate logs).
+    gate_distance : float, optional
+        Distance from the photogate to the bumper in m (times photogate impacts exactly).
     unit : {"s", "ms"}, optional
         Time unit of a timestamp table, where its header does not say.
     bumper_position : float, optional
@@ -83,4 +86,4 @@ def read_impacts(path, *, kind=None, flag_length=None, unit=None, bumper_positio
         return tables.read_motion_sensor(path, bumper_position=bumper_position)
     if flag_length is None:
         raise InputError(path, "a photogate log needs the flag length (--flag-length, in m)")
-    return tables.read_photogate(path, flag_length=flag_length)
+    return tables.read_photogate(path, flag_length=flag_length, gate_distance=gate_distance)

@@ -277,7 +277,7 @@ def _load_tables(path):
     return [_text_table(path, raw, None)]
 
 
-def _numbers(path, table, index, *, what, allow_missing=False):
+def _numbers(path, table, index, *, what):
     """Float values of column `index` and the resolution of the written digits.
 
     Empty cells and 'NaN' become NaN (callers decide what they mean); any other text raises
@@ -324,12 +324,14 @@ def _check_times(path, table, times, rows, what="time", unit=" s"):
     negative = times < 0
     if negative.any():
         k = int(np.flatnonzero(negative)[0])
-        raise InputError(path, f"{where}{what} {times[k]:g}{unit} is negative", row=int(rows[k]) + 1)
+        raise InputError(path, f"{where}{what} {times[k]:g}{unit} is negative",
+                         row=int(rows[k]) + 1)
     steps = np.diff(times)
     if np.any(steps <= 0):
         k = int(np.flatnonzero(steps <= 0)[0]) + 1
         raise InputError(path, f"{where}{what} {times[k]:g}{unit} is not after the previous row's "
-                               f"{times[k - 1]:g}{unit} (times must increase)", row=int(rows[k]) + 1)
+                               f"{times[k - 1]:g}{unit} (times must increase)",
+                         row=int(rows[k]) + 1)
 
 
 def _impact_frame(path, sensor, notes, time, time_uncertainty, *, amplitude=None,
@@ -491,7 +493,8 @@ def _phyphox_clicks(path, table, notes):
                 bad = np.flatnonzero((backward > tolerance) & both[1:times.size])
                 k = int(bad[0]) + 1 if bad.size else 1
                 raise InputError(path, f"{where}'Interval' {intervals[k]:g} s disagrees with the "
-                                       f"difference of 'Event time' ({steps[k - 1]:g} s)", row=k + 1)
+                                       f"difference of 'Event time' ({steps[k - 1]:g} s)",
+                                 row=k + 1)
         return times, _phyphox_time_uncertainty(time_resolution)
     finite = np.isfinite(intervals)
     if not finite.any():
@@ -611,7 +614,7 @@ def read_phyphox(path):
     * (In)elastic collision, set "Energy": ``Bounce 0 (s)`` … ``Bounce 5 (s)``, ``Height i
       (m)``, ``Energy i``, one row. The impact times are the bounce times themselves (absolute,
       from the recording start; 0 = not detected). phyphox derives everything else from them:
-      the flight time Δt_i = t_i − t_{i−1}, the height h_i = (g/8)·Δt_i² with g = 9.81 m/s²,
+      the flight time Δt_i = t_i − t_{i−1}, the height h_i = (g/8)·Δt_i², g = 9.81 m/s²,
       the energy ratio E_i = Δt_i²/Δt_1², and "Height 0" = h_1/E_2 extrapolated to the drop.
       Heights of bounces not yet detected are computed by phyphox from the export time and are
       meaningless; they are ignored. The g implied by the heights is reported as a check.
@@ -866,7 +869,7 @@ def _first_extreme(values, starts, ends, which):
 def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     """Where a fitted parabola meets the bumper position, with 1σ uncertainties.
 
-    The parabola is s(τ) = c + b·τ + (a/2)·τ² about an edge sample (τ = 0), oriented so that s
+    The parabola is s(τ) = c + b·τ + (a/2)·τ² about an edge sample (τ = 0), oriented so s
     grows toward the bumper and a > 0 is the free-motion acceleration toward it [5]_. With
     D = B − c the distance left, the speed there is V = √(b² + 2aD); the crossing is
     τ = 2D/(b + V) for the incoming branch (after the edge) and τ = −2D/(V − b) for the
@@ -923,7 +926,8 @@ def _motion_run(run, bumper_position, notes):
         sigma_x = sigma_w * dt
         threshold, guard = 5.0 * sigma_w, 2
         notes.append(f"run '{run.label or 0}': no position column; position integrated from the "
-                     f"velocity (fit uncertainties assume white noise and are optimistic)")
+                     f"velocity (its unknown smoothing leaves the uncertainties about 2x "
+                     f"optimistic)")
     # Orientation: in free motion the cart accelerates toward the bumper, and free motion is
     # most of the moving samples, so the median change of velocity there points to the bumper.
     moving = np.abs(w_raw) > threshold
@@ -1258,28 +1262,41 @@ def read_motion_sensor(path, *, bumper_position=None):
 
     1. Velocity: central differences of the position (noise σ_v = σ_x/(√2·Δt), with σ_x
        from the third differences, which vanish for free motion [4]_); the vendor's own
-       velocity column is used only when there is no position.
+       velocity column is used only when there is no position (then integrated for one).
     2. Orientation: the median change of velocity while moving points toward the bumper
        (free motion accelerates toward it and is most of the record).
-    3. Impacts: reversals toward → away with at least two samples beyond ±4σ_v on each
-       side, at most two (plus guard) samples apart. A resting cart's noise cannot produce
-       this pattern, so the resting tail yields no impact; reversals at the top of the
-       incline go the other way and are not impacts.
-    4. Contact samples: from the peak of the velocity toward the bumper (where contact
-       starts) to the peak away from it (where it ends), widened by a guard sample.
-    5. Fit: all remaining samples by least squares, one parabola per flight with a common
+    3. Reversals toward → away at most two (plus guard) samples apart end the flights; an
+       *impact* is reported where at least two samples beyond ±4σ_v move toward the bumper
+       and two away. A resting cart's noise cannot produce that (it would take four samples
+       beyond 4σ with the right signs), so the resting tail yields no impact; reversals at
+       the top of the incline go the other way and are apexes.
+    4. Flights, first pass: from the peak velocity away from the bumper after a contact
+       (where it ended) to the peak velocity toward it before the next (where it starts),
+       less a guard sample; and no later than the apex (first velocity toward the bumper)
+       mirrored about the contact end, as free flight is symmetric. Where that mirror falls
+       well short of the next reversal, a slow contact showed no clear reversal in between:
+       an unreported contact is put there, so the next impact gets its own incoming flight.
+    5. Fit: all flight samples by least squares, one parabola per flight with a common
        acceleration (g·sin θ of the incline; friction, which differs up and down the slope,
-       is neglected) [5]_. Parameter covariance s²(AᵀA)⁻¹ from the residuals.
-    6. Impact time: where the incoming parabola reaches the bumper position, i.e. the start
-       of contact (the convention of :func:`dashpot.bounce_sequence`). The outgoing parabola
-       reaches it at the end of contact. Fitted *velocities* are parallel lines of slope
-       g·sin θ on both sides, so they do not cross; it is the position that pins the time.
-       The bumper position is the ``bumper_position`` argument, else the median of the
-       resting tail (it includes a soft bumper's static compression g·sin θ/ω0², which makes
-       the times late by that distance over the impact speed), else the median point where
-       incoming and outgoing parabolas meet (past the bumper for a long contact).
-    7. Speeds: the parabolas' slopes at those crossings, √(b² + 2a·D); 1σ by linear
-       propagation of the fit covariance and of the bumper-position uncertainty.
+       is neglected) [5]_; samples 5σ off their parabola, and the rest of the flight beyond
+       them, are left out (a contact the reversals missed). Covariance s²(AᵀA)⁻¹, scaled by
+       the residuals' long-run variance ratio 1 + 2Σρ_k when the noise is correlated [6]_.
+    6. Second pass: each flight is cut again at the *fitted* contact times (and the fitted
+       release, the descent's vertex), which do not depend on single noisy samples, and
+       refitted.
+    7. Impact time: where the incoming parabola reaches the bumper position, i.e. the start
+       of contact (the convention of :func:`dashpot.bounce_sequence`); the outgoing parabola
+       leaves it at the end of contact. Fitted *velocities* are parallel lines of slope
+       g·sin θ on both sides, so they never cross; it is the position that pins the time.
+       The bumper position is the ``bumper_position`` argument; else the median of the
+       second half of the final stretch in which the position stays within 4σ of where the
+       record ends (the cart at rest; it includes a soft bumper's static compression
+       g·sin θ/ω0², which makes the times late by that distance over the impact speed);
+       else the median point where incoming and outgoing parabolas meet (past the bumper by
+       a long contact; noted).
+    8. Speeds: the parabolas' slopes at those crossings, √(b² + 2a·D) with D the distance
+       left; 1σ by linear propagation of the fit covariance and of the bumper position's
+       uncertainty.
 
     Reversals whose incoming flight has fewer than two free samples are dropped (noted); an
     impact whose outgoing flight is too short keeps its time and impact speed with a NaN
@@ -1395,7 +1412,7 @@ def _photogate_run(path, table, run, state_index, flag_length, gate_distance, no
     nxt = np.clip(toward + 2, 0, blocks - 1)
     aw = np.clip(away, 0, blocks - 1)
     # Free motion between an away passage and the next toward one: the cart leaves the gate
-    # top at w = L/τ − g·τ/2 and comes back after F = 2w/g, so g·sin θ = 2L/(τ(F + τ)) [5]_.
+    # top at w = L/τ − g·τ/2 and is back after F = 2w/g, so g·sin θ = 2L/(τ(F + τ)) [5]_.
     flight = t_on[nxt] - t_off[aw]
     tau_mean = 0.5 * (duration[aw] + duration[nxt])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -1525,9 +1542,9 @@ def read_photogate(path, *, flag_length, gate_distance=None):
         first = tables[0]
         described = ", ".join(c.header for c in first.columns) if first.columns else "no header"
         has_time = first.columns is not None and any(c.name in _TIME_NAMES for c in first.columns)
-        raise InputError(path, f"{first.where}{'no gate-state column' if has_time else 'no time column'}"
-                               f" for a photogate log (expected e.g. 'Latest: Time (s)' and "
-                               f"'Latest: GateState'; found: {described})")
+        problem = "no gate-state column" if has_time else "no time column"
+        raise InputError(path, f"{first.where}{problem} for a photogate log (expected e.g. "
+                               f"'Latest: Time (s)' and 'Latest: GateState'; found: {described})")
     _check_duplicates(path, table)
     runs = _runs(path, table, {"state": (None, None)})
     notes = [f"file variant: {table.variant}; {len(runs)} run(s): "

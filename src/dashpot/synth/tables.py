@@ -595,10 +595,11 @@ def write_motion_sensor(path, sequence, *, vendor="pasco", sample_rate=20.0, run
         raise ValueError(f"quantities must name 'position' and/or 'velocity'; got {quantities!r}")
     if int(runs) != runs or runs < 1:
         raise ValueError(f"runs must be a positive integer; got {runs!r}")
-    for name, value in (("sample_rate", sample_rate), ("noise", noise + 1.0),
-                        ("rest_tail", rest_tail + 1.0), ("lead", lead + 1.0)):
-        if not np.isfinite(value) or value <= 0:
-            raise ValueError(f"{name} must be positive (noise, rest_tail, lead may be 0)")
+    if not (np.isfinite(sample_rate) and sample_rate > 0):
+        raise ValueError(f"sample_rate must be > 0 Hz; got {sample_rate!r}")
+    for name, value in (("noise", noise), ("rest_tail", rest_tail), ("lead", lead)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and >= 0; got {value!r}")
     _check_format(delimiter, decimal)
     cart = _Cart(sequence, g_eff)
     rng = np.random.default_rng(seed)

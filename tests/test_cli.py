@@ -1,0 +1,55 @@
+"""The dashpot command: outputs, one-line errors with exit status 2, nothing half written."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dashpot.cli import main
+from dashpot.synth.scene import write_scene
+
+BALL = dict(beta=20.0, omega0=2 * np.pi * 500, g=9.81, v0=2.0, n_max=30)
+
+
+def test_impacts_then_bounces(tmp_path, capsys):
+    recording = write_scene(tmp_path, "timestamps", **BALL)
+    impacts = tmp_path / "out" / "impacts.csv"
+    assert main(["impacts", str(recording), "-o", str(impacts)]) == 0
+    table = pd.read_csv(impacts)
+    assert len(table) == 30 and np.all(np.diff(table["time"]) > 0)
+    bounces = tmp_path / "bounces.csv"
+    assert main(["bounces", str(impacts), "-o", str(bounces), "--g", "9.81"]) == 0
+    assert len(pd.read_csv(bounces)) == 29
+    assert "30 impacts" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("content,problem", [
+    (b"", "empty"),
+    (b"speed,height\n1,2\n3,4\n", "not a table of impacts"),
+    (b"time (s)\n0.1\n0.5\n0.4\n", "row"),
+])
+def test_bad_tables_fail_cleanly(tmp_path, capsys, content, problem):
+    source = tmp_path / "lab.csv"
+    source.write_bytes(content)
+    output = tmp_path / "impacts.csv"
+    assert main(["impacts", str(source), "-o", str(output)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and str(source) in error and problem in error
+    assert not output.exists()
+    assert not list(tmp_path.glob(".*partial"))
+
+
+def test_missing_file_and_input_protection(tmp_path, capsys):
+    assert main(["impacts", str(tmp_path / "nope.wav"), "-o", str(tmp_path / "x.csv")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    recording = write_scene(tmp_path, "timestamps", **BALL)
+    before = recording.read_bytes()
+    assert main(["impacts", str(recording), "-o", str(recording)]) == 2
+    assert "refusing to overwrite the input" in capsys.readouterr().err
+    assert recording.read_bytes() == before
+
+
+def test_bounces_needs_a_time_column(tmp_path, capsys):
+    table = tmp_path / "t.csv"
+    table.write_text("when\n1\n2\n3\n")
+    assert main(["bounces", str(table), "-o", str(tmp_path / "b.csv")]) == 2
+    assert "no 'time' column" in capsys.readouterr().err

@@ -1,0 +1,501 @@
+"""Readers of lab tables against known truth: synthetic files and hand-written exports.
+
+Round trips write a file with dashpot.synth.tables from a bounce train of known parameters and
+check that the reader recovers the truth the writer returns: impact times to the file's
+resolution (phyphox, time lists, photogate events), speeds within stated tolerances (motion
+sensor fits), and no impact from a resting cart's noise. Hand-written files, typed here in the
+layout of the real exports, are independent of the writers. Every bad-input case must raise
+InputError naming the file (and the row where it applies).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import openpyxl
+import pandas as pd
+import pytest
+
+import dashpot
+from dashpot.errors import InputError
+from dashpot.ingest import IMPACT_COLUMNS
+from dashpot.ingest.tables import (read_motion_sensor, read_photogate, read_phyphox,
+                                   read_timestamps, sniff_table)
+from dashpot.synth.tables import (write_motion_sensor, write_phyphox_collision,
+                                  write_phyphox_stopwatch, write_photogate, write_timestamps)
+
+# The paper's cart (soft spring bumper, contacts ~0.15 s) and a hard cart on a gentle slope.
+PAPER = dict(model="hybrid", beta=1.87, omega0=(255 / 0.506) ** 0.5, g=2.90, v0=1.0)
+STIFF = dict(model="Ib", beta=8.0, omega0=300.0, g=0.5, v0=0.5, v_min=0.05)
+VARIANTS = [dict(), dict(delimiter="\t"), dict(delimiter=";"),
+            dict(delimiter="\t", decimal=","), dict(delimiter=";", decimal=","),
+            dict(excel=True), dict(zipped=True)]
+VARIANT_IDS = ["comma", "tab", "semicolon", "tab-decimal-comma", "semicolon-decimal-comma",
+               "excel", "zip"]
+
+
+@pytest.fixture(scope="module")
+def stiff():
+    return dashpot.bounce_sequence(**STIFF)
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return dashpot.bounce_sequence(**PAPER)
+
+
+def suffix(variant):
+    return ".xlsx" if variant.get("excel") else ".zip" if variant.get("zipped") else ".csv"
+
+
+def check_schema(frame, sensor):
+    assert tuple(frame.columns) == IMPACT_COLUMNS
+    assert frame.attrs["sensor"] == sensor
+    assert np.all(np.diff(frame["time"]) > 0) or frame["run"].nunique() > 1
+    assert np.all(frame["time_uncertainty"] > 0)
+
+
+# ------------------------------------------------------------------------------- phyphox
+
+@pytest.mark.parametrize("variant", VARIANTS, ids=VARIANT_IDS)
+@pytest.mark.parametrize("layout", ["clicks", "multiple"])
+def test_phyphox_stopwatch_round_trip(tmp_path, stiff, variant, layout):
+    path = tmp_path / f"stopwatch{suffix(variant)}"
+    truth = write_phyphox_stopwatch(path, stiff.impact_times, layout=layout, **variant)
+    frame = read_phyphox(path)
+    check_schema(frame, "phyphox")
+    expected = np.array(truth["impact_times"])
+    assert len(frame) == (len(stiff.impact_times) if layout == "clicks" else 6)
+    # Ten significant digits in the text variants; exact in Excel.
+    assert np.allclose(frame["time"], expected, rtol=1e-9, atol=0)
+    assert frame["impact_speed"].isna().all() and (frame["run"] == 0).all()
+    notes = " ".join(frame.attrs["notes"])
+    if not variant.get("excel"):
+        assert ("decimal comma" if variant.get("decimal") == "," else "decimal point") in notes
+        assert {"\t": "tab", ";": "semicolon"}.get(variant.get("delimiter"), "comma") in notes
+    assert sniff_table(path) == "phyphox"
+
+
+@pytest.mark.parametrize("variant", VARIANTS, ids=VARIANT_IDS)
+def test_phyphox_collision_round_trip(tmp_path, paper, variant):
+    path = tmp_path / f"collision{suffix(variant)}"
+    truth = write_phyphox_collision(path, paper.impact_times[:4], **variant)
+    frame = read_phyphox(path)
+    check_schema(frame, "phyphox")
+    assert np.allclose(frame["time"], truth["impact_times"], rtol=1e-9, atol=0)
+    assert any("imply g = 9.81" in note for note in frame.attrs["notes"])
+
+
+def test_hand_written_stock_stopwatch_with_untriggered_stops(tmp_path):
+    # The "Multiple" set as phyphox writes it (semicolon, decimal comma): two stops heard.
+    path = tmp_path / "Multiple.csv"
+    path.write_text('"Start (s)";"Stop 1 (s)";"Stop 2 (s)";"Stop 3 (s)";"Stop 4 (s)";'
+                    '"Stop 5 (s)"\n1,250000000E0;1,873541667E0;2,410000000E0;0,000000000E0;'
+                    '0,000000000E0;0,000000000E0\n')
+    frame = read_phyphox(path)
+    assert frame["time"].tolist() == pytest.approx([1.25, 1.873541667, 2.41], abs=1e-12)
+    assert any("3 stop(s) never triggered" in n for n in frame.attrs["notes"])
+    # 1σ: one 48 kHz sample over √12 (the printed digits are finer).
+    assert frame["time_uncertainty"].iloc[0] == pytest.approx(1 / 48000 / 12 ** 0.5, rel=1e-3)
+
+
+def test_hand_written_collision_with_three_bounces_heard(tmp_path):
+    path = tmp_path / "Energy.csv"
+    h = lambda dt: 9.81 / 8 * dt ** 2  # noqa: E731 - the experiment's own formula
+    cells = {"Bounce 0 (s)": 0.8, "Height 0 (m)": 0.5, "Bounce 1 (s)": 1.4,
+             "Height 1 (m)": h(0.6), "Energy 1": 1, "Bounce 2 (s)": 1.88,
+             "Height 2 (m)": h(0.48), "Energy 2": 0.64, "Bounce 3 (s)": 0,
+             "Height 3 (m)": h(3.2), "Energy 3": 3.2 ** 2 / 0.36}
+    for i in (4, 5):
+        cells.update({f"Bounce {i} (s)": 0, f"Height {i} (m)": 0, f"Energy {i}": 0})
+    path.write_text("\t".join(f'"{k}"' for k in cells) + "\n"
+                    + "\t".join(f"{v:.9E}" for v in cells.values()) + "\n")
+    frame = read_phyphox(path)
+    assert frame["time"].tolist() == pytest.approx([0.8, 1.4, 1.88])
+
+
+def test_per_click_table_from_intervals_only(tmp_path):
+    path = tmp_path / "clicks.csv"
+    path.write_text('"Interval (s)"\n6.000000000E-1\n4.800000000E-1\n3.840000000E-1\nNaN\n')
+    frame = read_phyphox(path)
+    assert frame["time"].tolist() == pytest.approx([0.0, 0.6, 1.08, 1.464])
+    assert any("first click at t = 0" in n for n in frame.attrs["notes"])
+
+
+def test_phyphox_excel_with_both_stopwatch_sets_prefers_multiple(tmp_path, stiff):
+    path = tmp_path / "sw.xlsx"
+    truth = write_phyphox_stopwatch(path, stiff.impact_times, layout="multiple", excel=True)
+    frame = read_phyphox(path)
+    assert len(frame) == 6 and np.allclose(frame["time"], truth["impact_times"])
+    assert any("'Multiple'" in n for n in frame.attrs["notes"])
+
+
+# ---------------------------------------------------------------------------- timestamps
+
+@pytest.mark.parametrize("unit", ["s", "ms"])
+@pytest.mark.parametrize("declared", ["header", "argument", "inferred"])
+def test_timestamps_units(tmp_path, stiff, unit, declared):
+    path = tmp_path / "t.csv"
+    truth = write_timestamps(path, stiff.impact_times + 0.3, unit=unit,
+                             declare_unit=declared == "header", delimiter=";", decimal=",")
+    frame = read_timestamps(path, unit=unit if declared == "argument" else None)
+    check_schema(frame, "timestamps")
+    # Within the file's resolution (1 µs in both units here).
+    assert np.max(np.abs(frame["time"] - truth["impact_times"])) <= truth["resolution"] / 2
+    assert frame["time_uncertainty"].iloc[0] == pytest.approx(truth["resolution"] / 12 ** 0.5)
+    if declared == "inferred":
+        assert any("not declared" in n and f"read as {unit}" in n for n in frame.attrs["notes"])
+
+
+def test_timestamps_uncertainty_column_and_no_header(tmp_path):
+    path = tmp_path / "t.txt"
+    path.write_text("0.512\t0.002\n1.130\t0.003\n1.614\t0.002\n")
+    frame = read_timestamps(path)
+    assert frame["time"].tolist() == [0.512, 1.13, 1.614]
+    assert frame["time_uncertainty"].tolist() == [0.002, 0.003, 0.002]
+    path.write_text("t [ms],sigma [us]\n512,1500\n1130,2500\n")
+    frame = read_timestamps(path)
+    assert frame["time"].tolist() == pytest.approx([0.512, 1.13])
+    assert frame["time_uncertainty"].tolist() == pytest.approx([1.5e-3, 2.5e-3])
+
+
+def test_timestamps_unit_argument_contradicting_header(tmp_path):
+    path = tmp_path / "t.csv"
+    write_timestamps(path, [0.0, 0.5], unit="ms")
+    with pytest.raises(InputError, match=r"t\.csv.*'ms' but unit='s'"):
+        read_timestamps(path, unit="s")
+    with pytest.raises(ValueError, match="unit"):
+        read_timestamps(path, unit="h")
+
+
+# -------------------------------------------------------------------------- motion sensor
+
+def match(found, true_times):
+    """Index of the nearest true impact for each found time."""
+    true_times = np.asarray(true_times)
+    return np.abs(found[:, None] - true_times[None, :]).argmin(axis=1)
+
+
+def check_motion(frame, truth_run, *, speed_tolerance, fast=0.0, z_max=4.0):
+    """Found impacts against the truth of one run.
+
+    Every impact: time and speeds within `z_max` of the reader's 1σ. Impacts faster than
+    `fast` (m/s; long flights, many samples): speeds also within `speed_tolerance` (relative).
+    """
+    times = np.array(truth_run["impact_times"])
+    speeds = np.array(truth_run["impact_speeds"])
+    rebounds = np.array(truth_run["rebound_speeds"])
+    found = frame["time"].to_numpy()
+    nearest = match(found, times)
+    # Every impact found is a true impact (one each), timed within a few stated 1σ (+1 ms for
+    # the bumper compression stand-in's curvature, which the fits do not model).
+    assert len(set(nearest)) == len(found)
+    error = np.abs(found - times[nearest])
+    assert np.all(error <= z_max * frame["time_uncertainty"] + 1e-3), error
+    # Speeds: within the stated tolerance and within a few of the reader's own 1σ.
+    sigma = frame["speed_uncertainty"].to_numpy()
+    for measured, true in ((frame["impact_speed"].to_numpy(), speeds[nearest]),
+                           (frame["rebound_speed"].to_numpy(), rebounds[nearest])):
+        known = np.isfinite(measured)
+        assert np.all(np.abs(measured - true)[known] <= z_max * sigma[known])
+        well = known & (true > fast)
+        assert np.all(np.abs(measured - true)[well] <= speed_tolerance * true[well])
+    # No impact from the resting tail: nothing after the cart's last true contact.
+    assert found.max() < times[-1] + 0.05
+    return nearest
+
+
+@pytest.mark.parametrize("vendor", ["pasco", "vernier"])
+def test_motion_sensor_hard_cart_20_hz(tmp_path, stiff, vendor):
+    path = tmp_path / "m.csv"
+    truth = write_motion_sensor(path, stiff, vendor=vendor, sample_rate=20.0, noise=1e-3,
+                                seed=11)
+    frame = read_motion_sensor(path)
+    check_schema(frame, "motion_sensor")
+    # Impacts faster than 0.25 m/s have flights of 1 s (20 samples) or more on both sides.
+    nearest = check_motion(frame, truth["runs"][0], speed_tolerance=0.01, fast=0.25)
+    # All of those are resolved.
+    assert set(np.flatnonzero(np.array(stiff.impact_speeds[1:]) > 0.25)) <= set(nearest)
+    assert sniff_table(path) == "motion_sensor"
+
+
+def test_motion_sensor_soft_bumper_two_runs_sensor_at_bumper(tmp_path, paper):
+    path = tmp_path / "m.csv"
+    truth = write_motion_sensor(path, paper, runs=2, sensor_at="bumper", noise=1e-3,
+                                bumper_position=0.25, delimiter=";", decimal=",", seed=5)
+    frame = read_motion_sensor(path)
+    check_schema(frame, "motion_sensor")
+    assert sorted(frame["run"].unique()) == [0, 1]
+    for run, truth_run in enumerate(truth["runs"]):
+        part = frame[frame["run"] == run]
+        assert len(part) >= 3  # flights of 0.51, 0.37 and 0.25 s are resolved at 20 Hz
+        check_motion(part, truth_run, speed_tolerance=0.05)
+    assert any("run 1 = 'Run #2'" in n for n in frame.attrs["notes"])
+
+
+def test_motion_sensor_from_an_excel_sheet(tmp_path, stiff):
+    # The same export saved from a spreadsheet: numbers in cells, one sheet.
+    truth = write_motion_sensor(tmp_path / "m.csv", stiff, vendor="vernier", seed=8)
+    table = pd.read_csv(tmp_path / "m.csv")
+    book = openpyxl.Workbook()
+    book.active.title = "Data Set 1"
+    book.active.append(list(table.columns))
+    for row in table.itertuples(index=False):  # building the fixture, not reading it
+        book.active.append([float(v) for v in row])
+    book.save(tmp_path / "m.xlsx")
+    frame = read_motion_sensor(tmp_path / "m.xlsx")
+    check_motion(frame, truth["runs"][0], speed_tolerance=0.01, fast=0.25)
+    assert sniff_table(tmp_path / "m.xlsx") == "motion_sensor"
+
+
+def test_motion_sensor_velocity_only(tmp_path, stiff):
+    path = tmp_path / "m.csv"
+    truth = write_motion_sensor(path, stiff, quantities=("velocity",), seed=2)
+    frame = read_motion_sensor(path)
+    # The position comes from integrating the vendor's velocity: looser.
+    check_motion(frame, truth["runs"][0], speed_tolerance=0.02, fast=0.25, z_max=6.0)
+    assert len(frame) >= 10
+
+
+def test_motion_sensor_given_bumper_position(tmp_path, stiff):
+    path = tmp_path / "m.csv"
+    truth = write_motion_sensor(path, stiff, bumper_position=0.9, noise=5e-4, seed=4)
+    frame = read_motion_sensor(path, bumper_position=0.9)
+    check_motion(frame, truth["runs"][0], speed_tolerance=0.01, fast=0.25)
+    assert any("bumper position given" in n for n in frame.attrs["notes"])
+
+
+def test_noisy_rest_gives_no_impact(tmp_path):
+    # A cart resting against the bumper for 60 s under 3 mm sensor noise (Vernier layout).
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 60, 0.05)
+    x = 0.8 + 3e-3 * rng.standard_normal(t.size)
+    v = np.gradient(x, t)
+    pd.DataFrame({"Latest: Time (s)": t, "Latest: Position (m)": x,
+                  "Latest: Velocity (m/s)": v}).to_csv(tmp_path / "rest.csv", index=False)
+    frame = read_motion_sensor(tmp_path / "rest.csv")
+    assert len(frame) == 0 and tuple(frame.columns) == IMPACT_COLUMNS
+
+
+def test_long_noisy_rest_tail_after_bouncing(tmp_path, stiff):
+    path = tmp_path / "m.csv"
+    truth = write_motion_sensor(path, stiff, rest_tail=60.0, noise=2e-3, seed=9)
+    frame = read_motion_sensor(path)
+    check_motion(frame, truth["runs"][0], speed_tolerance=0.02, fast=0.25)
+
+
+def test_hand_written_pasco_file_in_cm(tmp_path):
+    # A cart sliding down (a = 0.5 m/s²) hits the bumper at 200 cm at 0.5 m/s at t = 2 s and
+    # leaves at 0.4 m/s, instantly; PASCO layout with position in cm, 10 Hz, no noise.
+    t = np.round(np.arange(0.0, 6.0, 0.1), 1)
+    before, after = 2.0 - t, t - 2.0
+    s = np.where(t < 1.0, 0.25, np.where(t <= 2.0, 0.5 * before - 0.25 * before ** 2,
+                 np.where(t < 3.6, 0.4 * after - 0.25 * after ** 2, 0.0)))
+    text = "Time (s) Run #1,Position (cm) Run #1\n" + "\n".join(
+        f"{a:.1f},{200 - 100 * b:.4f}" for a, b in zip(t, s)) + "\n"
+    (tmp_path / "cart.csv").write_text(text)
+    frame = read_motion_sensor(tmp_path / "cart.csv")
+    assert len(frame) == 1
+    assert frame["time"].iloc[0] == pytest.approx(2.0, abs=2e-3)
+    assert frame["impact_speed"].iloc[0] == pytest.approx(0.5, rel=5e-3)
+    assert frame["rebound_speed"].iloc[0] == pytest.approx(0.4, rel=5e-3)
+
+
+# ------------------------------------------------------------------------------ photogate
+
+@pytest.mark.parametrize("mode", ["events", "sampled"])
+def test_photogate_with_gate_distance(tmp_path, stiff, mode):
+    path = tmp_path / "g.csv"
+    truth = write_photogate(path, stiff, flag_length=0.02, gate_distance=0.01, mode=mode,
+                            sample_rate=2000.0)
+    frame = read_photogate(path, flag_length=0.02, gate_distance=0.01)
+    check_schema(frame, "photogate")
+    n = len(frame)
+    kinds = truth["passages"]["kind"]
+    assert n == kinds.count("toward")  # every full toward passage is an impact
+    times = np.array(truth["impact_times"][:n])
+    # Event log: exact to the 1 µs clock; sampled at 2 kHz: a fraction of a sample.
+    tolerance = 5e-6 if mode == "events" else 1e-3
+    assert np.max(np.abs(frame["time"] - times)) < tolerance
+    speed_tolerance = 1e-4 if mode == "events" else 0.01
+    assert np.allclose(frame["impact_speed"], truth["impact_speeds"][:n], rtol=speed_tolerance)
+    rebound = frame["rebound_speed"].to_numpy()
+    assert np.isnan(rebound[-1])  # the last away passage turned inside the beam
+    assert np.allclose(rebound[:-1], truth["rebound_speeds"][: n - 1], rtol=speed_tolerance)
+    assert sniff_table(path) == "photogate"
+
+
+def test_photogate_without_gate_distance(tmp_path, stiff):
+    path = tmp_path / "g.csv"
+    truth = write_photogate(path, stiff, flag_length=0.02, gate_distance=0.01)
+    frame = read_photogate(path, flag_length=0.02)
+    passages = pd.DataFrame(truth["passages"])
+    toward = passages[passages["kind"] == "toward"]["mean_speed"].to_numpy()
+    away = passages[passages["kind"] == "away"]["mean_speed"].to_numpy()
+    n = len(frame)
+    assert n == len(away)  # impacts need both passages
+    assert np.allclose(frame["impact_speed"], toward[:n], rtol=1e-4)
+    assert np.allclose(frame["rebound_speed"], away[:n], rtol=1e-4)
+    # Splitting the gap as if the contact were instantaneous is late by at most the contact.
+    late = frame["time"].to_numpy() - np.array(truth["impact_times"][:n])
+    assert np.all(late > 0) and np.all(late < np.array(truth["contact_durations"][:n]))
+
+
+def test_hand_written_vernier_gate_log_words(tmp_path):
+    # Flag 5 cm; toward passage 0.1 s (0.5 m/s), away 0.125 s (0.4 m/s), then the cart
+    # comes back through the gate at 0.4 m/s again and is caught.
+    text = ("Latest: Time (s),Latest: GateState\n0,Unblocked\n1.0,Blocked\n1.1,Unblocked\n"
+            "1.2,Blocked\n1.325,Unblocked\n2.925,Blocked\n3.05,Unblocked\n")
+    (tmp_path / "gate.csv").write_text(text)
+    frame = read_photogate(tmp_path / "gate.csv", flag_length=0.05)
+    assert len(frame) == 1
+    assert frame["impact_speed"].iloc[0] == pytest.approx(0.5)
+    assert frame["rebound_speed"].iloc[0] == pytest.approx(0.4)
+    # Gap 0.1 s split in the ratio of the speeds at the gate edge (constant-speed limit
+    # is 0.1·0.4/0.9; gravity from the flight changes it slightly): between those bounds.
+    assert 1.1 + 0.1 * 0.4 / 0.9 - 5e-3 < frame["time"].iloc[0] < 1.15
+
+
+# ------------------------------------------------------------------------------- sniffing
+
+def test_sniff_table_kinds_and_refusal(tmp_path, stiff):
+    write_timestamps(tmp_path / "t.csv", stiff.impact_times)
+    assert sniff_table(tmp_path / "t.csv") == "timestamps"
+    (tmp_path / "x.csv").write_text("temperature (K),pressure (Pa)\n300,1e5\n301,1e5\n")
+    with pytest.raises(InputError, match=r"x\.csv.*not a table of impacts"):
+        sniff_table(tmp_path / "x.csv")
+
+
+# ------------------------------------------------------------------------------ bad input
+
+READERS = {
+    "phyphox": read_phyphox,
+    "timestamps": read_timestamps,
+    "motion_sensor": read_motion_sensor,
+    "photogate": lambda p: read_photogate(p, flag_length=0.02),
+    "sniff": sniff_table,
+}
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("content", [b"", b"  \n\n \t\n"], ids=["zero-bytes", "blank"])
+def test_empty_file(tmp_path, reader, content):
+    path = tmp_path / "empty.csv"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=r"empty\.csv: .*empty"):
+        READERS[reader](path)
+
+
+@pytest.mark.parametrize("reader", READERS)
+@pytest.mark.parametrize("content", [
+    b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x01\x00",
+    "Dear lab team, the cart bounced nicely today.\nSee you tomorrow!\n".encode(),
+    b"PK\x03\x04 not really a zip",
+], ids=["binary", "prose", "broken-zip"])
+def test_not_a_table(tmp_path, reader, content):
+    path = tmp_path / "notes.dat"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=r"notes\.dat: .*(not a table|no time column|no "
+                                         r"phyphox|not a table of impacts|no data rows)"):
+        READERS[reader](path)
+
+
+@pytest.mark.parametrize("reader", ["timestamps", "motion_sensor", "photogate"])
+def test_csv_without_time_column(tmp_path, reader):
+    path = tmp_path / "notime.csv"
+    path.write_text("Position (m) Run #1,Velocity (m/s) Run #1\n0.10,0.0\n0.11,0.2\n")
+    with pytest.raises(InputError, match=r"notime\.csv: no time column"):
+        READERS[reader](path)
+
+
+BAD_TIMES = {
+    "nan": ("time (s)\n0.5\n1.0\nNaN\n1.9\n", 3, "missing"),
+    "empty-cell": ("time (s),sigma (s)\n0.5,0.001\n,0.001\n1.9,0.001\n", 2, "missing"),
+    "negative": ("time (s)\n-0.5\n1.0\n1.4\n", 1, "negative"),
+    "not-increasing": ("time (s)\n0.5\n1.0\n1.4\n1.2\n", 4, "not after"),
+    "text": ("time (s)\n0.5\nabc\n1.4\n", 2, "not a number"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_TIMES)
+def test_bad_timestamps_name_the_row(tmp_path, case):
+    text, row, problem = BAD_TIMES[case]
+    path = tmp_path / "times.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=rf"times\.csv, row {row}: .*{problem}"):
+        read_timestamps(path)
+
+
+def test_bad_motion_times_name_the_row(tmp_path):
+    path = tmp_path / "cart.csv"
+    path.write_text("Time (s) Run #1,Position (m) Run #1\n0.00,0.5\n0.05,0.5\n0.04,0.5\n")
+    with pytest.raises(InputError, match=r"cart\.csv, row 3: .*not after"):
+        read_motion_sensor(path)
+    path.write_text("Latest: Time (s),Latest: Position (m)\n0.00,0.5\n0.05,\n0.10,0.5\n")
+    with pytest.raises(InputError, match=r"cart\.csv, row 2: .*missing inside the run"):
+        read_motion_sensor(path)
+
+
+@pytest.mark.parametrize("reader", ["phyphox", "timestamps", "motion_sensor", "photogate"])
+def test_duplicated_rows(tmp_path, reader):
+    files = {
+        "phyphox": '"Event time (s)","Interval (s)"\n5.0E-1,1.0E-1\n6.0E-1,2.0E-1\n'
+                   "6.0E-1,2.0E-1\n",
+        "timestamps": "time (s)\n0.5\n0.9\n0.9\n1.2\n",
+        "motion_sensor": "Time (s) Run #1,Position (m) Run #1\n0,0.5\n0.05,0.5\n0.05,0.5\n",
+        "photogate": "Latest: Time (s),Latest: GateState\n0,0\n1.0,1\n1.0,1\n1.1,0\n",
+    }
+    path = tmp_path / "dup.csv"
+    path.write_text(files[reader])
+    with pytest.raises(InputError, match=r"dup\.csv, row 3: .*repeats row 2.*duplicated"):
+        READERS[reader](path)
+
+
+@pytest.mark.parametrize("reader,text", [
+    ("timestamps", "time (fortnights)\n1\n2\n"),
+    ("motion_sensor", "Time (s) Run #1,Position (furlong) Run #1\n0,1\n0.1,1\n"),
+    ("motion_sensor", "Time (h) Run #1,Position (m) Run #1\n0,1\n0.1,1\n"),
+    ("phyphox", '"Event time (min)"\n1\n2\n'),
+], ids=["timestamps", "motion-length", "motion-time", "phyphox"])
+def test_unknown_unit_in_header(tmp_path, reader, text):
+    path = tmp_path / "units.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=r"units\.csv: unknown .* unit '(fortnights|furlong|h|"
+                                         r"min)' in column header"):
+        READERS[reader](path)
+
+
+def test_excel_sheet_with_the_wrong_layout(tmp_path):
+    book = openpyxl.Workbook()
+    sheet = book.active
+    sheet.title = "Raw Data"
+    sheet.append(["Acceleration x (m/s^2)", "Acceleration y (m/s^2)"])
+    sheet.append([0.1, 9.8])
+    sheet.append([0.2, 9.7])
+    book.save(tmp_path / "export.xlsx")
+    with pytest.raises(InputError, match=r"export\.xlsx: no phyphox .*sheet 'Raw Data': "
+                                         r"Acceleration x"):
+        read_phyphox(tmp_path / "export.xlsx")
+    with pytest.raises(InputError, match=r"export\.xlsx: sheet 'Raw Data': no time column"):
+        read_motion_sensor(tmp_path / "export.xlsx")
+
+
+def test_phyphox_interval_contradicting_event_times(tmp_path):
+    path = tmp_path / "clicks.csv"
+    path.write_text('"Event time (s)","Interval (s)"\n5.000000000E-1,NaN\n1.100000000E0,'
+                    '6.000000000E-1\n1.500000000E0,9.000000000E-1\n')
+    with pytest.raises(InputError, match=r"clicks\.csv, row 3: 'Interval' 0\.9 s disagrees"):
+        read_phyphox(path)
+
+
+def test_gate_state_that_is_not_a_state(tmp_path):
+    path = tmp_path / "gate.csv"
+    path.write_text("Latest: Time (s),Latest: GateState\n0,0\n1.0,1\n1.1,2\n")
+    with pytest.raises(InputError, match=r"gate\.csv, row 3: gate state '2'"):
+        read_photogate(path, flag_length=0.02)
+    with pytest.raises(ValueError, match="flag_length"):
+        read_photogate(path, flag_length=-1)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(InputError, match=r"nothere\.csv: no such file"):
+        read_timestamps(tmp_path / "nothere.csv")
