@@ -186,24 +186,29 @@ def _from_invariant(eps, vtilde):
     return (eps > 0.5) | (vtilde * eps < 4.0 / vtilde)
 
 
-def _invariant_restitution(zeta, vtilde, tau, *, above=None):
-    """ε from w² − 2ζσw = X/ṽ²·ṽ², the decay of the quadratic invariant over the contact.
+def _invariant_roots(zeta, vtilde, tau):
+    """Restitution from the decay of the quadratic invariant over the contact.
 
-    With Y = X/ṽ² = (1 − 2ζ/ṽ)e^{−2ζτ} + expm1(−2ζτ)/ṽ² and a = ζ/ṽ: for the models ending at
-    ξ = 0 (σ = −1, Ib), ε = Y/(a + √(a² + Y)); for release at F = 0 (σ = +1, IIb) the
-    invariant there is vf² − 2ζvf + 1, so ε = a + √(a² + Y), or, where Y < 0 leaves two
-    positive roots, the smaller −Y/(a + √(a² + Y)) unless `above` says the rebound is faster
-    than ζ. Written without cancellation except the one inherent in Y near capture.
+    With Y = X/ṽ² = (1 − 2ζ/ṽ)e^{−2ζτ} + expm1(−2ζτ)/ṽ² and a = ζ/ṽ, the rebound state solves
+    ε² − 2σaε = Y. For the models ending at ξ = 0 (σ = −1, Ib) ε = Y/(a + √(a² + Y)); for a
+    release at F = 0 (σ = +1, IIb), where the invariant is vf² − 2ζvf + 1, ε = a + √(a² + Y),
+    or, where Y < 0 leaves two positive roots, possibly the smaller −Y/(a + √(a² + Y)).
+    Written without cancellation except the one inherent in Y near capture.
+
+    Returns
+    -------
+    y : ndarray
+        Y.
+    small, large : ndarray
+        Y/(a + √(a² + Y)) and a + √(a² + Y).
     """
     decay = np.exp(-2.0 * zeta * tau)
     ratio = zeta / vtilde
     y = (1.0 - 2.0 * ratio) * decay + np.expm1(-2.0 * zeta * tau) / vtilde / vtilde
     root = np.sqrt(np.maximum(ratio * ratio + y, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        smaller = np.where(ratio + root > 0.0, y / (ratio + root), 0.0)
-    if above is None:
-        return np.maximum(smaller, 0.0)
-    return np.where((y >= 0.0) | above, ratio + root, -smaller)
+        small = np.where(ratio + root > 0.0, y / (ratio + root), 0.0)
+    return y, small, ratio + root
 
 
 def _stable_p0_over_v(zeta, omega2, vtilde):
@@ -315,7 +320,8 @@ def _model_ib(zeta, vtilde):
     # X = ṽ(ṽ − 2ζ)e^{−2ζτ} + expm1(−2ζτ): hardly sensitive to the last ulp of τ, unlike
     # ξ'(τ), whose error |ξ''|·δτ with δτ ~ ulp/ξ'(τ) is ~ulp/(ṽ²ε²) relative. Taken where
     # ε > ½ or ṽ²ε < 4 (slow impacts); scaled by ṽ² so that nothing overflows.
-    e = np.where(_from_invariant(direct, v), _invariant_restitution(z, v, t), direct)
+    e = np.where(_from_invariant(direct, v), np.maximum(_invariant_roots(z, v, t)[1], 0.0),
+                 direct)
     # 1 − ε from the same decay: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms
     # are positive: no cancellation for nearly elastic balls.
     dissipated = _stable_p0_over_v(z, -dr.s2, v) * (-np.expm1(-2.0 * z * t))
@@ -491,13 +497,18 @@ def _release_state(zeta, vtilde):
     _, _, force_min, tau = _iib_release(zeta, vtilde)
     released = force_min < 0.0
     z, v, t = zeta[released], vtilde[released], tau[released]
-    vf = _eta_slope(t, z, v)
     # At F = 0, ξ = −2ζξ' makes the invariant P(τ) = vf² − 2ζvf + 1: vf follows from its decay
     # where that beats ξ'(τ) (see _model_ib), and (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ})
-    # gives 1 − ε where the second factor keeps its digits.
+    # gives 1 − ε where the second factor keeps its digits. Where the invariant has a single
+    # positive root in the range where it is the better estimate, ξ'(τ) is not needed at all.
+    y, small, large = _invariant_roots(z, v, t)
+    vf = v * large
+    check = np.flatnonzero(~((y >= 0.0) & _from_invariant(large, v)))
+    direct = _eta_slope(t[check], z[check], v[check])
+    invariant = np.where((y[check] >= 0.0) | (direct > z[check]), large[check], -small[check])
+    vf[check] = np.where(_from_invariant(direct / v[check], v[check]), v[check] * invariant,
+                         direct)
     dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    from_invariant = _from_invariant(vf / v, v)
-    vf = np.where(from_invariant, v * _invariant_restitution(z, v, t, above=vf > z), vf)
     denominator = v + vf - 2.0 * z
     usable = denominator > 0.5 * (v + vf)
     relative = dissipated / np.where(usable, denominator, 1.0)
