@@ -167,18 +167,22 @@ def _halley_in_bracket(value_and_slope, lower, upper, args, *, increasing, start
     return root
 
 
-def _start_guess(lower, upper, value_lower, value_upper, gravity_free_time, vtilde):
-    """First iterate for Newton's method inside [lower, upper].
+def _start_guess(lower, upper, value_upper, gravity_free_time, vtilde, value_at):
+    """First iterate for Halley's method inside [lower, upper].
 
     At high impact speed gravity is a small correction, O(1/ṽ), and the gravity-free twin's
     closed-form end time is nearly the root. Otherwise, between consecutive extrema an
     oscillation is close to a half cosine wave: with end values a and b, rising or falling, the
-    root is at the fraction arccos((a + b)/(b − a))/π of the bracket.
+    root is at the fraction arccos((a + b)/(b − a))/π of the bracket. ``value_at(index)``
+    gives a = f(lower) of the points in `index`; it is called only where it is needed.
     """
-    fast = (vtilde > 20.0) & (gravity_free_time > lower) & (gravity_free_time < upper)
-    ratio = np.clip((value_lower + value_upper) / (value_upper - value_lower), -1.0, 1.0)
-    phase = np.arccos(ratio) / np.pi
-    return np.where(fast, gravity_free_time, lower + np.clip(phase, 0.05, 0.95) * (upper - lower))
+    start = gravity_free_time.copy()
+    slow = np.flatnonzero((vtilde <= 20.0) | (gravity_free_time <= lower)
+                          | (gravity_free_time >= upper))
+    a, b, lo = value_at(slow), value_upper[slow], lower[slow]
+    phase = np.arccos(np.clip((a + b) / (b - a), -1.0, 1.0)) / np.pi
+    start[slow] = lo + np.clip(phase, 0.05, 0.95) * (upper[slow] - lo)
+    return start
 
 
 def _from_invariant(eps, vtilde):
@@ -304,8 +308,8 @@ def _model_ib(zeta, vtilde):
     tau = np.full(zeta.shape, np.inf)
     lo, hi = t_min[rebound], t_max[rebound]
     args = (zeta[rebound], vtilde[rebound])
-    start = _start_guess(lo, hi, _ib_excess(lo, *args), xi_max[rebound],
-                         np.pi / Damping(args[0]).omega, args[1])
+    start = _start_guess(lo, hi, xi_max[rebound], np.pi / Damping(args[0]).omega, args[1],
+                         lambda i: _ib_excess(lo[i], *(a[i] for a in args)))
     tau[rebound] = _halley_in_bracket(_ib_excess_and_slope, lo, hi, args, increasing=True,
                                       start=start)
     eps = np.zeros(zeta.shape)
@@ -463,12 +467,17 @@ def _iib_release(zeta, vtilde, *, solve=True):
             continue
         keep = finite[f_hi < 0.0]
         lo_r, hi_r = lo[keep], hi[keep]
-        # The start guess needs f(t_lo): 2ζṽ at impact, else one more evaluation.
-        f_lo = 2.0 * zeta[idx[keep]] * vtilde[idx[keep]]
-        later = np.flatnonzero(lo_r > 0.0)
-        f_lo[later] = evaluate(lo_r[later], *(a[keep[later]] for a in args))[0]
-        start = _start_guess(lo_r, hi_r, f_lo, f_hi[f_hi < 0.0],
-                             _iia_contact_time(Damping(zeta[idx[keep]])), vtilde[idx[keep]])
+        z_r, v_r = zeta[idx[keep]], vtilde[idx[keep]]
+
+        def force_at_lower(i):
+            # 2ζṽ at impact, else one more evaluation.
+            value = 2.0 * z_r[i] * v_r[i]
+            later = np.flatnonzero(lo_r[i] > 0.0)
+            value[later] = evaluate(lo_r[i][later], *(a[keep[i][later]] for a in args))[0]
+            return value
+
+        start = _start_guess(lo_r, hi_r, f_hi[f_hi < 0.0], _iia_contact_time(Damping(z_r)),
+                             v_r, force_at_lower)
         tau[idx[keep]] = _halley_in_bracket(evaluate, lo_r, hi_r, tuple(a[keep] for a in args),
                                             increasing=False, start=start)
     return t_lo, t_hi, force_min, tau
