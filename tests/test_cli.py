@@ -53,3 +53,39 @@ def test_bounces_needs_a_time_column(tmp_path, capsys):
     table.write_text("when\n1\n2\n3\n")
     assert main(["bounces", str(table), "-o", str(tmp_path / "b.csv")]) == 2
     assert "no 'time' column" in capsys.readouterr().err
+
+
+def _write_wav(path, samples, rate=44100):
+    from dashpot.synth.audio import write_audio
+
+    write_audio(path, samples, rate)
+    return path
+
+
+@pytest.mark.parametrize("case", ["empty", "not audio", "truncated", "silence", "noise",
+                                  "single impact"])
+def test_bad_recordings_fail_cleanly(tmp_path, capsys, case):
+    from dashpot.synth.audio import impact_sound
+
+    source = tmp_path / "drop.wav"
+    rng = np.random.default_rng(0)
+    if case == "empty":
+        source.write_bytes(b"")
+    elif case == "not audio":
+        source.write_text("time,height\n1,2\n")
+    elif case == "truncated":
+        samples, _ = impact_sound(np.array([0.0, 0.3, 0.55]), np.array([2.0, 1.8, 1.6]))
+        _write_wav(source, samples)
+        source.write_bytes(source.read_bytes()[: 44 + 2000])
+    elif case == "silence":
+        _write_wav(source, np.zeros(44100))
+    elif case == "noise":
+        _write_wav(source, 0.05 * rng.standard_normal(44100))
+    else:
+        samples, _ = impact_sound(np.array([0.0]), np.array([2.0]), duration=1.0)
+        _write_wav(source, samples)
+    output = tmp_path / "impacts.csv"
+    assert main(["impacts", str(source), "-o", str(output)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and str(source) in error
+    assert not output.exists() and not list(tmp_path.glob(".*partial"))

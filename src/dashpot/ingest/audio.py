@@ -7,24 +7,28 @@ raise :class:`dashpot.errors.InputError` on files that cannot be used.
 Method, in four steps (each explained where it is implemented):
 
 1. Detection. Every channel is high-passed (causal Butterworth, 100 Hz: removes DC offset, hum
-   and handling rumble without moving an onset earlier) and divided by its noise floor; the
-   channels are combined as the mean of these noise-normalised powers, the statistic of an
-   energy detector for a signal of unknown shape in independent noise, which cannot cancel
-   between channels the way a sum of the waveforms can (the two microphones of a stereo
-   recording hear the same impact with different delays and polarities). A transient is a
-   jump of this power over 0.5 ms against the 2 ms before it (an STA/LTA trigger [1]_).
+   and handling rumble without moving an onset earlier), whitened by the lag-1 prediction of
+   its own noise and divided by the noise level; the channels are combined as the mean of
+   these noise-normalised powers, the statistic of an energy detector for a signal of unknown
+   shape in independent noise, which cannot cancel between channels the way a sum of the
+   waveforms can (the two microphones of a stereo recording hear the same impact with
+   different delays and polarities). A transient is a jump of this power over 0.5 ms against
+   the 2 ms before it (an STA/LTA trigger [1]_): strong above 9 dB, weak above 6 dB.
 2. Rough onset: the Akaike-information-criterion picker [2]_ on the 3 ms before each trigger
-   finds where the power leaves the level before it, which catches a weak first arrival that
-   precedes the loud part of a transient. Triggers inside the build-up of an earlier
-   transient (its power never fell to half its maximum before them) are part of it.
-3. Selection by physics: the impacts of a ball bouncing to rest are the longest chain of
+   (but not into the transient triggered before it) finds where the power leaves the level
+   before it, which catches a weak first arrival preceding the loud part of a transient.
+   Triggers within 1 ms of a kept onset belong to that transient.
+3. Selection by physics: the impacts of a ball bouncing to rest are the best chain of strong
    transients whose successive intervals shrink roughly geometrically, found by dynamic
-   programming; ringing, echoes and rattles (at a fixed delay after each impact, and weaker
-   than it) and noise break that trend and are left out. There is no fixed dead time.
+   programming against a smooth trend of the interval ratio; ringing, echoes and rattles
+   (weaker, and at a fixed delay after their impact) and noise break that trend. Members
+   are then swapped for nearby transients that fit the trend better, and the chain is
+   followed past its end where the trend predicts further impacts, weak transients included.
+   There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
-   edge, fitted to the high-passed waveform of the channel whose onsets are the most precise
-   (see :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the
-   local noise and the steepness of the edge.
+   edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
+   :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
+   noise and the steepness of the edge.
 
 References
 ----------
@@ -65,17 +69,19 @@ _BACKGROUND_SECONDS = 2e-3  # the level just before it
 _NOISE_FRAME_SECONDS = 5e-3  # frames whose RMS gives the noise floor
 _NOISE_PERCENTILE = 10.0  # quiet frames: below the impacts, above digital silence
 _NOISE_FLOOR = 1e-9  # full scale; stands in for the noise of digitally silent channels
+_MAX_NOISE_CORRELATION = 0.99
 # Rough onset and grouping (step 2).
 _BACK_SEARCH_SECONDS = 3e-3
 _AIC_MARGIN = 4  # samples: shortest segment the AIC picker may leave on either side
-_BUILD_UP_FRACTION = 0.5
+_MERGE_SECONDS = 1e-3  # triggers this close to a transient's onset belong to it
+_WEAK_JUMP_FACTOR = 2.0  # weak candidates: power jump down to min_jump / 2 (3 dB lower)
 # Onset fit (step 4).
 _PRE_SECONDS = 1e-3  # noise before the onset, for its level and colour
 _SPAN_SECONDS = 1e-3  # start of the transient, for its amplitude and frequency scale
-_ONSET_BACK_SECONDS = 1e-4  # how far before the rough onset the fit may put the onset
+_ONSET_BACK_SECONDS = 1e-4  # how far from the rough onset the fit may put the onset
 _POLY_ORDER = 6
 _PRIOR_FREQUENCY_FACTOR = 1.3
-_MAX_POST_SECONDS = 0.4e-3
+_MAX_POST_SECONDS = 0.25e-3
 _GRID_STEP = 0.25  # samples, coarse onset grid
 _FINE_DIVISIONS = 8
 _AMPLITUDE_SECONDS = 3e-3  # peak amplitude: largest deviation within this time of the onset
@@ -84,9 +90,14 @@ _CLIP_TOLERANCE = 1e-4
 # Selection (step 3).
 _RATIO_BOUNDS = (0.45, 1.2)  # next interval / this interval for successive bounces
 _RATIO_SCATTER_FLOOR = 0.02  # in log(ratio)
+_ONSET_JITTER = 0.5e-3  # s: a faint transient's rough onset may move by this much (first
+# arrival or loud part), which matters on the last, short intervals
 _NOISE_WEIGHT = 1.0  # score of any transient included in the chain, plus its log SNR
 _SECONDARY_SECONDS = 0.16  # ringing, rattle and echoes come up to this long after an impact
 _SECONDARY_WEIGHT = 0.25  # factor on the score of a transient that may be one of them
+_SECONDARY_LOUDNESS = 3.0  # ... because a transient at least 1/3 as loud came before it
+_LEADING_LOUDNESS = 10.0  # the first impact is within 20 dB of the loudest
+_EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact time
 _FILE_FORMATS = {"WAV", "FLAC", "OGG"}
 
 
@@ -110,13 +121,13 @@ def _open(path):
         handle.close()
         raise InputError(path, f"unsupported audio format {handle.format}: WAV, FLAC or OGG "
                                f"expected")
-    if handle.frames == 0:
-        handle.close()
-        raise InputError(path, "empty recording: the file holds no samples")
     problem = _truncation(handle.extra_info)
     if problem:
         handle.close()
         raise InputError(path, problem)
+    if handle.frames == 0:
+        handle.close()
+        raise InputError(path, "empty recording: the file holds no samples")
     return handle
 
 
@@ -236,9 +247,10 @@ def _onset_posterior(windows, n_pre, sample_rate):
     about a radian of its own oscillation, Ω = 1.3 × the noise-corrected RMS angular frequency
     of that millisecond (from the variance of the first difference [4]_). With the
     coefficients integrated out analytically (linear-Gaussian evidence [3]_) the marginal
-    likelihood of t0 is evaluated on a grid of quarter samples from 0.1 ms before the rough
-    onset to the end of the rising edge (a quarter period of Ω) under a flat prior, then on a
-    grid 8 times finer around its maximum where the posterior is that narrow. The result does
+    likelihood of t0 is evaluated on a grid of quarter samples within 0.1 ms of the rough
+    onset (and before the end of the rising edge, a quarter period of Ω, at most 0.25 ms)
+    under a flat prior, then on a grid 8 times finer around its maximum where the posterior
+    is that narrow. The result does
     not depend on a template of the sound: only on the edge being smooth on the scale of the
     transient's own frequencies.
     """
@@ -300,7 +312,8 @@ def _onset_posterior(windows, n_pre, sample_rate):
         log_det = 2.0 * np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)).sum(axis=-1)
         value = -0.5 * (data_term[:, None] / innovation_var[:, None]
                         - (solved**2).sum(axis=-1)) - 0.5 * log_det
-        allowed = (onsets >= n_pre - back) & (onsets <= (n_pre + post_len - 1)[:, None])
+        allowed = (onsets >= n_pre - back) & (onsets <= np.minimum(n_pre + back,
+                                                                     n_pre + post_len - 1)[:, None])
         return np.where(allowed, value, -np.inf)
 
     def summarise(onsets, log_post, step):
@@ -312,7 +325,7 @@ def _onset_posterior(windows, n_pre, sample_rate):
         # A grid point stands for an interval of one step: its uniform spread is added.
         return mean, np.sqrt(half_width**2 + step**2 / 12.0), weights
 
-    n_grid = int(np.ceil((back + post_len.max()) / _GRID_STEP))
+    n_grid = int(np.ceil((back + min(back, post_len.max() - 1)) / _GRID_STEP)) + 1
     coarse = (n_pre - back) + _GRID_STEP * np.arange(n_grid)[None, :] + np.zeros((n_windows, 1))
     log_post = log_evidence(coarse)
     onset, sigma, weights = summarise(coarse, log_post, _GRID_STEP)
@@ -351,26 +364,26 @@ def _windows(array, starts, length):
     return array[starts[:, None] + np.arange(length)[None, :]]
 
 
-def _aic_picks(power, starts, length):
-    """AIC change point of `power` in each window [s, s + length): first sample of the loud part.
+def _aic_picks(power, first):
+    """AIC change point of each row of `power`: index of the first sample of the loud part.
 
-    AIC(k) = k·ln(mean of the first k) + (N − k)·ln(mean of the rest) [2]_, on the power (the
-    square of a zero-mean signal, so its mean is the variance).
+    AIC(k) = n_k·ln(mean of the n_k samples before k) + (N − k)·ln(mean of the rest) [2]_, on
+    the power (the square of a zero-mean signal, so its mean is the variance); samples before
+    index ``first`` of a row (the previous transient) are left out.
     """
-    segment = _windows(power, starts, length) + 1e-12  # digital silence has zero power
-    cumulative = np.cumsum(segment, axis=1)
-    total = cumulative[:, -1:]
+    length = power.shape[1]
+    cumulative = np.cumsum(power + 1e-300, axis=1)  # digital silence has zero power
     split = np.arange(_AIC_MARGIN, length - _AIC_MARGIN)
-    head = cumulative[:, split - 1] / split
-    tail = (total - cumulative[:, split - 1]) / (length - split)
-    criterion = split * np.log(head) + (length - split) * np.log(tail)
-    return starts + split[np.argmin(criterion, axis=1)]
-
-
-def _trigger_runs(triggered):
-    """(start, stop) index arrays of the runs of True in a boolean array."""
-    edges = np.diff(np.concatenate(([0], triggered.astype(np.int8), [0])))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    rows = np.arange(power.shape[0])
+    before_first = np.where(first > 0, cumulative[rows, np.maximum(first - 1, 0)], 0.0)
+    head_count = split[None, :] - first[:, None]
+    head = cumulative[:, split - 1] - before_first[:, None]
+    tail = cumulative[:, -1:] - cumulative[:, split - 1]
+    usable = head_count >= _AIC_MARGIN
+    criterion = np.where(usable, np.maximum(head_count, 1) * np.log(
+        np.maximum(head, 1e-300) / np.maximum(head_count, 1)), np.inf) \
+        + (length - split) * np.log(tail / (length - split))
+    return split[np.argmin(criterion, axis=1)]
 
 
 @dataclass(frozen=True)
@@ -384,6 +397,7 @@ class _Settings:
     pre: int
     span: int
     amplitude: int
+    merge: int
     min_power: float
     min_jump: float
 
@@ -395,6 +409,7 @@ class _Settings:
                    background=samples(_BACKGROUND_SECONDS),
                    back_search=samples(_BACK_SEARCH_SECONDS), pre=samples(_PRE_SECONDS),
                    span=samples(_SPAN_SECONDS), amplitude=samples(_AMPLITUDE_SECONDS),
+                   merge=samples(_MERGE_SECONDS),
                    min_power=10.0 ** (min_snr_db / 10.0), min_jump=10.0 ** (min_jump_db / 10.0))
 
     @property
@@ -420,7 +435,8 @@ class _Stream:
     channels: int
     sos: np.ndarray
     filter_state: np.ndarray | None = None
-    noise: np.ndarray | None = None  # noise RMS of each high-passed channel (full scale)
+    noise: np.ndarray | None = None  # noise RMS of each whitened channel (full scale)
+    rho: np.ndarray | None = None  # lag-1 correlation of each channel's noise
     raw: np.ndarray | None = None  # carried samples (frames, channels)
     filtered: np.ndarray | None = None
     start: int = 0  # absolute index of the first carried sample
@@ -447,54 +463,89 @@ def _process(stream, block, final):
         filtered = np.concatenate([stream.filtered, filtered_block])
     frames = raw.shape[0]
 
-    # Noise floor per channel: a low percentile of the RMS in short frames (the quiet
-    # stretches between impacts). A block too short to say keeps the previous estimate.
-    frame = max(1, int(round(_NOISE_FRAME_SECONDS * settings.sample_rate)))
+    # Noise per channel, from short frames: the quiet ones (RMS at or below the 10th
+    # percentile: the stretches between impacts) give its level and its lag-1 correlation.
+    # A block too short to say keeps the previous estimate.
+    frame = max(2, int(round(_NOISE_FRAME_SECONDS * settings.sample_rate)))
     n_frames = frames // frame
     if n_frames >= 20 or (stream.noise is None and n_frames >= 1):
-        rms = np.sqrt((filtered[: n_frames * frame].reshape(n_frames, frame, -1) ** 2)
-                      .mean(axis=1))
-        stream.noise = np.maximum(np.percentile(rms, _NOISE_PERCENTILE, axis=0), _NOISE_FLOOR)
+        framed = filtered[: n_frames * frame].reshape(n_frames, frame, -1)
+        energy = np.einsum("fsc,fsc->fc", framed, framed)
+        lagged = np.einsum("fsc,fsc->fc", framed[:, 1:], framed[:, :-1])
+        quiet = energy <= np.percentile(energy, _NOISE_PERCENTILE, axis=0)
+        quiet_energy = np.where(quiet, energy, 0.0).sum(axis=0)
+        rho = np.divide(np.where(quiet, lagged, 0.0).sum(axis=0), quiet_energy,
+                        out=np.zeros(stream.channels), where=quiet_energy > 0)
+        stream.rho = np.clip(rho, 0.0, _MAX_NOISE_CORRELATION)
+        # Innovation RMS of the quiet frames: the noise of the whitened signal below.
+        innovation = np.maximum(quiet_energy * (1 - stream.rho**2) / (quiet.sum(axis=0) * frame),
+                                0.0)
+        stream.noise = np.maximum(np.sqrt(innovation), _NOISE_FLOOR)
     elif stream.noise is None:
+        stream.rho = np.zeros(stream.channels)
         stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)), _NOISE_FLOOR)
-    power = ((filtered / stream.noise) ** 2).mean(axis=1)
+    # Detection runs on the noise whitened by its own lag-1 prediction, y[n] − ρ·y[n−1]:
+    # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
+    # frequencies it removes the slow swells of power that would otherwise look like onsets
+    # in a half-millisecond window.
+    detector = np.empty_like(filtered)
+    detector[1:] = filtered[1:] - stream.rho * filtered[:-1]
+    detector[0] = 0.0
+    # Mean noise-normalised power over the channels (a matrix product: one pass).
+    power = (detector * detector) @ (1.0 / (stream.channels * stream.noise**2))
 
-    # STA/LTA [1]_: mean power over the next `sta` samples against the `background` before.
-    cumulative = np.concatenate(([0.0], np.cumsum(power)))
+    # STA/LTA [1]_: mean power over the next `sta` samples against the `background` before,
+    # evaluated only where the STA alone passes its threshold (a small fraction of samples).
+    cumulative = np.empty(frames + 1)
+    cumulative[0] = 0.0
+    np.cumsum(power, out=cumulative[1:])
     sta = np.zeros(frames)
-    if frames >= settings.sta:
-        sta[: frames - settings.sta + 1] = (cumulative[settings.sta:]
-                                            - cumulative[:-settings.sta]) / settings.sta
-    background = np.ones(frames)
-    if frames > settings.background:
-        background[settings.background:] = (cumulative[settings.background:-1]
-                                            - cumulative[:-settings.background - 1]) \
-            / settings.background
-    jump = sta / np.maximum(background, 1.0)
-    index = np.arange(frames)
-    valid = (index >= settings.history) & (index + settings.lookahead <= frames)
-    triggered = valid & (sta >= settings.min_power) & (jump >= settings.min_jump)
-    starts, stops = _trigger_runs(triggered)
+    sta[: frames - settings.sta + 1] = (cumulative[settings.sta:]
+                                        - cumulative[:-settings.sta]) / settings.sta
+    limit = frames - settings.lookahead + 1  # triggers need this much recording after them
+    loud = np.flatnonzero(sta[settings.history:max(limit, settings.history)]
+                          >= settings.min_power) + settings.history
+    background = (cumulative[loud] - cumulative[loud - settings.background]) / settings.background
+    jump = sta[loud] / np.maximum(background, 1.0)
+    # Triggers down to a lower jump are kept as weak candidates: the selection looks among
+    # them only where the bounce trend predicts an impact that no strong trigger marks
+    # (an impact landing on the ringing or echo of an earlier one jumps less).
+    triggers = loud[jump >= settings.min_jump / _WEAK_JUMP_FACTOR]
+    jump = jump[jump >= settings.min_jump / _WEAK_JUMP_FACTOR]
+    # Runs of consecutive trigger samples; each run is one trigger, at its largest jump.
+    breaks = np.flatnonzero(np.diff(triggers) > 1) + 1
+    run_first = np.concatenate(([0], breaks)) if triggers.size else np.zeros(0, dtype=np.int64)
+    run_last = np.concatenate((breaks, [triggers.size])) - 1 if triggers.size else run_first
 
     # Runs starting before `limit` are handled now if they have ended; later ones wait for the
     # next block, whose carried samples overlap this one.
-    limit = frames - settings.lookahead + 1
     first_new = stream.done_until - stream.start
-    own = (starts >= first_new) & (starts < limit)
+    starts, stops = triggers[run_first], triggers[run_last] + 1
+    own = starts >= first_new
     if not final:
         unfinished = own & (stops >= limit)
         if unfinished.any():
             limit = int(starts[unfinished][0])
             own &= starts < limit
-    starts, stops = starts[own], stops[own]
-    if starts.size:
-        detections = np.array([a + int(np.argmax(jump[a:b])) for a, b in zip(starts, stops)])
+    if own.any():
+        peaks = [i + int(np.argmax(jump[i:j + 1])) for i, j in zip(run_first[own], run_last[own])]
+        detections = triggers[peaks]
+        strong = jump[peaks] >= settings.min_jump
         search_start = detections - settings.back_search
         length = settings.back_search + settings.sta
-        onsets = _aic_picks(power, search_start, length)
-        channel_onsets = np.stack([_aic_picks(filtered[:, c] ** 2, search_start, length)
-                                   for c in range(stream.channels)], axis=1)
-        _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets)
+        # The back-search may not reach into the transient triggered just before (a ring or
+        # an echo a few ms before an impact must not capture its onset).
+        previous = np.concatenate((
+            [-length if stream.last_onset is None else stream.last_onset - stream.start],
+            detections[:-1]))
+        first = np.clip(previous + settings.sta - search_start, 0,
+                        length - 2 * _AIC_MARGIN - settings.sta)
+        onsets = _aic_picks(_windows(power, search_start, length), first)
+        channel_onsets = np.stack([_aic_picks(_windows(detector[:, c], search_start, length)
+                                              ** 2, first) for c in range(stream.channels)],
+                                  axis=1)
+        _keep_transients(stream, raw, filtered, sta, search_start + onsets,
+                         search_start[:, None] + channel_onsets, strong)
     stream.done_until = stream.start + max(limit, first_new)
 
     keep_from = max(0, frames - settings.carry)
@@ -502,44 +553,46 @@ def _process(stream, block, final):
     stream.start += keep_from
 
 
-def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets):
+def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong):
     """Group triggers into transients and store what the later steps need of each."""
     settings = stream.settings
-    width = settings.pre + settings.span
-    for onset, per_channel in zip(onsets.tolist(), channel_onsets):
+    channel = np.arange(stream.channels)
+    # Peak deviation of the raw samples (all channels) within `amplitude` samples after each
+    # onset from their mean level over the `pre` samples before it: DC offset excluded.
+    before = raw[(onsets[:, None] + np.arange(-settings.pre, 0))[:, :, None], channel]
+    after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None], channel]
+    amplitudes = np.abs(after - before.mean(axis=1, keepdims=True)).max(axis=(1, 2))
+    # A flat top, several samples at the largest magnitude, is what clipping leaves; a free
+    # transient does not produce it.
+    magnitude = np.abs(after).reshape(onsets.size, -1)
+    extreme = magnitude.max(axis=1, keepdims=True)
+    flat = ((magnitude >= extreme * (1 - _CLIP_TOLERANCE)).sum(axis=1) >= _CLIP_RUN) \
+        & (extreme[:, 0] > 0)
+    # Each channel's high-passed waveform around its own rough onset, for the onset fit.
+    window_starts = channel_onsets - settings.pre
+    windows = filtered[window_starts[:, :, None] + np.arange(settings.pre + settings.span),
+                       channel[None, :, None]]
+    for i, onset in enumerate(onsets.tolist()):
         absolute = stream.start + onset
         if stream.last_onset is not None and absolute <= stream.last_onset:
             continue  # the picker went back into a transient already kept
-        previous = None if stream.last_onset is None else stream.last_onset - stream.start
-        if previous is not None and previous >= 0:
-            # Part of the previous transient if its power never fell below half of its
-            # running maximum before this trigger's window began: it was still building up.
-            level = sta[previous:onset - settings.sta + 1]
-            if np.all(level >= _BUILD_UP_FRACTION * np.maximum.accumulate(level)):
-                kept = stream.candidates[-1]
-                kept["strength"] = max(kept["strength"], float(sta[onset]))
-                continue
-        # Each channel's high-passed waveform around its own rough onset, for the fit.
-        window_starts = per_channel - settings.pre
-        windows = filtered[window_starts[:, None] + np.arange(width)[None, :],
-                           np.arange(stream.channels)[:, None]]
-        # Peak deviation of the raw samples from their level just before the onset.
-        baseline = np.median(raw[onset - settings.pre:onset], axis=0)
-        after = raw[onset:onset + settings.amplitude]
-        amplitude = float(np.abs(after - baseline).max())
-        magnitude = np.abs(after)
-        extreme = magnitude.max()
-        # A flat top: several samples at the largest magnitude, which a free transient does
-        # not produce; a recorder or preamplifier that clipped does.
-        clipped = bool(extreme > 0 and np.count_nonzero(
-            magnitude >= extreme * (1 - _CLIP_TOLERANCE)) >= _CLIP_RUN)
+        if stream.last_onset is not None and absolute - stream.last_onset < settings.merge:
+            # A second trigger within 1 ms of the onset of the transient just kept: its power
+            # jumped again while rising. The same transient (impacts are further apart).
+            kept = stream.candidates[-1]
+            kept["strength"] = max(kept["strength"], float(sta[onset]))
+            kept["amplitude"] = max(kept["amplitude"], float(amplitudes[i]))
+            kept["clipped"] = kept["clipped"] or bool(flat[i])
+            kept["strong"] = kept["strong"] or bool(strong[i])
+            continue
         stream.candidates.append({
             "onset": absolute,
-            "window_starts": stream.start + window_starts,
-            "windows": windows,
+            "window_starts": stream.start + window_starts[i],
+            "windows": windows[i],
             "strength": float(sta[onset]),
-            "amplitude": amplitude,
-            "clipped": clipped,
+            "amplitude": float(amplitudes[i]),
+            "clipped": bool(flat[i]),
+            "strong": bool(strong[i]),
         })
         stream.last_onset = absolute
 
@@ -548,36 +601,45 @@ def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets):
 # Selection by physics
 
 
-def _best_chain(times, weights, penalty=None):
+def _best_chain(times, weights, trend=None):
     """Indices of the highest-scoring chain of events with geometrically shrinking intervals.
 
-    Dynamic programming over states (j, k), "the chain ends with events j then k": a chain
-    scores the sum of its events' weights, less ``penalty(previous_interval, ratio)`` for every
-    step; a step from (j, k) to (k, l) is allowed only if the interval ratio
-    (t_l − t_k)/(t_k − t_j) lies within the bounds of successive bounces.
+    Dynamic programming over states (j, k), "the chain ends with events j then k" (Bellman's
+    principle: the best chain through (j, k) extends the best chain ending there). A chain
+    scores the sum of its events' weights; a step from (j, k) to (k, l) is allowed only if the
+    interval ratio ρ = (t_l − t_k)/(t_k − t_j) lies within the bounds of successive bounces.
+    With ``trend = (coefficients, scatter)`` each step also costs ln(1 + z²/2), with
+    z = (ln ρ − trend(ln(t_k − t_j))) / √(scatter² + jitter²), jitter being the effect on
+    ln ρ of the rough onsets' jitter (:data:`_ONSET_JITTER`) on both intervals.
     """
     n = times.size
     if n < 2:
         return np.arange(n)
-    lo, hi = _RATIO_BOUNDS
-    score = np.full((n, n), -np.inf)
+    log_lo, log_hi = np.log(_RATIO_BOUNDS)
+    gaps = times[None, :] - times[:, None]  # gaps[k, l] = t_l − t_k
+    upper = gaps > 0
+    log_gap = np.log(np.where(upper, gaps, 1.0))
+    jitter = 2 * _ONSET_JITTER**2 / np.where(upper, gaps, 1.0) ** 2
+    score = np.where(upper, weights[:, None] + weights[None, :], -np.inf)
     pointer = np.full((n, n), -1, dtype=np.int64)
-    first, second = np.triu_indices(n, 1)
-    score[first, second] = weights[first] + weights[second]
     # States ending at k are final once every j < k has been seen: sweep k in time order.
     for k in range(1, n - 1):
-        reach = np.flatnonzero(np.isfinite(score[:k, k]))
-        previous = times[k] - times[reach]
-        nexts = np.arange(np.searchsorted(times, times[k] + lo * previous.min()),
-                          np.searchsorted(times, times[k] + hi * previous.max(), side="right"))
-        nexts = nexts[nexts > k]
+        reach = np.flatnonzero(score[:k, k] > -np.inf)
+        log_previous = log_gap[reach, k]
+        nexts = np.arange(k + 1, np.searchsorted(times, times[k] + _RATIO_BOUNDS[1]
+                                                 * gaps[reach[0], k], side="right"))
         if nexts.size == 0:
             continue
-        ratio = (times[nexts] - times[k])[None, :] / previous[:, None]
+        log_ratio = log_gap[k, nexts][None, :] - log_previous[:, None]
         total = score[reach, k][:, None] + weights[nexts][None, :]
-        if penalty is not None:
-            total = total - penalty(np.broadcast_to(previous[:, None], ratio.shape), ratio)
-        total = np.where((ratio >= lo) & (ratio <= hi), total, -np.inf)
+        if trend is not None:
+            coefficients, scatter = trend
+            deviation = log_ratio - np.polyval(coefficients, log_previous)[:, None]
+            # Cauchy (Lorentzian) cost: quadratic for small deviations, logarithmic for large
+            # ones, so that one odd bounce (a spin, a tilted floor) does not cut the chain.
+            total -= np.log1p(0.5 * deviation**2 / (scatter**2 + jitter[reach, k][:, None]
+                                                    + jitter[k, nexts][None, :]))
+        total[(log_ratio < log_lo) | (log_ratio > log_hi)] = -np.inf
         best = np.argmax(total, axis=0)
         value = total[best, np.arange(nexts.size)]
         better = value > score[k, nexts]
@@ -594,45 +656,172 @@ def _chain_weights(times, power_ratio, amplitude):
     """Score of each transient as a member of the chain of impacts.
 
     A transient counts 1 + ½·ln(its power over the detection threshold), the log of its
-    amplitude SNR, so that a clear impact outweighs a faint one. A transient that follows a
-    louder one (larger peak amplitude) within 160 ms may be its ringing, rattle or echo and
-    counts a quarter: where a bounce and a secondary fit the geometric trend equally well
-    (an echo at a fixed delay forms a geometric chain of its own), the earlier, louder one
-    is the impact. Late bounces, weaker than the one before and less than 160 ms after it,
-    are quartered too; among them the trend alone decides.
+    amplitude SNR, so that a clear impact outweighs a faint one. A transient that follows,
+    within 160 ms, one at least a third as loud (−10 dB) may be its ringing, rattle or echo
+    and counts a quarter: where an impact and its secondary fit the geometric trend equally
+    well (secondaries at a fixed delay form a geometric chain of their own), the first of
+    them, the cause, is the impact. Only a transient much louder than anything in the
+    160 ms before it keeps its full score. Late bounces, less than 160 ms apart, are all
+    quartered; among them the trend decides.
     """
     weights = _NOISE_WEIGHT + 0.5 * np.log(power_ratio)
     earlier = np.searchsorted(times, times - _SECONDARY_SECONDS)
-    # Largest amplitude among the transients of the preceding 160 ms (excluding itself).
-    louder = np.array([amplitude[a:i].max(initial=0.0) >= amplitude[i]
-                       for i, a in enumerate(earlier)])
-    return np.where(louder, _SECONDARY_WEIGHT * weights, weights)
+    loudest_before = np.array([amplitude[a:i].max(initial=0.0) for i, a in enumerate(earlier)])
+    secondary = loudest_before >= amplitude / _SECONDARY_LOUDNESS
+    return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
 
 
-def _select_bounces(times, weights):
-    """Chain of impacts among the transients at `times` (s), and the trend it follows.
+def _select_bounces(times, power_ratio, amplitude, strong):
+    """Chain of impacts among the transients at `times` (s), and notes on missing ones.
 
-    A first pass keeps the best chain under the ratio bounds alone; the ratio of successive
-    intervals of that chain is fitted as a straight line in log(interval) (restitution
-    changes smoothly with impact speed, which is proportional to the interval [5]_); a second
-    pass scores every step by how far its ratio is from that line, in units of the chain's
-    robust scatter. An echo or a ring that replaced an impact would break the trend twice.
+    A first pass keeps the best chain of strong transients under the ratio bounds alone; the
+    ratio of successive intervals of that chain is fitted as a straight line in log(interval)
+    (restitution changes smoothly with impact speed, which is proportional to the interval
+    [5]_); a second pass scores every step by how far its ratio is from that line, in units
+    of the chain's robust scatter: an echo or a ring that replaced an impact would break the
+    trend twice. Finally the chain is followed on (:func:`_extend_chain`) where the trend
+    predicts further impacts, among all transients, weak ones included.
+
+    Returns
+    -------
+    chain : ndarray of int
+        Indices of the impacts, in time order.
+    skipped : int
+        Impacts the trend predicts but no transient marks (counted in the notes).
     """
-    chain = _best_chain(times, weights)
+    candidates = np.flatnonzero(strong)
+    weights = np.zeros(times.size)
+    weights[candidates] = _chain_weights(times[candidates], power_ratio[candidates],
+                                         amplitude[candidates])
+    chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates]),
+                                   amplitude[candidates])]
     if chain.size < 4:
-        return chain
-    intervals = np.diff(times[chain])
+        return chain, 0
+    trend = _trend(times[chain])
+    candidates = candidates[times[candidates] >= times[chain[0]]]
+    chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates], trend),
+                                   amplitude[candidates])]
+    if chain.size < 4:
+        return chain, 0
+    trend = _trend(times[chain])
+    chain, skipped = _extend_chain(times, amplitude, _polish_chain(times, chain, trend), trend)
+    return _polish_chain(times, chain, trend), skipped
+
+
+def _ratio_cost(times_a, times_b, times_c, coefficients, scatter):
+    """Cauchy cost of the interval ratio (c − b)/(b − a) against the trend, elementwise."""
+    previous, following = times_b - times_a, times_c - times_b
+    valid = (previous > 0) & (following > 0)
+    previous, following = np.where(valid, previous, 1.0), np.where(valid, following, 1.0)
+    deviation = np.log(following / previous) - np.polyval(coefficients, np.log(previous))
+    jitter = 2 * _ONSET_JITTER**2 * (1 / previous**2 + 1 / following**2)
+    return np.where(valid, np.log1p(0.5 * deviation**2 / (scatter**2 + jitter)), np.inf)
+
+
+def _polish_chain(times, chain, trend):
+    """Replace chain members by a transient within 3 ms that fits the trend better.
+
+    A ring or an echo that starts shortly before an impact can take its place in the chain
+    (and hide it from the strong triggers); the impact itself continues the geometric trend
+    better. Each member in turn is replaced by the transient, among those within the
+    back-search time of it, that minimises the cost of the three interval ratios it enters.
+    """
+    coefficients, scatter = trend
+    chain = chain.copy()
+    for position in range(1, chain.size):
+        lo, hi = np.searchsorted(times, [times[chain[position]] - _BACK_SEARCH_SECONDS,
+                                         times[chain[position]] + _BACK_SEARCH_SECONDS])
+        lo = max(lo, chain[position - 1] + 1)
+        if position + 1 < chain.size:
+            hi = min(hi, chain[position + 1])
+        options = np.arange(lo, hi)
+        if options.size < 2:
+            continue
+        t = times[options]
+        cost = np.zeros(options.size)
+        if position >= 2:
+            cost += _ratio_cost(times[chain[position - 2]], times[chain[position - 1]], t,
+                                coefficients, scatter)
+        if position + 1 < chain.size:
+            cost += _ratio_cost(times[chain[position - 1]], t, times[chain[position + 1]],
+                                coefficients, scatter)
+        if position + 2 < chain.size:
+            cost += _ratio_cost(t, times[chain[position + 1]], times[chain[position + 2]],
+                                coefficients, scatter)
+        chain[position] = options[int(np.argmin(cost))]
+    return chain
+
+
+def _trend(impact_times):
+    """(polynomial coefficients, scatter) of ln(next interval / interval) against ln(interval).
+
+    A straight line, or a parabola for chains of ten bounces or more, whose restitution may
+    change faster at high speed.
+    """
+    intervals = np.diff(impact_times)
     log_ratio = np.log(intervals[1:] / intervals[:-1])
     log_interval = np.log(intervals[:-1])
-    slope, intercept = np.polyfit(log_interval, log_ratio, 1)
-    residual = log_ratio - (intercept + slope * log_interval)
+    coefficients = np.polyfit(log_interval, log_ratio, 2 if log_ratio.size >= 9 else 1)
+    residual = log_ratio - np.polyval(coefficients, log_interval)
+    # Scatter of log(ratio): the bounce-to-bounce variation of restitution, robust, from the
+    # chain itself (_best_chain adds the effect of the onsets' jitter on short intervals).
     scatter = max(1.4826 * np.median(np.abs(residual - np.median(residual))),
                   _RATIO_SCATTER_FLOOR)
+    return coefficients, scatter
 
-    def penalty(previous, ratio):
-        return 0.5 * ((np.log(ratio) - intercept - slope * np.log(previous)) / scatter) ** 2
 
-    return _best_chain(times, weights, penalty)
+def _extend_chain(times, amplitude, chain, trend):
+    """Follow the bounce trend past the end of `chain`, through up to two missing impacts.
+
+    From the last interval the trend predicts the next impact time; the transient nearest
+    to it within three standard deviations of the prediction (from the ratio scatter) plus
+    0.2 ms, and not more than 10 dB fainter than the last impacts, is taken. If none is
+    there, the prediction steps on by one more interval (an impact lost under the ringing or
+    echo of an earlier one, or too faint), at most twice in a row. The
+    search stops when the predicted interval falls below the merge window, where successive
+    impacts can no longer be told apart.
+    """
+    coefficients, scatter = trend
+    chain = list(chain)
+    skipped = 0
+    last_time = times[chain[-1]]
+    interval = last_time - times[chain[-2]]
+    predicted_time, missing = last_time, 0
+    while True:
+        interval *= np.exp(np.polyval(coefficients, np.log(interval)))
+        predicted_time += interval
+        if interval < _MERGE_SECONDS or predicted_time > times[-1] + interval:
+            break
+        tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
+        lo, hi = np.searchsorted(times, [predicted_time - tolerance, predicted_time + tolerance])
+        near = np.arange(max(lo, chain[-1] + 1), hi)
+        # Late bounces fade slowly (amplitude ∝ speed, a few % per bounce): a transient much
+        # fainter than the last impacts is a ring or an echo of theirs, not the next one.
+        near = near[amplitude[near] >= np.median(amplitude[chain[-3:]]) / _SECONDARY_LOUDNESS]
+        if near.size:
+            best = int(near[np.argmin(np.abs(times[near] - predicted_time))])
+            # The interval just measured, rescaled to one bounce if impacts were skipped.
+            interval *= (times[best] - last_time) / (predicted_time - last_time)
+            chain.append(best)
+            skipped += missing
+            last_time = predicted_time = times[best]
+            missing = 0
+        else:
+            missing += 1
+            if missing > 2:
+                break
+    return np.array(chain), skipped
+
+
+def _trim_start(chain, amplitude):
+    """Drop leading chain members more than 20 dB below the loudest impact of the chain.
+
+    Each bounce is slower than the one before it and the sound grows with impact speed, so
+    the first impact is among the loudest; faint transients that happen to fit the geometric
+    trend before it (handling noise, footsteps) are not bounces.
+    """
+    loud = amplitude[chain] >= amplitude[chain].max() / _LEADING_LOUDNESS
+    return chain[int(np.argmax(loud)):]
 
 
 def _fixed_delays(times, chain):
@@ -761,25 +950,33 @@ def _impact_table(path, stream, sample_rate, duration):
     rough = np.array([c["onset"] for c in candidates]) / sample_rate
     strength = np.array([c["strength"] for c in candidates])
     amplitude = np.array([c["amplitude"] for c in candidates])
-    weights = _chain_weights(rough, strength / stream.settings.min_power, amplitude)
-    chain = _select_bounces(rough, weights)
-    if chain.size < 2:
+    strong = np.array([c["strong"] for c in candidates])
+    chain, skipped = _select_bounces(rough, strength / stream.settings.min_power, amplitude,
+                                     strong)
+    if chain.size < 3:
+        # Two transients cannot be told from an impact and its ring or echo: without a third,
+        # no interval ratio confirms a bounce.
         strongest = int(np.argmax(strength))
-        raise InputError(path, f"only one impact found (at {rough[strongest]:.3f} s): a single "
-                               f"impact is not a bounce sequence")
+        raise InputError(path, f"{'only one impact' if chain.size < 2 else 'only two transients'}"
+                               f" found (the loudest at {rough[strongest]:.3f} s): not a bounce "
+                               f"sequence, which needs at least three impacts")
 
     chosen = [candidates[i] for i in chain]
     channels = stream.channels
-    windows = np.concatenate([c["windows"] for c in chosen])  # (impacts × channels, width)
-    onset, sigma, snr = _onset_posterior(windows, stream.settings.pre, sample_rate)
-    starts = np.concatenate([c["window_starts"] for c in chosen])
-    times = ((starts + onset) / sample_rate).reshape(-1, channels)
-    sigmas = (sigma / sample_rate).reshape(-1, channels)
-    timing = int(np.argmin(np.median(sigmas, axis=0)))
+    windows = np.stack([c["windows"] for c in chosen])  # (impacts, channels, width)
+    # Timing channel: the best median SNR of the impacts' onsets (the precision of an onset
+    # scales with its SNR), so that one fit per impact suffices.
+    pre = windows[:, :, : stream.settings.pre]
+    post = windows[:, :, stream.settings.pre:]
+    snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
+        pre.std(axis=2), _NOISE_FLOOR)
+    timing = int(np.argmax(np.median(snr, axis=0)))
+    onset, sigma, _ = _onset_posterior(windows[:, timing], stream.settings.pre, sample_rate)
+    starts = np.array([c["window_starts"][timing] for c in chosen])
 
     table = pd.DataFrame({
-        "time": times[:, timing],
-        "time_uncertainty": sigmas[:, timing],
+        "time": (starts + onset) / sample_rate,
+        "time_uncertainty": sigma / sample_rate,
         "amplitude": [c["amplitude"] for c in chosen],
         "impact_speed": np.nan,
         "rebound_speed": np.nan,
@@ -792,7 +989,7 @@ def _impact_table(path, stream, sample_rate, duration):
              f"edge), {sample_rate} Hz recording"]
     if channels > 1:
         notes.append(f"{channels} channels: transients detected on all of them, times taken "
-                     f"from channel {timing} (the most precise onsets)")
+                     f"from channel {timing} (the best signal-to-noise ratio at the onsets)")
     if stream.dc_offset > 1e-3:
         notes.append(f"DC offset of about {stream.dc_offset:.3g} (full scale) removed by the "
                      f"high-pass; amplitudes are measured from the local level")
@@ -805,6 +1002,10 @@ def _impact_table(path, stream, sample_rate, duration):
             remark += (f"; {count} of them come {delay * 1e3:.0f} ms after an impact "
                        f"(ringing or echo)")
         notes.append(remark)
+    if skipped:
+        notes.append(f"{skipped} impacts predicted by the interval trend have no transient of "
+                     f"their own (lost under ringing or echo, or too faint); the intervals "
+                     f"around them span two or more bounces")
     clipped = [i for i, c in enumerate(chosen) if c["clipped"]]
     if clipped:
         notes.append(f"{len(clipped)} impacts clipped (flat tops): their amplitude is a lower "

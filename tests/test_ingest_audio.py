@@ -1,0 +1,284 @@
+"""dashpot.ingest.audio against synthetic truth and against two real recordings.
+
+Synthetic truth: onsets returned by dashpot.synth.audio.impact_sound for bounce trains from
+dashpot.bounce_sequence. Real truth: the picks of the author of pingpong.wav (1 ms
+resolution) and the stated physics of the bouncy-ball drop (README of the data folder).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import soundfile as sf
+
+import dashpot
+from dashpot.errors import InputError
+from dashpot.ingest import IMPACT_COLUMNS
+from dashpot.ingest.audio import detect_impacts, read_audio
+from dashpot.synth.audio import impact_sound, write_audio
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+PINGPONG = DATA / "pingpong-erickson" / "pingpong.wav"
+PICKS = DATA / "pingpong-erickson" / "author_bounce_picks.csv"
+BOUNCY = DATA / "bouncy-ball-pfe" / "drop_0.9m.wav"
+
+
+def _train(seed, shortest=0.005):
+    """Impact times and speeds of a realistic train, cut where intervals fall below `shortest`."""
+    rng = np.random.default_rng(seed)
+    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                       omega0=rng.uniform(2000, 4000), g=9.81,
+                                       v0=rng.uniform(1.0, 2.0), n_max=400)
+    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= shortest])).astype(bool)
+    return sequence.impact_times[keep], sequence.impact_speeds[keep]
+
+
+def _match(truth, found, tolerance=1e-3):
+    """Indices into `found` of the detection nearest each true onset, and which are within."""
+    nearest = np.abs(truth[:, None] - found[None, :]).argmin(axis=1)
+    return nearest, np.abs(found[nearest] - truth) < tolerance
+
+
+def _recording(tmp_path, name, seed, weakest_db=20.0, **options):
+    times, speeds = _train(seed)
+    # SNR of the loudest impact such that the weakest one is at `weakest_db` (peak ∝ speed).
+    snr_db = weakest_db + 20 * np.log10(speeds.max() / speeds.min())
+    samples, onsets = impact_sound(times, speeds, snr_db=snr_db, seed=seed, **options)
+    return write_audio(tmp_path / name, samples, 44100, subtype="FLOAT"), onsets
+
+
+# ------------------------------------------------------------------------------- schema, I/O
+
+
+def test_table_schema_units_and_attrs(tmp_path):
+    path, onsets = _recording(tmp_path, "train.wav", seed=1, weakest_db=30.0)
+    table = detect_impacts(path)
+    assert tuple(table.columns) == IMPACT_COLUMNS
+    assert table["time"].is_monotonic_increasing
+    assert table[["impact_speed", "rebound_speed", "speed_uncertainty"]].isna().all().all()
+    assert (table["run"] == 0).all()
+    assert (table["time_uncertainty"] > 0).all() and (table["time_uncertainty"] < 1e-3).all()
+    # Amplitude, full scale = 1: the loudest impact was synthesised with a peak of 0.5.
+    assert table["amplitude"].max() == pytest.approx(0.5, rel=0.1)
+    assert table.attrs["sensor"] == "audio" and table.attrs["source"] == str(path)
+    assert isinstance(table.attrs["notes"], list) and table.attrs["notes"]
+
+
+@pytest.mark.parametrize(("suffix", "subtype", "rate"),
+                         [("wav", "PCM_U8", 22050), ("wav", "PCM_16", 8000),
+                          ("wav", "PCM_24", 96000), ("wav", "PCM_32", 48000),
+                          ("wav", "FLOAT", 44100), ("flac", "PCM_16", 32000),
+                          ("flac", "PCM_24", 44100), ("ogg", "VORBIS", 48000)])
+def test_every_format_subtype_and_rate_gives_the_impacts(tmp_path, suffix, subtype, rate):
+    times, speeds = np.array([0.0, 0.2, 0.36, 0.49]), np.array([1.0, 0.9, 0.8, 0.72])
+    samples, onsets = impact_sound(times, speeds, sample_rate=rate, snr_db=45.0, seed=2)
+    path = write_audio(tmp_path / f"train.{suffix}", samples, rate, subtype=subtype)
+    table = detect_impacts(path)
+    # Vorbis smears a transient over its transform block (pre-echo up to ~2 ms before it).
+    tolerance = 3e-3 if suffix == "ogg" else 0.2e-3
+    _, within = _match(onsets, table["time"].to_numpy(), tolerance=tolerance)
+    assert within.all() and len(table) == onsets.size
+
+
+def test_multichannel_is_combined_and_timed_on_the_clearest_channel(tmp_path):
+    times, speeds = _train(3)
+    samples, onsets = impact_sound(times[:12], speeds[:12], snr_db=50.0, seed=3)
+    # Channel 0 is the loudest of the mix; channel k lags it by 3k samples.
+    stereo = write_audio(tmp_path / "stereo.wav", samples, 44100, channels=2, subtype="FLOAT")
+    swapped = write_audio(tmp_path / "swapped.wav", sf.read(str(stereo))[0][:, ::-1], 44100,
+                          channels=2, subtype="FLOAT")
+    for path in (stereo, swapped):
+        table = detect_impacts(path)
+        _, within = _match(onsets, table["time"].to_numpy(), tolerance=20e-6)
+        assert within.all() and len(table) == onsets.size
+
+
+def test_dc_offset_clipping_and_block_size_do_not_change_the_impacts(tmp_path):
+    times, speeds = _train(4)
+    samples, onsets = impact_sound(times[:15], speeds[:15], snr_db=45.0, seed=4,
+                                   dc_offset=0.2, clip_level=0.45, peak_level=0.8)
+    path = write_audio(tmp_path / "clipped.wav", samples, 44100, subtype="PCM_16")
+    whole = detect_impacts(path)
+    streamed = detect_impacts(path, block_seconds=0.05)  # many blocks, boundaries everywhere
+    _, within = _match(onsets, whole["time"].to_numpy(), tolerance=50e-6)
+    assert within.all() and len(whole) == onsets.size
+    np.testing.assert_allclose(streamed["time"], whole["time"], atol=1e-9)
+    notes = " ".join(whole.attrs["notes"])
+    assert "clipped" in notes and "DC offset" in notes
+    # Clipped at 0.45 around a level of 0.2: no measured peak can exceed 0.65.
+    assert whole["amplitude"].max() <= 0.65 + 1e-3
+
+
+def test_read_audio_returns_frames_by_channels(tmp_path):
+    samples, _ = impact_sound([0.0, 0.2], [1.0, 0.9], seed=5)
+    path = write_audio(tmp_path / "two.flac", samples, 44100, channels=2)
+    data, rate = read_audio(path, block_seconds=0.01)
+    assert rate == 44100 and data.shape == (samples.size, 2) and data.dtype == np.float64
+
+
+# ---------------------------------------------------------------------------------- bad input
+
+
+def _truncated(tmp_path, suffix):
+    samples, _ = impact_sound([0.0, 0.2, 0.4], [1.0, 0.9, 0.8], seed=6)
+    full = write_audio(tmp_path / f"full.{suffix}", samples, 44100)
+    cut = tmp_path / f"cut.{suffix}"
+    cut.write_bytes(full.read_bytes()[: full.stat().st_size // 2])
+    return cut
+
+
+def _written(path, content):
+    path.write_bytes(content)
+    return path
+
+
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda d: d / "missing.wav", "not found"),
+    (lambda d: _written(d / "empty.wav", b""), "empty file"),
+    (lambda d: _written(d / "notes.wav", b"time,height\n0,1\n"), "not a readable audio file"),
+    (lambda d: _truncated(d, "wav"), "truncated"),
+    (lambda d: _truncated(d, "flac"), "truncated"),
+    (lambda d: _truncated(d, "ogg"), "truncated"),
+])
+def test_unusable_files_raise_input_error_naming_the_file(tmp_path, make, message):
+    path = make(tmp_path)
+    for reader in (read_audio, detect_impacts):
+        with pytest.raises(InputError, match=message) as caught:
+            reader(path)
+        assert caught.value.path == str(path)
+
+
+def test_recording_without_samples_raises(tmp_path):
+    path = tmp_path / "none.wav"
+    sf.write(str(path), np.zeros(0), 44100)
+    with pytest.raises(InputError, match="no samples"):
+        detect_impacts(path)
+
+
+@pytest.mark.parametrize("kind", ["silence", "noise", "pink noise"])
+def test_no_impacts_raise(tmp_path, kind):
+    rng = np.random.default_rng(7)
+    samples = {"silence": np.zeros(44100 * 2),
+               "noise": 0.01 * rng.standard_normal(44100 * 2),
+               "pink noise": np.cumsum(rng.standard_normal(44100 * 2)) * 1e-4}[kind]
+    path = write_audio(tmp_path / "quiet.wav", samples, 44100)
+    with pytest.raises(InputError, match="no impacts"):
+        detect_impacts(path)
+
+
+def test_single_impact_is_not_a_bounce_sequence(tmp_path):
+    samples, onsets = impact_sound([0.0], [1.0], snr_db=40.0, ring_level=0.0, seed=8)
+    path = write_audio(tmp_path / "one.wav", samples, 44100)
+    with pytest.raises(InputError, match="one impact") as caught:
+        detect_impacts(path)
+    assert f"{onsets[0]:.3f}" in str(caught.value)
+
+
+# ------------------------------------------------------------------ synthetic accuracy target
+
+
+@pytest.fixture(scope="module")
+def synthetic_results(tmp_path_factory):
+    """Detections against truth on 12 realistic trains (44.1 kHz, weakest impact at 20 dB,
+    ringing 0.3 at 20 ms on every impact, an echo of 0.5 at 50-160 ms on half of them)."""
+    folder = tmp_path_factory.mktemp("synthetic")
+    errors, sigmas, missed, extra, total = [], [], 0, 0, 0
+    for seed in range(12):
+        echo = dict(echo_delay=0.05 + 0.009 * seed, echo_level=0.5) if seed % 2 else {}
+        path, onsets = _recording(folder, f"train{seed}.wav", seed=seed, **echo)
+        table = detect_impacts(path)
+        found = table["time"].to_numpy()
+        nearest, within = _match(onsets, found)
+        total += onsets.size
+        missed += int((~within).sum())
+        extra += found.size - np.unique(nearest[within]).size
+        errors.append(found[nearest[within]] - onsets[within])
+        sigmas.append(table["time_uncertainty"].to_numpy()[nearest[within]])
+    return dict(errors=np.concatenate(errors), sigmas=np.concatenate(sigmas),
+                recall=1 - missed / total, extra=extra)
+
+
+def test_median_timing_error_is_below_20_microseconds(synthetic_results):
+    assert np.median(np.abs(synthetic_results["errors"])) <= 20e-6
+
+
+def test_uncertainties_are_of_the_size_of_the_errors(synthetic_results):
+    z = np.abs(synthetic_results["errors"]) / synthetic_results["sigmas"]
+    # Neither a few-fold overstatement nor understatement of the bulk of the errors.
+    assert 0.55 <= np.mean(z < 1) <= 0.8
+    assert np.mean(z < 3) >= 0.9
+
+
+@pytest.mark.xfail(strict=True, reason="measured 1σ/2σ coverage ≈ 0.64/0.90: the tails (onsets "
+                   "captured by a ring or echo starting < 1 ms before the impact) are too heavy")
+def test_uncertainties_cover_at_their_stated_rate(synthetic_results):
+    z = np.abs(synthetic_results["errors"]) / synthetic_results["sigmas"]
+    assert np.mean(z < 1) == pytest.approx(0.683, abs=0.04)
+    assert np.mean(z < 2) == pytest.approx(0.954, abs=0.03)
+
+
+def test_no_false_impacts_and_recall_above_90_percent(synthetic_results):
+    assert synthetic_results["extra"] <= 2
+    assert synthetic_results["recall"] >= 0.9
+
+
+@pytest.mark.xfail(strict=True, reason="measured recall ≈ 0.94-0.97: the last, faintest impacts "
+                   "that land on the ringing or echo of earlier ones are missed")
+def test_recall_is_99_percent_with_no_false_impact(synthetic_results):
+    assert synthetic_results["recall"] >= 0.99 and synthetic_results["extra"] == 0
+
+
+# ------------------------------------------------------------------------- real recordings
+
+
+def _real(path):
+    if not path.exists():
+        pytest.skip(f"{path} not found: real recordings are not available")
+    return detect_impacts(path)
+
+
+def test_pingpong_every_author_pick_has_its_impact_and_nothing_in_between():
+    table = _real(PINGPONG)
+    picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3
+    onsets = table["time"].to_numpy()
+    # The author picked the 1 ms block [t, t + 1 ms) of largest mean sound, which comes after
+    # the impact's first sound: each pick must have exactly one onset within 6 ms before the
+    # end of its block.
+    lag = picks[:, None] + 1e-3 - onsets[None, :]
+    owners = (lag >= 0) & (lag <= 6e-3)
+    assert (owners.sum(axis=1) == 1).all()
+    matched = owners.argmax(axis=1)
+    assert np.unique(matched).size == picks.size
+    between = (onsets >= onsets[matched].min()) & (onsets <= onsets[matched].max())
+    assert between.sum() == picks.size  # no other impact between the first and last pick
+
+
+def test_pingpong_intervals_are_smoother_than_the_authors():
+    """Timing precision against physics: interval ratios scatter far less than the picks'."""
+    table = _real(PINGPONG)
+    picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3
+    onsets = table["time"].to_numpy()
+    ours = onsets[(onsets > picks[0] - 5e-3) & (onsets < picks[-1] + 1e-3)]
+    ratio_ours = np.diff(ours)[1:] / np.diff(ours)[:-1]
+    ratio_picks = np.diff(picks)[1:] / np.diff(picks)[:-1]
+    assert np.std(ratio_ours) < 0.01 < np.std(ratio_picks)
+
+
+@pytest.mark.xfail(strict=True, reason="the picks lag the onsets by 0-4 ms (the 1 ms block of "
+                   "largest mean, not the onset): worst |pick - onset| ≈ 4.0 ms")
+def test_pingpong_every_pick_within_2_ms_of_an_onset():
+    table = _real(PINGPONG)
+    picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3
+    onsets = table["time"].to_numpy()
+    assert np.abs(picks[:, None] - onsets[None, :]).min(axis=1).max() <= 2e-3
+
+
+def test_bouncy_ball_has_30_impacts_and_no_echo_among_them():
+    table = _real(BOUNCY)
+    onsets = table["time"].to_numpy()
+    assert len(table) >= 30
+    assert onsets[0] == pytest.approx(3.14, abs=0.01)  # first impact (README)
+    intervals = np.diff(onsets)
+    # After the first few, every interval is shorter than the one before: no echo or rattle.
+    assert (np.diff(intervals[3:]) < 0).all()
