@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import elementwise
 
 from .contact import Damping
-from .models import _iia_contact_time, _iib_bracket, _ib_bracket
+from .models import GRAVITY_MODELS, _iia_contact_time, _iib_bracket, _ib_bracket
 
 __all__ = ["integrate_collision"]
 
@@ -82,7 +82,7 @@ def _window(model, zeta, vtilde):
 
 
 def _chunk(model, zeta, vtilde, rtol):
-    gravity = 1.0 if model in ("Ib", "IIb", "hybrid") else 0.0
+    gravity = 1.0 if model in GRAVITY_MODELS else 0.0
     n = zeta.size
     window = _window(model, zeta, vtilde)
     scale = np.maximum(vtilde, 1.0)
@@ -163,7 +163,7 @@ def integrate_collision(model, zeta, vtilde, rtol):
         part = order[start:start + CHUNK]
         f, t, x, r = _chunk(model, zeta[part], vtilde[part], rtol)
         found[part], tau[part], xi_end[part], rate_end[part] = f, t, x, r
-    gravity = model in ("Ib", "IIb", "hybrid")
+    gravity = model in GRAVITY_MODELS
     rebound = found & (rate_end > 0.0)
     release_speed = np.where(rebound, rate_end, 0.0)
     if model == "hybrid":
