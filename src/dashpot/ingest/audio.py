@@ -16,14 +16,18 @@ Method, in four steps (each explained where it is implemented):
    the 2 ms before it (an STA/LTA trigger [1]_): strong above 9 dB, weak above 6 dB.
 2. Rough onset: the Akaike-information-criterion picker [2]_ on the 3 ms before each trigger
    (but not into the transient triggered before it) finds where the power leaves the level
-   before it, which catches a weak first arrival preceding the loud part of a transient.
-   Triggers within 1 ms of a kept onset belong to that transient.
+   before it, which catches a weak first arrival preceding the loud part of a transient;
+   where that stretch lasts 0.5 ms or more and the power then jumps 3 dB over it, it is a
+   sound of its own (the ring or echo of an earlier impact) and the onset is the later jump.
+   Triggers within 1 ms of a kept onset belong to that transient unless 9 dB louder.
 3. Selection by physics: the impacts of a ball bouncing to rest are the best chain of strong
    transients whose successive intervals shrink roughly geometrically, found by dynamic
    programming against a smooth trend of the interval ratio; ringing, echoes and rattles
    (weaker, and at a fixed delay after their impact) and noise break that trend. Members
-   are then swapped for nearby transients that fit the trend better, and the chain is
-   followed past its end where the trend predicts further impacts, weak transients included.
+   are then swapped for nearby transients that fit the trend better; its last impacts are
+   chosen again among all transients, weak ones included; and the chain is followed past its
+   end where the trend, refitted on fitted onsets, predicts further impacts, leaving out
+   transients at the recurring delay of a ring or echo after an impact.
    There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
@@ -75,6 +79,9 @@ _BACK_SEARCH_SECONDS = 3e-3
 _AIC_MARGIN = 4  # samples: shortest segment the AIC picker may leave on either side
 _MERGE_SECONDS = 1e-3  # triggers this close to a transient's onset belong to it
 _WEAK_JUMP_FACTOR = 2.0  # weak candidates: power jump down to min_jump / 2 (3 dB lower)
+_RING_GAP_SECONDS = 0.5e-3  # a sound this long before a transient's jump is a sound of its own
+_RING_JUMP = 2.0  # ... if the power then jumps 3 dB over it
+_SPLIT_JUMP = 8.0  # a trigger 9 dB louder than a transient < 1 ms before it is a new one
 # Onset fit (step 4).
 _PRE_SECONDS = 1e-3  # noise before the onset, for its level and colour
 _SPAN_SECONDS = 1e-3  # start of the transient, for its amplitude and frequency scale
@@ -98,6 +105,8 @@ _SECONDARY_WEIGHT = 0.25  # factor on the score of a transient that may be one o
 _SECONDARY_LOUDNESS = 3.0  # ... because a transient at least 1/3 as loud came before it
 _LEADING_LOUDNESS = 10.0  # the first impact is within 20 dB of the loudest
 _EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact time
+_TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak transients too
+_EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
 _FILE_FORMATS = {"WAV", "FLAC", "OGG"}
 
 
@@ -386,6 +395,35 @@ def _aic_picks(power, first):
     return split[np.argmin(criterion, axis=1)]
 
 
+def _onset_picks(power, first, min_gap, min_tail):
+    """Rough onset of each row of `power`: the AIC change point, moved past an earlier sound.
+
+    The AIC picker finds where the power first leaves the level before it. When a ring or an
+    echo of an earlier impact starts shortly before the transient, that is the start of the
+    ring, not of the transient. A second pick on the rest of the row (from the first pick
+    on) finds the next change point; if it lies at least `min_gap` samples later and the power
+    jumps there by the trigger's weak factor or more over the stretch since the first pick,
+    the stretch is a sound of its own (an impact's rising edge reaches its level well within
+    `min_gap`) and the transient starts at the second pick. The second pick must leave at
+    least `min_tail` samples after it: the mean of a few samples of a loud transient
+    fluctuates by a factor of 2 by itself.
+    """
+    picks = _aic_picks(power, first)
+    length = power.shape[1]
+    later = picks + 2 * _AIC_MARGIN < length - _AIC_MARGIN
+    if not later.any():
+        return picks
+    second = np.where(later, _aic_picks(power, np.where(later, picks, first)), picks)
+    cumulative = np.cumsum(power, axis=1)
+    rows = np.arange(power.shape[0])
+    between = (cumulative[rows, second - 1] - cumulative[rows, picks - 1]) \
+        / np.maximum(second - picks, 1)
+    after = (cumulative[:, -1] - cumulative[rows, second - 1]) / np.maximum(length - second, 1)
+    separate = later & (second - picks >= min_gap) & (length - second >= min_tail) \
+        & (after >= _RING_JUMP * between)
+    return np.where(separate, second, picks)
+
+
 @dataclass(frozen=True)
 class _Settings:
     """Window lengths (samples) and thresholds of one detection run."""
@@ -540,10 +578,12 @@ def _process(stream, block, final):
             detections[:-1]))
         first = np.clip(previous + settings.sta - search_start, 0,
                         length - 2 * _AIC_MARGIN - settings.sta)
-        onsets = _aic_picks(_windows(power, search_start, length), first)
-        channel_onsets = np.stack([_aic_picks(_windows(detector[:, c], search_start, length)
-                                              ** 2, first) for c in range(stream.channels)],
-                                  axis=1)
+        gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * settings.sample_rate)))
+        onsets = _onset_picks(_windows(power, search_start, length), first, gap,
+                              settings.sta)
+        channel_onsets = np.stack([_onset_picks(_windows(detector[:, c], search_start, length)
+                                                ** 2, first, gap, settings.sta)
+                                   for c in range(stream.channels)], axis=1)
         _keep_transients(stream, raw, filtered, sta, search_start + onsets,
                          search_start[:, None] + channel_onsets, strong)
     stream.done_until = stream.start + max(limit, first_new)
@@ -576,9 +616,12 @@ def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong)
         absolute = stream.start + onset
         if stream.last_onset is not None and absolute <= stream.last_onset:
             continue  # the picker went back into a transient already kept
-        if stream.last_onset is not None and absolute - stream.last_onset < settings.merge:
+        if (stream.last_onset is not None and absolute - stream.last_onset < settings.merge
+                and sta[onset] < _SPLIT_JUMP * stream.candidates[-1]["strength"]):
             # A second trigger within 1 ms of the onset of the transient just kept: its power
-            # jumped again while rising. The same transient (impacts are further apart).
+            # jumped again while rising. The same transient (impacts are further apart),
+            # unless it is 9 dB louder: then the one kept was a faint sound (the ring or echo
+            # of an earlier impact) just before this one, and both stay candidates.
             kept = stream.candidates[-1]
             kept["strength"] = max(kept["strength"], float(sta[onset]))
             kept["amplitude"] = max(kept["amplitude"], float(amplitudes[i]))
@@ -671,7 +714,7 @@ def _chain_weights(times, power_ratio, amplitude):
     return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
 
 
-def _select_bounces(times, power_ratio, amplitude, strong):
+def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     """Chain of impacts among the transients at `times` (s), and notes on missing ones.
 
     A first pass keeps the best chain of strong transients under the ratio bounds alone; the
@@ -704,8 +747,33 @@ def _select_bounces(times, power_ratio, amplitude, strong):
     if chain.size < 4:
         return chain, 0
     trend = _trend(times[chain])
-    chain, skipped = _extend_chain(times, amplitude, _polish_chain(times, chain, trend), trend)
+    chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
+    chain = _polish_chain(times, chain, trend)
+    chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
+                                   _secondary_delays(times, chain))
     return _polish_chain(times, chain, trend), skipped
+
+
+def _redo_tail(times, power_ratio, amplitude, strong, chain, trend):
+    """Chain with its last impacts chosen again among all transients, weak ones included.
+
+    The last, faintest impacts land on the ringing and echoes of earlier ones, so their
+    power jumps less and they may be weak triggers only, while rings of comparable loudness
+    come at fixed delays. With the trend known, the best chain (:func:`_best_chain`) through
+    every transient from the last :data:`_TAIL_IMPACTS` impacts on tells them apart by the
+    whole run of intervals rather than one predicted time at a time; a weak transient counts
+    half. The new tail is kept only if it continues the chain (starts on one of its members).
+    """
+    start = chain[max(0, chain.size - _TAIL_IMPACTS)]
+    pool = np.arange(start, times.size)
+    if pool.size < 3:
+        return chain
+    weights = _chain_weights(times[pool], power_ratio[pool], amplitude[pool])
+    weights = np.where(strong[pool], weights, 0.5 * weights)
+    tail = pool[_best_chain(times[pool], weights, trend)]
+    if tail.size < 3 or tail[0] not in set(chain.tolist()) or tail[-1] <= chain[-1]:
+        return chain
+    return np.concatenate([chain[chain < tail[0]], tail])
 
 
 def _ratio_cost(times_a, times_b, times_c, coefficients, scatter):
@@ -770,41 +838,92 @@ def _trend(impact_times):
     return coefficients, scatter
 
 
-def _extend_chain(times, amplitude, chain, trend):
+def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None):
     """Follow the bounce trend past the end of `chain`, through up to two missing impacts.
 
-    From the last interval the trend predicts the next impact time; the transient nearest
-    to it within three standard deviations of the prediction (from the ratio scatter) plus
-    0.2 ms, and not more than 10 dB fainter than the last impacts, is taken. If none is
-    there, the prediction steps on by one more interval (an impact lost under the ringing or
-    echo of an earlier one, or too faint), at most twice in a row. The
-    search stops when the predicted interval falls below the merge window, where successive
-    impacts can no longer be told apart.
+    The trend predicts the next impact time from each of the last three impacts and the
+    interval before it (stepped on through the bounces in between); the median of these
+    predictions is used, so that one rough onset pulled early by a ring or an echo does not
+    throw the prediction off. The transient nearest to it within three standard deviations
+    (from the ratio scatter and the rough onsets' jitter) plus 0.2 ms, and not more than
+    6 dB fainter than the last impacts, is taken. If none is there, the prediction steps on
+    by one more interval (an impact lost under the ringing or echo of an earlier one, or too
+    faint), at most twice in a row. The search stops when the predicted interval falls below
+    the merge window, where successive impacts can no longer be told apart.
+
+    With `precise` (a function giving the fitted onset times, s, of the transients of given
+    indices) the trend is refitted on the fitted onsets of the chain, the predictions start
+    from them, and the transients near a prediction are compared by their fitted onsets:
+    the rough onsets jitter by up to half a millisecond, a tenth of the last intervals.
+
+    `delays` (s), the fixed delays of the rings and echoes left out of the chain, reject a
+    transient that comes that long after an impact of the chain: past the last impact the
+    rings of the last ones continue its intervals exactly.
     """
+    if precise is None:
+        def precise(indices):
+            return times[indices]
+    else:
+        trend = _trend(precise(chain))
     coefficients, scatter = trend
+    # Below the shortest interval of the chain the trend is continued along its tangent: a
+    # parabola fitted to the longer intervals can bend away fast outside them.
+    edge = np.log(np.diff(times[chain]).min())
+    edge_value = np.polyval(coefficients, edge)
+    edge_slope = np.polyval(np.polyder(coefficients), edge)
+
+    def step(interval):
+        log_interval = np.log(interval)
+        log_ratio = np.where(log_interval < edge, edge_value + edge_slope * (log_interval - edge),
+                             np.polyval(coefficients, log_interval))
+        return interval * np.exp(log_ratio)
+
     chain = list(chain)
-    skipped = 0
-    last_time = times[chain[-1]]
-    interval = last_time - times[chain[-2]]
-    predicted_time, missing = last_time, 0
+    anchors = list(precise(np.array(chain[-4:])))  # one bounce apart (skips filled in)
+    skipped, missing = 0, 0
     while True:
-        interval *= np.exp(np.polyval(coefficients, np.log(interval)))
-        predicted_time += interval
+        predictions = []
+        for back in range(min(3, len(anchors) - 1)):
+            interval = anchors[-1 - back] - anchors[-2 - back]
+            moment = anchors[-1 - back]
+            for _ in range(back + 1 + missing):
+                interval = step(interval)
+                moment += interval
+            predictions.append((moment, interval))
+        predicted_time, interval = np.median(np.array(predictions), axis=0)
         if interval < _MERGE_SECONDS or predicted_time > times[-1] + interval:
             break
-        tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
-        lo, hi = np.searchsorted(times, [predicted_time - tolerance, predicted_time + tolerance])
+        # The fitted onsets of faint transients still err by a fraction of the jitter, and
+        # so do the anchors; after a skipped impact, though, rings of the last impacts are
+        # as likely there as the next one, and only a transient on the trend itself counts.
+        tolerance = 3.0 * np.hypot(interval * scatter, 0.0 if missing else
+                                   0.5 * _ONSET_JITTER) + _EXTENSION_SLACK
+        # Transients whose rough onset, jittered, may lie within the tolerance ...
+        reach = tolerance + 3.0 * _ONSET_JITTER
+        lo, hi = np.searchsorted(times, [predicted_time - reach, predicted_time + reach])
         near = np.arange(max(lo, chain[-1] + 1), hi)
         # Late bounces fade slowly (amplitude ∝ speed, a few % per bounce): a transient much
         # fainter than the last impacts is a ring or an echo of theirs, not the next one.
-        near = near[amplitude[near] >= np.median(amplitude[chain[-3:]]) / _SECONDARY_LOUDNESS]
+        near = near[amplitude[near] >= np.median(amplitude[chain[-3:]]) / _EXTENSION_LOUDNESS]
+        # ... and whose fitted onset does.
+        fitted = precise(near) if near.size else np.zeros(0)
+        inside = np.abs(fitted - predicted_time) <= tolerance
+        if delays is not None and delays.size and near.size:
+            members = precise(np.array(chain))
+            echoing = np.abs(fitted[:, None, None] - delays[None, :, None]
+                             - members[None, None, :]).min(axis=(1, 2))
+            inside &= echoing > _ONSET_JITTER
+        near, fitted = near[inside], fitted[inside]
         if near.size:
-            best = int(near[np.argmin(np.abs(times[near] - predicted_time))])
-            # The interval just measured, rescaled to one bounce if impacts were skipped.
-            interval *= (times[best] - last_time) / (predicted_time - last_time)
+            nearest = int(np.argmin(np.abs(fitted - predicted_time)))
+            best = int(near[nearest])
+            # Impacts skipped before it are placed on the trend between, as anchors.
+            if missing:
+                fill = np.linspace(anchors[-1], fitted[nearest], missing + 2)[1:-1]
+                anchors.extend(fill.tolist())
+            anchors.append(float(fitted[nearest]))
             chain.append(best)
             skipped += missing
-            last_time = predicted_time = times[best]
             missing = 0
         else:
             missing += 1
@@ -822,6 +941,34 @@ def _trim_start(chain, amplitude):
     """
     loud = amplitude[chain] >= amplitude[chain].max() / _LEADING_LOUDNESS
     return chain[int(np.argmax(loud)):]
+
+
+def _secondary_delays(times, chain):
+    """Delays (s) at which rings or echoes recur after the impacts of `chain`.
+
+    Every transient left out of the chain is measured from each of the impacts before it
+    (within the time secondaries last, or the echo delay); a delay shared by a quarter of the
+    impacts, to within 1 ms, is a secondary of theirs (a ring of the ball or the table, an
+    echo from a wall). Each is refined to the median of the delays within 1 ms of it.
+    """
+    impacts = times[chain]
+    others = np.setdiff1d(np.flatnonzero(times > impacts[0]), chain)
+    if others.size < 3:
+        return np.zeros(0)
+    delays = (times[others][:, None] - impacts[None, :]).ravel()
+    delays = delays[(delays > _MERGE_SECONDS) & (delays < 2 * _SECONDARY_SECONDS)]
+    values, counts = np.unique(np.round(delays * 1e3).astype(np.int64), return_counts=True)
+    # Neighbouring milliseconds belong together (a delay of 9.4 ms rounds to 9 or 10); a peak
+    # of the pooled histogram is a candidate delay.
+    pooled = counts + np.concatenate(([0], counts[:-1])) * (np.diff(values, prepend=-9) == 1)
+    dense = np.zeros(values.size + 2)
+    dense[1:-1] = pooled
+    peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= max(3, chain.size / 4))
+    found = []
+    for value in values[peaks] / 1e3:
+        close = delays[np.abs(delays - value + 0.5e-3) <= 1e-3]
+        found.append(float(np.median(close)))
+    return np.array(found)
 
 
 def _fixed_delays(times, chain):
@@ -938,6 +1085,33 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     return _impact_table(path, stream, sample_rate, duration)
 
 
+def _fitted_onsets(stream):
+    """Function giving the fitted onset (s) of the stored transients of given indices.
+
+    Each transient is fitted (:func:`_onset_posterior`) on its channel of best onset SNR;
+    results are remembered, so that asking again costs nothing.
+    """
+    candidates, settings = stream.candidates, stream.settings
+    known = {}
+
+    def fitted(indices):
+        todo = [int(i) for i in np.unique(indices) if int(i) not in known]
+        if todo:
+            windows = np.stack([candidates[i]["windows"] for i in todo])  # (K, C, W)
+            pre, post = windows[:, :, : settings.pre], windows[:, :, settings.pre:]
+            snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
+                pre.std(axis=2), _NOISE_FLOOR)
+            best = np.argmax(snr, axis=1)
+            rows = np.arange(len(todo))
+            onset, _, _ = _onset_posterior(windows[rows, best], settings.pre,
+                                           settings.sample_rate)
+            starts = np.array([candidates[i]["window_starts"][c] for i, c in zip(todo, best)])
+            known.update(zip(todo, ((starts + onset) / settings.sample_rate).tolist()))
+        return np.array([known[int(i)] for i in np.atleast_1d(indices)])
+
+    return fitted
+
+
 def _impact_table(path, stream, sample_rate, duration):
     """Select the impacts among the stored transients, time them, and build the table."""
     candidates = stream.candidates
@@ -952,7 +1126,7 @@ def _impact_table(path, stream, sample_rate, duration):
     amplitude = np.array([c["amplitude"] for c in candidates])
     strong = np.array([c["strong"] for c in candidates])
     chain, skipped = _select_bounces(rough, strength / stream.settings.min_power, amplitude,
-                                     strong)
+                                     strong, _fitted_onsets(stream))
     if chain.size < 3:
         # Two transients cannot be told from an impact and its ring or echo: without a third,
         # no interval ratio confirms a bounce.
