@@ -524,20 +524,30 @@ def _phyphox_single_row(path, table, pattern, notes, what):
     return out
 
 
+def _triggered_in_order(path, table, found, order, what, gap_problem):
+    """Times and resolutions of a one-row phyphox set, in `order`, up to the first unset one.
+
+    Buffers start at 0 and stay 0 until their event arrives (init="0" in the experiments [1]_),
+    so a 0 (or empty) cell is an event that never happened; one followed by a set cell means a
+    corrupt or edited file.
+    """
+    values = np.array([found[n][0] for n in order])
+    resolution = np.array([found[n][1] for n in order])
+    happened = np.isfinite(values) & (values > 0)
+    skipped = np.flatnonzero(~happened)
+    if skipped.size and np.any(happened[skipped[0]:]):
+        raise InputError(path, f"{table.where}'{order[skipped[0]]}' {gap_problem}", row=1)
+    times = values[happened]
+    _check_times(path, table, times, np.zeros(times.size, dtype=int), what)
+    return times, resolution[happened]
+
+
 def _phyphox_stopwatch(path, table, layout, notes):
     """Stock Acoustic Stopwatch sets: Start and Stop(s) in one row; 0 means 'not triggered'."""
     found = _phyphox_single_row(path, table, r"start|stop|stop \d+", notes, layout)
     order = sorted(found, key=lambda n: (n != "start", int(n.split()[1]) if " " in n else 0))
-    values = np.array([found[n][0] for n in order])
-    resolution = np.array([found[n][1] for n in order])
-    # Buffers start at 0 and stay 0 until the click arrives (init="0" in the experiment [1]_).
-    triggered = np.isfinite(values) & (values > 0)
-    skipped = np.flatnonzero(~triggered)
-    if skipped.size and np.any(triggered[skipped[0]:]):
-        raise InputError(path, f"{table.where}'{order[skipped[0]]}' never triggered but a later "
-                               f"stop did", row=1)
-    times, resolution = values[triggered], resolution[triggered]
-    _check_times(path, table, times, np.zeros(times.size, dtype=int), "click time")
+    times, resolution = _triggered_in_order(path, table, found, order, "click time",
+                                            "never triggered but a later stop did")
     notes.append(f"phyphox Acoustic Stopwatch, '{layout.capitalize()}' set: {times.size} "
                  f"click(s) ({len(order) - times.size} stop(s) never triggered)")
     return times, _phyphox_time_uncertainty(resolution)
@@ -547,15 +557,8 @@ def _phyphox_collision(path, table, notes):
     """(In)elastic collision 'Energy' set: Bounce i (s) are the impact times themselves."""
     found = _phyphox_single_row(path, table, r"bounce \d+", notes, "Energy")
     order = sorted(found, key=lambda n: int(n.split()[1]))
-    values = np.array([found[n][0] for n in order])
-    resolution = np.array([found[n][1] for n in order])
-    detected = np.isfinite(values) & (values > 0)
-    skipped = np.flatnonzero(~detected)
-    if skipped.size and np.any(detected[skipped[0]:]):
-        raise InputError(path, f"{table.where}'{order[skipped[0]]}' was never detected but a "
-                               f"later bounce was", row=1)
-    times, resolution = values[detected], resolution[detected]
-    _check_times(path, table, times, np.zeros(times.size, dtype=int), "bounce time")
+    times, resolution = _triggered_in_order(path, table, found, order, "bounce time",
+                                            "was never detected but a later bounce was")
     notes.append(f"phyphox (In)elastic collision: {times.size} bounce time(s) read from "
                  f"'Bounce i (s)' ({len(order) - times.size} never detected)")
     # The heights are the experiment's own function of the times, h_i = (g/8)·Δt_i² [1]_: read
