@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from .errors import InputError
+from .physics.models import MODELS
 
 
 def _write_csv_atomically(table, output, inputs):
@@ -61,6 +62,25 @@ def _bounces(args):
     print(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> {args.output}")
 
 
+def _fit(args):
+    from .analysis import analyze
+    from .scene import Scene, load_scene
+    from .store import write_scene_fit
+
+    scene = load_scene(args.scene) if args.scene else Scene()
+    if Path(args.output).resolve() in {Path(args.impacts).resolve()}:
+        raise InputError(args.output, "refusing to overwrite the input with the output")
+    impacts, scene_fit = analyze(args.impacts, scene, models=args.models)
+    write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
+                    config={"models": list(scene_fit.results)})
+    print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
+    for model, fit in scene_fit.results.items():
+        beta = fit.estimates.get("beta")
+        state = (f"beta = {beta.value:.4g} ± {beta.stderr:.2g} 1/s" if fit.success and beta
+                 else f"failed: {fit.message}")
+        print(f"  {model:>6}: {state}")
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog="dashpot", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -84,6 +104,13 @@ def build_parser():
     bounces.add_argument("--contact-duration", type=float, default=0.0,
                          help="contact duration in s, if known (default 0)")
     bounces.set_defaults(run=_bounces)
+    fit = commands.add_parser("fit", help="fit β and k under every contact model; HDF5 out")
+    fit.add_argument("impacts", help="impact table from `dashpot impacts`, or a recording")
+    fit.add_argument("-o", "--output", required=True, help="HDF5 file to write")
+    fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
+    fit.add_argument("--models", nargs="+", choices=list(MODELS),
+                     help="models to fit (default: the scene's, else all five)")
+    fit.set_defaults(run=_fit)
     return parser
 
 

@@ -1,0 +1,634 @@
+"""Fit the damping β and stiffness k of a linear spring-dashpot contact to a bounce train.
+
+For each contact model the impact times of a scene are fitted with lmfit (Levenberg–Marquardt,
+MINPACK) by the predicted train: parameters ln ζ and ln ω0 (positive by construction, and their
+errors are relative errors), the first impact speed v0 and the time t0 of the first impact.
+Quantities the scene knows are fixed, or enter as a Gaussian prior when the scene gives their
+uncertainty. Residuals are the impact-time misfits divided by their 1σ uncertainties, plus the
+measured impact and rebound speeds where the sensor gives them (motion sensors, photogates).
+
+Start values come from the data (the interval ratios give ε and so ζ; the first interval or the
+drop height gives v0; a coarse scan over ω0, vectorized over the scan, picks the stiffness), so
+fits need no hand tuning. A fit that fails is returned with ``success=False`` and the reason;
+it never raises for bad data and never returns NaN parameters as if they were results.
+
+References
+----------
+.. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface"
+   (the models and the recursive use of each model on experimental data).
+.. [2] M. Newville et al., LMFIT: Non-Linear Least-Squares Minimization and Curve-Fitting for
+   Python, Zenodo, doi:10.5281/zenodo.598352.
+.. [3] K. P. Burnham and D. R. Anderson, *Model Selection and Multimodel Inference*, 2nd ed.,
+   Springer (2002), sec. 2.2 (AIC with known variance: χ² + 2K) and 2.9 (Akaike weights).
+.. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
+   Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors, used here in log space).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import lmfit
+import numpy as np
+import pandas as pd
+
+from .bounces import bounce_table
+from .physics.models import GRAVITY_MODELS, MODELS, collide
+from .physics.train import impact_train
+from .physics.units import _zeta_for_restitution
+from .scene import Scene
+
+__all__ = ["FitData", "FitResult", "Estimate", "prepare_data", "fit_model", "fit_scene",
+           "SceneFit", "Z68", "Z95"]
+
+Z68 = 0.9944578832097535  # two-sided 68.27 % normal quantile
+Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
+ZETA_RANGE = (1e-7, 20.0)
+SCAN_POINTS = 25
+ZETA_SCAN_POINTS = 60
+METHOD, OPTIONS = "leastsq", {}
+# Relative errors above which a parameter is reported as not determined by the data.
+WEAK_RELATIVE_ERROR = 0.5
+STRONG_CORRELATION = 0.98
+
+
+@dataclass(frozen=True)
+class FitData:
+    """Impact data ready for fitting (SI units).
+
+    Attributes
+    ----------
+    times : ndarray
+        Impact times used in s.
+    sigma : ndarray
+        1σ uncertainty of each time in s.
+    index : ndarray of int
+        Position of each used impact in the predicted train (an impact missed by the sensor
+        leaves a gap).
+    impact_speed, rebound_speed, speed_sigma : ndarray
+        Measured speeds in m/s and their 1σ (NaN where not measured).
+    g : float
+        Driving acceleration in m/s².
+    sigma_known : bool
+        Whether the timing uncertainties are known (else estimated from the fit's scatter).
+    excluded : ndarray of int
+        Rows of the impact table not used (spurious impacts).
+    bounces : pandas.DataFrame
+        The bounce table of :func:`dashpot.bounces.bounce_table` with its flags.
+    notes : list of str
+    """
+
+    times: np.ndarray
+    sigma: np.ndarray
+    index: np.ndarray
+    impact_speed: np.ndarray
+    rebound_speed: np.ndarray
+    speed_sigma: np.ndarray
+    g: float
+    sigma_known: bool
+    excluded: np.ndarray
+    bounces: pd.DataFrame
+    notes: list = field(default_factory=list)
+
+    @property
+    def count(self):
+        """Number of impacts the predicted train must have."""
+        return int(self.index[-1]) + 1
+
+    @property
+    def has_speeds(self):
+        return bool(np.any(np.isfinite(self.impact_speed)))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fitted or derived quantity with its 1σ error and 68 % / 95 % intervals.
+
+    ``status`` is "fitted", "fixed", "prior" or "derived"; ``note`` says why.
+    """
+
+    value: float
+    stderr: float
+    low68: float
+    high68: float
+    low95: float
+    high95: float
+    unit: str
+    status: str
+    note: str = ""
+
+
+@dataclass
+class FitResult:
+    """One model fitted to one scene. See :func:`fit_model`."""
+
+    model: str
+    success: bool
+    message: str
+    estimates: dict
+    varied: tuple
+    correlation: np.ndarray
+    chisqr: float
+    redchi: float
+    aic: float
+    bic: float
+    ndata: int
+    nvarys: int
+    nfev: int
+    time_residuals: np.ndarray
+    normalized_residuals: np.ndarray
+    predicted: dict
+    eps_curve: dict
+    notes: list
+    numerical_tolerance: float
+    error_bound: float
+
+
+def _flight_ratio_start(intervals, flags):
+    """ε from the median ratio of consecutive ok intervals (T_{n+1}/T_n ≈ ε)."""
+    ok = (flags[:-1] == "ok") & (flags[1:] == "ok")
+    ratios = intervals[1:][ok] / intervals[:-1][ok]
+    if ratios.size == 0:
+        ratios = intervals[1:] / intervals[:-1]
+    return float(np.clip(np.median(ratios), 0.05, 0.999))
+
+
+def prepare_data(impacts, scene):
+    """Impact times, uncertainties and train positions for fitting, from an impact table.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest` (``time`` in s, optional ``time_uncertainty``,
+        ``impact_speed``, ``rebound_speed``, ``speed_uncertainty``, ``run``).
+    scene : Scene
+
+    Returns
+    -------
+    FitData
+
+    Notes
+    -----
+    Where the recording gives no timing uncertainty the scene's timing resolution r gives
+    σ = r/√12 (uniform rounding); where neither is known σ is estimated from the scatter of
+    the fit (and the information criteria use the unknown-variance form). Impacts the bounce
+    table flags as spurious are left out; an interval flagged as hiding a missed impact
+    shifts the later impacts by one place in the train. Only the first run of a multi-run
+    file is fitted.
+    """
+    table = impacts
+    notes = []
+    if "run" in table and table["run"].nunique() > 1:
+        first = table["run"].min()
+        notes.append(f"{table['run'].nunique()} runs in the file; fitted run {first} only")
+        table = table[table["run"] == first]
+    table = table.reset_index(drop=True)
+    times = table["time"].to_numpy(float)
+    if times.size < 3:
+        raise ValueError(f"fitting needs at least three impacts; got {times.size}")
+    sigma = table["time_uncertainty"].to_numpy(float) if "time_uncertainty" in table \
+        else np.full(times.size, np.nan)
+    sigma_known = bool(np.all(np.isfinite(sigma) & (sigma > 0)))
+    if not sigma_known:
+        if scene.timing_resolution:
+            sigma = np.full(times.size, scene.timing_resolution / math.sqrt(12.0))
+            sigma_known = True
+            notes.append("timing uncertainty from the scene's timing resolution / sqrt(12)")
+        else:
+            sigma = np.ones(times.size)
+            notes.append("no timing uncertainty given: estimated from the scatter of the fit")
+    g = scene.driving_acceleration
+    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=g)
+    flags = bounces["flag"].to_numpy()
+    # Interval n ends at impact n + 1: a "spurious" interval pair brackets one false impact.
+    spurious_impacts = np.flatnonzero((flags[:-1] == "spurious") & (flags[1:] == "spurious")) + 1
+    keep = np.ones(times.size, bool)
+    keep[spurious_impacts] = False
+    gaps = np.concatenate([[0], np.cumsum(flags == "missed")])
+    index = np.arange(times.size) + gaps
+    if spurious_impacts.size:
+        notes.append(f"left out {spurious_impacts.size} impact(s) flagged as spurious")
+    if np.any(flags == "missed"):
+        notes.append(f"{int(np.sum(flags == 'missed'))} missed impact(s) bridged in the train")
+    index = index[keep]
+    index = index - index[0]
+
+    def column(name):
+        if name in table:
+            return table[name].to_numpy(float)[keep]
+        return np.full(int(keep.sum()), np.nan)
+
+    speed_sigma = column("speed_uncertainty")
+    has_speed = np.isfinite(column("impact_speed")) & np.isfinite(speed_sigma) & (speed_sigma > 0)
+    if np.any(np.isfinite(column("impact_speed"))) and not np.any(has_speed):
+        notes.append("measured speeds have no uncertainty: not used in the fit")
+    rebound_speed = column("rebound_speed")
+    return FitData(times=times[keep], sigma=sigma[keep], index=index,
+                   impact_speed=np.where(has_speed, column("impact_speed"), np.nan),
+                   rebound_speed=np.where(has_speed & np.isfinite(rebound_speed),
+                                          rebound_speed, np.nan),
+                   speed_sigma=np.where(has_speed, speed_sigma, np.nan), g=g,
+                   sigma_known=sigma_known, excluded=np.flatnonzero(~keep), bounces=bounces,
+                   notes=notes)
+
+
+class _TrainPredictor:
+    """Predicted train of one model, reusing the previous evaluation as Newton's start."""
+
+    def __init__(self, model, g, count, rtol):
+        self.model, self.g, self.count, self.rtol = model, g, count, rtol
+        self.start = None
+        self.error_bound = 0.0
+
+    def __call__(self, zeta, omega0, v0):
+        v_star = self.g / omega0
+        train = impact_train(self.model, zeta, v0 / v_star, self.count, start=self.start,
+                             rtol=self.rtol)
+        self.error_bound = max(self.error_bound, train.error_bound)
+        n = train.speeds.size
+        ratios = train.speeds / train.speeds[0]
+        if n < self.count:
+            # Captured early: keep a usable start by continuing the last ratio geometrically.
+            last = ratios[-1] * (ratios[-1] / ratios[-2] if n > 1 else 0.5) ** np.arange(
+                1, self.count - n + 1)
+            ratios = np.concatenate([ratios, np.maximum(last, 1e-300)])
+        self.start = ratios
+        times = np.concatenate([[0.0], np.cumsum(train.intervals)]) / omega0
+        speeds = train.speeds * v_star
+        rebound = train.restitution * speeds
+        if n < self.count:
+            # After capture the ball rests on the surface: no further impact moves in time.
+            pad = self.count - n
+            times = np.concatenate([times, np.full(pad, times[-1])])
+            speeds = np.concatenate([speeds, np.zeros(pad)])
+            rebound = np.concatenate([rebound, np.zeros(pad)])
+        return train, times, speeds, rebound
+
+
+def _numerical_tolerance(data):
+    """Relative accuracy the predicted train gets.
+
+    The timing noise alone would allow far less (1 % of it over the train), but lmfit's
+    finite-difference Jacobian differences trains whose parameters differ by ~1e-8: the train
+    must be smooth to well below that, so it is solved to machine precision whenever the noise
+    does not demand more.
+    """
+    span = data.times[-1] - data.times[0]
+    return float(min(1e-13, 0.01 * np.min(data.sigma) / span))
+
+
+def _scan_times(model, zeta, vtilde0, count):
+    """Dimensionless impact times of many trains at once (one collide call per impact).
+
+    The bounce map is sequential in the impacts but vectorized over the parameter sets of a
+    start-value scan; a captured train rests at its last impact.
+    """
+    times = np.zeros((zeta.size, count))
+    speeds = vtilde0.copy()
+    alive = np.ones(zeta.size, bool)
+    for k in range(count - 1):
+        outcome = collide(model, zeta, np.where(alive, speeds, 1.0))
+        alive &= ~outcome.captured
+        step = np.where(alive, outcome.contact_time + 2.0 * outcome.eps * speeds, 0.0)
+        times[:, k + 1] = times[:, k] + step
+        speeds = np.where(alive, outcome.eps * speeds, 1.0)
+        alive &= speeds > 0.0
+    return times
+
+
+def _start_values(model, data, scene, known_v0, known_omega0):
+    """Start values of ζ, ω0, v0 and t0 from the data, with notes on how they were found."""
+    intervals = np.diff(data.times) / np.diff(data.index)
+    flags = data.bounces["flag"].to_numpy()[: intervals.size]
+    eps = _flight_ratio_start(intervals, flags)
+    if data.has_speeds:
+        measured = data.rebound_speed / data.impact_speed
+        measured = measured[np.isfinite(measured) & (measured > 0) & (measured < 1)]
+        if measured.size:
+            eps = float(np.median(measured))
+    if known_v0 is not None:
+        v0 = known_v0
+    elif data.has_speeds and np.isfinite(data.impact_speed[0]):
+        v0 = float(data.impact_speed[0])
+    else:
+        # Rebound speed after the first impact from its flight, g·T/2, divided by ε.
+        v0 = 0.5 * data.g * intervals[0] / eps
+    # Each interval gives the impact speed that follows it (v = g·T/2) and each ratio of
+    # intervals the ε at that speed: compare ε(ζ, v·ω0/g) with the measured ratios on a grid of
+    # (ζ, ω0), in one vectorized call, without propagating the train. Contact times are
+    # neglected here; the fit restores them.
+    speeds = 0.5 * data.g * intervals[:-1]
+    ratios = intervals[1:] / intervals[:-1]
+    ratio_sd = np.hypot(data.sigma[1:-1], data.sigma[2:]) * 2.0 / intervals[:-1]
+    if known_omega0 is not None:
+        omega0 = np.array([known_omega0])
+    elif model in GRAVITY_MODELS:
+        omega0 = np.geomspace(*OMEGA0_RANGE, SCAN_POINTS)
+    else:
+        # Without gravity ε does not depend on speed and ω0 enters only through the contact
+        # duration τ: T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n give T_n = εT_{n-1} + τ(1 − ε),
+        # a straight line whose intercept gives τ.
+        slope, intercept = np.polyfit(intervals[:-1], intervals[1:], 1)
+        floor = 0.1 * float(np.median(data.sigma))
+        contact = max(intercept / max(1.0 - slope, 1e-3), floor)
+        scaled = collide(model, np.geomspace(1e-5, 5.0, ZETA_SCAN_POINTS), 1.0).contact_time
+        omega0 = np.clip(scaled / contact, *OMEGA0_RANGE)
+    zeta = np.geomspace(1e-5, 5.0, ZETA_SCAN_POINTS)
+    if model in GRAVITY_MODELS or known_omega0 is not None:
+        zeta, omega0 = (axis.ravel() for axis in np.meshgrid(zeta, omega0))
+    outcome = collide(model, zeta[:, None], speeds[None, :] * omega0[:, None] / data.g)
+    misfit = np.where(outcome.captured, 1.0, outcome.eps - ratios) / ratio_sd
+    chisqr = np.sum(misfit ** 2, axis=1)
+    best = int(np.argmin(chisqr))
+    first = collide(model, zeta[best], speeds[0] * omega0[best] / data.g)
+    if known_v0 is None and not (data.has_speeds and np.isfinite(data.impact_speed[0])):
+        v0 = speeds[0] / max(float(first.eps), 1e-3)
+    times = _scan_times(model, zeta[best:best + 1], np.array([v0 * omega0[best] / data.g]),
+                        data.count)[0, data.index] / omega0[best]
+    offset = float(np.average(data.times - times, weights=data.sigma ** -2.0))
+    start = {"zeta": float(zeta[best]), "omega0": float(omega0[best]), "v0": float(v0),
+             "t0": offset}
+    how = (f"start: median eps = {eps:.4g}, v0 = {v0:.4g} m/s, zeta = {zeta[best]:.4g} and "
+           f"omega0 = {omega0[best]:.4g} rad/s from a scan of {zeta.size} pairs")
+    return start, how
+
+
+def _log_estimate(value, log_sd, unit, status, note=""):
+    """Estimate of a positive quantity whose logarithm has standard deviation `log_sd`."""
+    if not np.isfinite(log_sd):
+        return Estimate(value, math.inf, 0.0, math.inf, 0.0, math.inf, unit, status, note)
+    return Estimate(value, value * log_sd, value * math.exp(-Z68 * log_sd),
+                    value * math.exp(Z68 * log_sd), value * math.exp(-Z95 * log_sd),
+                    value * math.exp(Z95 * log_sd), unit, status, note)
+
+
+def _linear_estimate(value, sd, unit, status, note=""):
+    return Estimate(value, sd, value - Z68 * sd, value + Z68 * sd, value - Z95 * sd,
+                    value + Z95 * sd, unit, status, note)
+
+
+def fit_model(data, model, scene=None, *, max_nfev=2000):
+    """Fit one contact model to a scene's impacts.
+
+    Parameters
+    ----------
+    data : FitData
+        From :func:`prepare_data`.
+    model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
+    scene : Scene, optional
+        What is known of the apparatus (default: nothing but standard gravity).
+    max_nfev : int, default 2000
+        Largest number of model evaluations.
+
+    Returns
+    -------
+    FitResult
+        ``estimates`` holds ``zeta`` (1), ``omega0`` (rad/s), ``beta`` (1/s), ``v0`` (m/s),
+        ``t0`` (s), and with a known mass ``k`` (N/m) and ``gamma`` (kg/s), each with its
+        1σ error and intervals (log-normal for the positive ones, from the covariance of the
+        log parameters [4]_). ``predicted`` holds the model's train (impact ``times`` in s,
+        ``speeds`` m/s, ``restitution``, ``contact_durations`` s) and ``at_data`` (predicted
+        times of the observed impacts); ``eps_curve`` ε against impact speed (m/s) over the
+        predicted range. Information criteria follow [3]_: with known timing errors AIC =
+        χ² + 2K and BIC = χ² + K ln N; otherwise N ln(χ²/N) + 2K and N ln(χ²/N) + K ln N.
+    """
+    scene = scene or Scene()
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+    notes = list(data.notes)
+    try:
+        return _fit(data, model, scene, notes, max_nfev)
+    except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
+        return _failed(model, f"fit failed: {error}", notes, data)
+
+
+def _failed(model, message, notes, data):
+    empty = np.full(data.times.size, np.nan)
+    return FitResult(model=model, success=False, message=message, estimates={}, varied=(),
+                     correlation=np.zeros((0, 0)), chisqr=math.inf, redchi=math.inf,
+                     aic=math.inf, bic=math.inf, ndata=int(data.times.size), nvarys=0, nfev=0,
+                     time_residuals=empty, normalized_residuals=empty, predicted={},
+                     eps_curve={}, notes=notes + [message], numerical_tolerance=math.nan,
+                     error_bound=math.nan)
+
+
+def _fit(data, model, scene, notes, max_nfev):
+    mass = scene.mass
+    known_v0 = scene.known_impact_speed
+    stiffness = scene.stiffness
+    if stiffness is not None and mass is None:
+        notes.append("stiffness known but mass not: omega0 = sqrt(k/m) needs both; omega0 fitted")
+        stiffness = None
+    fixed_omega0 = (math.sqrt(stiffness.value / mass.value)
+                    if stiffness is not None and stiffness.uncertainty is None
+                    and mass.uncertainty is None else None)
+    fixed_v0 = known_v0.value if known_v0 is not None and known_v0.uncertainty is None else None
+    start, how = _start_values(model, data, scene,
+                               None if known_v0 is None else known_v0.value,
+                               None if stiffness is None else math.sqrt(stiffness.value
+                                                                        / mass.value))
+    if start is None:
+        return _failed(model, f"fit failed: {how}", notes, data)
+    notes.append(how)
+
+    params = lmfit.Parameters()
+    params.add("log_zeta", value=math.log(start["zeta"]), min=math.log(ZETA_RANGE[0]),
+               max=math.log(ZETA_RANGE[1]))
+    params.add("log_omega0", value=math.log(start["omega0"]), min=math.log(OMEGA0_RANGE[0]),
+               max=math.log(OMEGA0_RANGE[1]), vary=fixed_omega0 is None)
+    params.add("v0", value=start["v0"], min=1e-9, vary=fixed_v0 is None)
+    params.add("t0", value=start["t0"])
+    fixed = {}
+    if fixed_omega0 is not None:
+        fixed["omega0"] = "stiffness and mass known exactly: omega0 = sqrt(k/m)"
+    if fixed_v0 is not None:
+        fixed["v0"] = ("first impact speed known" if scene.first_impact_speed is not None
+                       else "drop height known: v0 = sqrt(2 g_eff h)")
+    priors = []
+    if stiffness is not None and fixed_omega0 is None:
+        sd = math.hypot(stiffness.uncertainty or 0.0,
+                        stiffness.value * (mass.uncertainty or 0.0) / mass.value)
+        priors.append(("log_omega0", 0.5 * math.log(stiffness.value / mass.value),
+                       0.5 * sd / stiffness.value))
+        notes.append("prior on omega0 from the known stiffness and mass")
+    if known_v0 is not None and fixed_v0 is None:
+        priors.append(("v0", known_v0.value, known_v0.uncertainty))
+        notes.append("prior on v0 from the scene")
+
+    tolerance = _numerical_tolerance(data)
+    predictor = _TrainPredictor(model, data.g, data.count, tolerance)
+    impact_rows = np.isfinite(data.impact_speed)
+    rebound_rows = np.isfinite(data.rebound_speed)
+
+    def residual(p):
+        values = p.valuesdict()
+        zeta, omega0 = math.exp(values["log_zeta"]), math.exp(values["log_omega0"])
+        _, times, speeds, rebound = predictor(zeta, omega0, values["v0"])
+        parts = [(data.times - values["t0"] - times[data.index]) / data.sigma]
+        if impact_rows.any():
+            parts.append((data.impact_speed[impact_rows] - speeds[data.index[impact_rows]])
+                         / data.speed_sigma[impact_rows])
+        if rebound_rows.any():
+            parts.append((data.rebound_speed[rebound_rows] - rebound[data.index[rebound_rows]])
+                         / data.speed_sigma[rebound_rows])
+        for name, centre, sd in priors:
+            parts.append(np.array([(values[name] - centre) / sd]))
+        return np.concatenate(parts)
+
+    result = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
+                            scale_covar=not data.sigma_known)
+    values = result.params.valuesdict()
+    if not np.all(np.isfinite(result.residual)):
+        return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
+    zeta, omega0 = math.exp(values["log_zeta"]), math.exp(values["log_omega0"])
+    train, times, speeds, rebound = predictor(zeta, omega0, values["v0"])
+    message = result.message
+    success = bool(result.success)
+    if train.speeds.size < data.count:
+        success = False
+        message = (f"the model captures the ball after {train.speeds.size} impacts but the "
+                   f"data have {data.count}")
+
+    varied = tuple(name for name in result.var_names)
+    cov = result.covar
+    if cov is None:
+        cov = np.full((len(varied), len(varied)), np.inf)
+        notes.append("covariance not available (singular Jacobian): the data do not determine "
+                     "every parameter; errors reported as infinite")
+    sd = {name: float(math.sqrt(cov[i, i])) if np.isfinite(cov[i, i]) and cov[i, i] >= 0
+          else math.inf for i, name in enumerate(varied)}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.sqrt(np.diag(cov))
+        correlation = cov / np.outer(scale, scale)
+    correlation = np.where(np.isfinite(correlation), correlation, np.nan)
+
+    def log_sd(*weights_by_name):
+        """sd of Σ w·(log parameter) from the covariance (fixed parameters contribute 0)."""
+        vector = np.zeros(len(varied))
+        for name, weight in weights_by_name:
+            if name in varied:
+                vector[varied.index(name)] = weight
+        if not vector.any():
+            return 0.0
+        used = vector != 0
+        block = cov[np.ix_(used, used)]
+        if not np.all(np.isfinite(block)):
+            return math.inf
+        variance = vector[used] @ block @ vector[used]
+        return float(math.sqrt(variance)) if np.isfinite(variance) and variance >= 0 else math.inf
+
+    def status(name, prior_name=None):
+        if name in varied:
+            return ("prior" if any(p[0] == (prior_name or name) for p in priors) else "fitted"), ""
+        return "fixed", fixed.get(name.replace("log_", ""), "")
+
+    estimates = {}
+    st, why = status("log_zeta")
+    estimates["zeta"] = _log_estimate(zeta, log_sd(("log_zeta", 1.0)), "1", st, why)
+    st, why = status("log_omega0")
+    estimates["omega0"] = _log_estimate(omega0, log_sd(("log_omega0", 1.0)), "rad/s", st, why)
+    estimates["beta"] = _log_estimate(zeta * omega0,
+                                      log_sd(("log_zeta", 1.0), ("log_omega0", 1.0)), "1/s",
+                                      "derived", "beta = zeta * omega0")
+    st, why = status("v0")
+    estimates["v0"] = _linear_estimate(values["v0"], sd.get("v0", 0.0), "m/s", st, why)
+    estimates["t0"] = _linear_estimate(values["t0"], sd.get("t0", 0.0), "s", "fitted")
+    if mass is not None:
+        mass_sd = (mass.uncertainty or 0.0) / mass.value
+        k_sd = math.hypot(log_sd(("log_omega0", 2.0)), mass_sd)
+        estimates["k"] = _log_estimate(mass.value * omega0 ** 2, k_sd, "N/m", "derived",
+                                       "k = m * omega0^2")
+        gamma_sd = math.hypot(log_sd(("log_zeta", 1.0), ("log_omega0", 1.0)), mass_sd)
+        estimates["gamma"] = _log_estimate(2.0 * mass.value * zeta * omega0, gamma_sd, "kg/s",
+                                           "derived", "gamma = 2 m beta")
+    notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
+
+    nvarys = len(varied)
+    ndata = int(result.ndata)
+    chisqr = float(result.chisqr)
+    if data.sigma_known:
+        aic, bic = chisqr + 2 * nvarys, chisqr + nvarys * math.log(ndata)
+    else:
+        aic, bic = float(result.aic), float(result.bic)
+    predicted_at_data = values["t0"] + times[data.index]
+    v_star = data.g / omega0
+    top = float(np.max(speeds))
+    bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
+    curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
+    curve = collide(model, zeta, curve_speed / v_star)
+    return FitResult(
+        model=model, success=success, message=message, estimates=estimates, varied=varied,
+        correlation=correlation, chisqr=chisqr, redchi=float(result.redchi), aic=aic, bic=bic,
+        ndata=ndata, nvarys=nvarys, nfev=int(result.nfev),
+        time_residuals=data.times - predicted_at_data,
+        normalized_residuals=np.asarray(result.residual, float),
+        predicted={"times": values["t0"] + times[: train.speeds.size],
+                   "speeds": train.speeds * v_star, "restitution": train.restitution,
+                   "contact_durations": train.contact_times / omega0,
+                   "at_data": predicted_at_data},
+        eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.captured},
+        notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound)
+
+
+def _identifiability_notes(estimates, varied, correlation, params):
+    """Plain-words warnings where the data do not pin a parameter down."""
+    notes = []
+    labels = {"log_zeta": "zeta", "log_omega0": "omega0 (and so k)", "v0": "v0", "t0": "t0"}
+    for name in varied:
+        param = params[name]
+        if param.min is not None and param.max is not None and (
+                abs(param.value - param.min) < 1e-3 or abs(param.value - param.max) < 1e-3):
+            notes.append(f"{labels[name]} ended at its bound: not determined by these data")
+    for key, label in (("omega0", "omega0 (and so k)"), ("zeta", "zeta"), ("beta", "beta")):
+        estimate = estimates.get(key)
+        if estimate is not None and estimate.status != "fixed":
+            relative = estimate.stderr / estimate.value if estimate.value else math.inf
+            if not relative <= WEAK_RELATIVE_ERROR:
+                notes.append(f"{label} is not determined by these data (relative error "
+                             f"{relative:.2g})")
+    for i, first in enumerate(varied):
+        for j in range(i + 1, len(varied)):
+            rho = correlation[i, j]
+            if np.isfinite(rho) and abs(rho) > STRONG_CORRELATION:
+                notes.append(f"{labels[first]} and {labels[varied[j]]} are strongly correlated "
+                             f"(rho = {rho:.3f}): the data constrain a combination of them")
+    return notes
+
+
+@dataclass
+class SceneFit:
+    """Every requested model fitted to one scene, with the model-selection table."""
+
+    scene: Scene
+    data: FitData
+    results: dict
+    selection: pd.DataFrame
+    verdict: str
+
+
+def fit_scene(impacts, scene=None, models=None):
+    """Fit every requested model to a scene's impacts and compare them.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest`.
+    scene : Scene, optional
+    models : sequence of str, optional
+        Default: the scene's models (all five unless it says otherwise).
+
+    Returns
+    -------
+    SceneFit
+    """
+    from .select import selection_table
+
+    scene = scene or Scene()
+    models = tuple(models or scene.models)
+    data = prepare_data(impacts, scene)
+    results = {model: fit_model(data, model, scene) for model in models}
+    selection, verdict = selection_table(results)
+    return SceneFit(scene=scene, data=data, results=results, selection=selection,
+                    verdict=verdict)

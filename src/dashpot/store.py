@@ -1,0 +1,205 @@
+"""One HDF5 file per scene: impacts, bounces, every model's fit and the selection table.
+
+The layout (``docs/hdf5-layout.md`` lists every item and unit) uses only groups, numeric and
+UTF-8 string datasets and attributes, so plain h5py reads it; every table is a group with one
+dataset per column (attribute ``columns`` keeps their order, each dataset an attribute
+``unit``), so ``pandas.DataFrame({c: group[c][()] for c in group.attrs["columns"]})`` rebuilds
+it; :func:`read_table` does exactly that. Files are written to a temporary name in the same
+folder and renamed, so an interrupted run never leaves a half-written file, and they carry
+no timestamps other than the root attribute ``created``: the same inputs give the same numbers
+bit for bit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from contextlib import contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pandas as pd
+
+from . import __version__
+
+__all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
+           "write_summary", "FORMAT"]
+
+FORMAT = "dashpot-scene-1"
+IMPACT_UNITS = {"time": "s", "time_uncertainty": "s", "amplitude": "1", "impact_speed": "m/s",
+                "rebound_speed": "m/s", "speed_uncertainty": "m/s", "run": "1"}
+BOUNCE_UNITS = {"bounce": "1", "start_time": "s", "interval": "s", "interval_uncertainty": "s",
+                "rebound_speed": "m/s", "rebound_speed_uncertainty": "m/s", "restitution": "1",
+                "restitution_uncertainty": "1", "flag": "1"}
+SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "chisqr": "1",
+                   "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1",
+                   "akaike_weight": "1", "rank": "1"}
+SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
+                 "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
+PREDICTED_UNITS = {"times": "s", "speeds": "m/s", "restitution": "1",
+                   "contact_durations": "s", "at_data": "s"}
+
+
+def file_sha256(path):
+    """SHA-256 hex digest of a file's bytes, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+@contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside `path`; rename it to `path` only if the block succeeds."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.partial")
+    try:
+        yield temporary
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def _dataset(group, name, values, unit):
+    values = np.asarray(values)
+    if values.dtype.kind in "OUS":
+        values = np.asarray([str(v) for v in values.ravel()], dtype=object).reshape(values.shape)
+        dataset = group.create_dataset(name, data=values, dtype=h5py.string_dtype(),
+                                       track_times=False)
+    else:
+        dataset = group.create_dataset(name, data=values, track_times=False)
+    dataset.attrs["unit"] = unit
+    return dataset
+
+
+def _table(parent, name, table, units):
+    group = parent.create_group(name)
+    group.attrs["columns"] = list(map(str, table.columns))
+    for column in table.columns:
+        _dataset(group, str(column), table[column].to_numpy(), units.get(column, "1"))
+    return group
+
+
+def read_table(group):
+    """DataFrame of a table group (columns in their stored order, strings decoded)."""
+    columns = {}
+    for name in group.attrs["columns"]:
+        values = group[name][()]
+        if values.dtype.kind == "O":
+            values = np.array([v.decode() if isinstance(v, bytes) else v for v in values],
+                              dtype=object)
+        columns[name] = values
+    return pd.DataFrame(columns)
+
+
+def _write_fit(group, fit):
+    group.attrs.update({"success": fit.success, "message": fit.message, "chisqr": fit.chisqr,
+                        "redchi": fit.redchi, "aic": fit.aic, "bic": fit.bic,
+                        "ndata": fit.ndata, "nvarys": fit.nvarys, "nfev": fit.nfev,
+                        "numerical_tolerance": fit.numerical_tolerance,
+                        "error_bound": fit.error_bound,
+                        "varied": json.dumps(list(fit.varied)),
+                        "notes": json.dumps(fit.notes)})
+    rows = [{"name": name, "value": e.value, "stderr": e.stderr, "low68": e.low68,
+             "high68": e.high68, "low95": e.low95, "high95": e.high95, "unit": e.unit,
+             "status": e.status, "note": e.note} for name, e in fit.estimates.items()]
+    parameters = pd.DataFrame(rows, columns=["name", "value", "stderr", "low68", "high68",
+                                             "low95", "high95", "unit", "status", "note"])
+    table = _table(group, "parameters", parameters, {})
+    # Each row has its own unit: the numeric columns carry the row's "unit" column.
+    for column in ("value", "stderr", "low68", "high68", "low95", "high95"):
+        table[column].attrs["unit"] = "see column 'unit'"
+    correlation = _dataset(group, "correlation", fit.correlation, "1")
+    correlation.attrs["parameters"] = list(fit.varied)
+    residuals = group.create_group("residuals")
+    _dataset(residuals, "time", fit.time_residuals, "s").attrs["meaning"] = (
+        "observed minus predicted impact time")
+    _dataset(residuals, "normalized", fit.normalized_residuals, "1").attrs["meaning"] = (
+        "every residual of the fit divided by its 1-sigma: times, then measured impact and "
+        "rebound speeds, then priors")
+    predicted = group.create_group("predicted")
+    for name, values in fit.predicted.items():
+        _dataset(predicted, name, values, PREDICTED_UNITS[name])
+    curve = group.create_group("eps_curve")
+    for name, unit in (("speed", "m/s"), ("eps", "1"), ("captured", "1")):
+        if name in fit.eps_curve:
+            _dataset(curve, name, fit.eps_curve[name], unit)
+
+
+def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
+    """Write one scene's impacts, bounces, fits and selection to an HDF5 file, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file (``.h5``); replaced only once the new file is complete.
+    scene_fit : dashpot.fit.SceneFit
+    impacts : pandas.DataFrame
+        The impact table the fits used (all rows, including any left out).
+    input_path : str or os.PathLike, optional
+        The recording, whose SHA-256 is stored as provenance.
+    config : dict, optional
+        Analysis configuration to record.
+    """
+    with atomic_path(path) as temporary, h5py.File(temporary, "w", track_order=True) as out:
+        out.attrs["format"] = FORMAT
+        out.attrs["dashpot_version"] = __version__
+        out.attrs["created"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        out.attrs["scene"] = json.dumps(scene_fit.scene.as_dict(), sort_keys=True)
+        out.attrs["config"] = json.dumps(config or {}, sort_keys=True, default=str)
+        if input_path is not None:
+            out.attrs["input_file"] = Path(input_path).name
+            out.attrs["input_sha256"] = file_sha256(input_path)
+        out.attrs["verdict"] = scene_fit.verdict
+        table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
+        group = _table(out, "impacts", table, IMPACT_UNITS)
+        group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
+        used = np.ones(len(table), bool)
+        used[scene_fit.data.excluded] = False
+        _dataset(group, "used_in_fit", used, "1")
+        _table(out, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
+        fits = out.create_group("fits")
+        for model, fit in scene_fit.results.items():
+            _write_fit(fits.create_group(model), fit)
+        selection = _table(out, "selection", scene_fit.selection, SELECTION_UNITS)
+        selection.attrs["verdict"] = scene_fit.verdict
+
+
+def read_fit(path):
+    """Everything in a scene file as plain Python: attrs, tables as DataFrames, fits as dicts.
+
+    Returns
+    -------
+    dict
+        ``attrs`` (root attributes), ``impacts``, ``bounces``, ``selection`` (DataFrames) and
+        ``fits``: model -> dict with ``attrs``, ``parameters`` (DataFrame indexed by name),
+        ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays).
+    """
+    with h5py.File(path, "r") as source:
+        out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
+               "bounces": read_table(source["bounces"]),
+               "selection": read_table(source["selection"]), "fits": {}}
+        for model, group in source["fits"].items():
+            out["fits"][model] = {
+                "attrs": dict(group.attrs),
+                "parameters": read_table(group["parameters"]).set_index("name"),
+                "correlation": group["correlation"][()],
+                **{name: {key: group[name][key][()] for key in group[name]}
+                   for name in ("residuals", "predicted", "eps_curve")},
+            }
+    return out
+
+
+def write_summary(path_h5, path_csv, summary):
+    """Cross-scene summary (one row per scene and model) as HDF5 and CSV, each atomically."""
+    with atomic_path(path_h5) as temporary, h5py.File(temporary, "w") as out:
+        out.attrs["format"] = "dashpot-summary-1"
+        out.attrs["dashpot_version"] = __version__
+        _table(out, "summary", summary, SUMMARY_UNITS)
+    with atomic_path(path_csv) as temporary:
+        summary.to_csv(temporary, index=False, float_format="%.10g")
