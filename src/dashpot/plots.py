@@ -1,0 +1,781 @@
+"""Figures: the contact models' theory curves and one scene's analysis, data in, Figure out.
+
+Every function is pure: it takes plain numbers and arrays and returns a new
+:class:`matplotlib.figure.Figure`, created directly (never through pyplot), so it needs no
+display, keeps no global state and can run in several threads at once. :func:`save_figure`
+writes a figure as PNG and PDF atomically.
+
+Theory figures (dimensionless, section 3 of the paper [1]_):
+
+- :func:`contact_time_figure` — ω0τ against ζ (the paper's figure "time"),
+- :func:`restitution_figure` — ε against ζ at a few ṽ (figures "epsilon", "epsilon2",
+  "epsilon3"), each curve ending where capture sets in,
+- :func:`critical_speed_figure` — ṽc against ζ (figure "critical"),
+- :func:`restitution_vs_speed_figure` — ε against ṽ at a few ζ (not in the paper).
+
+Scene figures (SI units): :func:`detection_figure`, :func:`intervals_figure`,
+:func:`restitution_speed_figure`, :func:`selection_figure`.
+
+Each model has one colour, marker and line style in every figure (:data:`MODEL_STYLES`) and is
+named as in the paper with its table letter (:data:`MODEL_LABELS`). Gravity-free models (Ia, IIa)
+are drawn dashed, models with gravity solid.
+
+References
+----------
+.. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface",
+   sections 3-4 and its figures.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from ._validation import check_positive
+from .physics import MODELS, collide, critical_velocity
+from .physics.models import GRAVITY_MODELS
+
+__all__ = ["MODEL_LABELS", "MODEL_STYLES", "contact_time_figure", "critical_speed_figure",
+           "detection_figure", "intervals_figure", "restitution_figure",
+           "restitution_speed_figure", "restitution_vs_speed_figure", "save_figure",
+           "selection_figure"]
+
+MODEL_LABELS = {"Ia": "Ia (A)", "Ib": "Ib (B)", "IIa": "IIa (C)", "IIb": "IIb (D)",
+                "hybrid": "hybrid"}
+"""Legend name of each model: the paper's name with its table letter in brackets."""
+
+# Okabe-Ito colours (distinguishable with the common colour-vision deficiencies); type I models
+# in blues, type II in green/purple, the hybrid in vermillion. Dashed = no gravity in contact.
+MODEL_STYLES = {
+    "Ia": {"color": "#0072B2", "marker": "o", "linestyle": "--"},
+    "Ib": {"color": "#56B4E9", "marker": "s", "linestyle": "-"},
+    "IIa": {"color": "#009E73", "marker": "^", "linestyle": "--"},
+    "IIb": {"color": "#CC79A7", "marker": "D", "linestyle": "-"},
+    "hybrid": {"color": "#D55E00", "marker": "v", "linestyle": "-"},
+}
+"""Colour, marker and line style of each model, shared by all figures."""
+
+_FALLBACK_STYLE = {"color": "0.5", "marker": "x", "linestyle": ":"}
+_DATA_COLOR = "0.1"  # measured points: near black, no model uses it
+
+ZETA_LABEL = r"damping ratio $\zeta = \beta/\omega_0$ (dimensionless)"
+EPS_LABEL = r"restitution $\varepsilon$ (dimensionless)"
+TAU_LABEL = r"contact time $\omega_0\tau$ (dimensionless)"
+VTILDE_LABEL = r"impact speed $\tilde v = v_0\,\omega_0/g$ (dimensionless)"
+VC_LABEL = r"critical speed $\tilde v_c = v_c\,\omega_0/g$ (dimensionless)"
+
+PNG_DPI = 150
+# No dates: rerunning gives the same bytes. (PNG has no date unless asked for.)
+_METADATA = {"png": {}, "pdf": {"CreationDate": None}}
+
+_REFINE_ROUNDS = 3  # bracket refinements of a capture onset, each by a factor 32
+_ONSET_POINTS = 24  # extra points crowding toward an onset (ε vanishes like a square root)
+
+
+def _style(model):
+    return MODEL_STYLES.get(model, _FALLBACK_STYLE)
+
+
+def _label(model):
+    return MODEL_LABELS.get(model, str(model))
+
+
+def _ordered(models):
+    """Models in the paper's order, unknown names after them in their given order."""
+    models = list(models)
+    return [m for m in MODELS if m in models] + [m for m in models if m not in MODELS]
+
+
+def _model_line(ax, model, x, y, *, markers=False, **kwargs):
+    """Plot one model's curve in its style; the Line2D's gid is the model name."""
+    style = _style(model)
+    return ax.plot(x, y, color=style["color"], linestyle=style["linestyle"],
+                   marker=style["marker"] if markers else None, label=_label(model),
+                   gid=model, **kwargs)[0]
+
+
+def _grid(name, upper, points, lower=0.0, log=False):
+    upper = float(check_positive(name, upper))
+    points = int(points)
+    if points < 2:
+        raise ValueError(f"points must be >= 2; got {points}")
+    if log:
+        return np.geomspace(lower, upper, points)
+    return np.linspace(lower, upper, points)
+
+
+# --- capture-aware curves -------------------------------------------------------------------
+
+def _curve_without_capture(evaluate, grid):
+    """A model quantity on `grid` with NaN where captured, the grid refined toward each onset.
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(x) -> (value, captured)`` on an array of the grid variable.
+    grid : ndarray
+        Increasing grid.
+
+    Returns
+    -------
+    x, value : ndarray
+        The grid with points added inside each cell where capture switches on or off, crowding
+        geometrically toward the onset (located to 32⁻³ of a cell), and the value there, NaN
+        where captured. A NaN therefore separates separate rebound stretches, and no captured
+        point is ever drawn.
+    """
+    value, captured = evaluate(grid)
+    extra = []
+    for i in np.flatnonzero(captured[1:] != captured[:-1]):
+        free, held = (grid[i], grid[i + 1]) if not captured[i] else (grid[i + 1], grid[i])
+        start = free
+        for _ in range(_REFINE_ROUNDS):
+            trial = free + (held - free) * np.linspace(0.0, 1.0, 34)[1:-1]
+            hit = evaluate(trial)[1]
+            if not hit.any():
+                free = trial[-1]
+                continue
+            k = int(np.argmax(hit))  # first captured point going from `free` to `held`
+            held = trial[k]
+            if k > 0:
+                free = trial[k - 1]
+        extra.append(free + (start - free) * np.geomspace(1.0, 1e-4, _ONSET_POINTS))
+        extra.append(np.array([free]))
+    if extra:
+        x = np.unique(np.concatenate([grid, *extra]))
+        value, captured = evaluate(x)
+    else:
+        x = grid
+    return x, np.where(captured, np.nan, value)
+
+
+def _eps_against_zeta(model, vtilde):
+    def evaluate(zeta):
+        result = collide(model, zeta, np.full(zeta.shape, float(vtilde)))
+        return result.eps, result.captured
+    return evaluate
+
+
+def _contact_time_against_zeta(model, vtilde):
+    def evaluate(zeta):
+        result = collide(model, zeta, np.full(zeta.shape, float(vtilde)))
+        return result.contact_time, result.captured
+    return evaluate
+
+
+def _eps_against_speed(model, zeta):
+    def evaluate(vtilde):
+        result = collide(model, np.full(vtilde.shape, float(zeta)), vtilde)
+        return result.eps, result.captured
+    return evaluate
+
+
+def _mark_end(ax, model, x, y):
+    """Open circle where a curve ends because capture sets in."""
+    finite = np.flatnonzero(np.isfinite(y))
+    if finite.size and finite[-1] < y.size - 1:
+        ax.plot(x[finite[-1]], y[finite[-1]], marker="o", markersize=5, markerfacecolor="white",
+                color=_style(model)["color"], linestyle="none", gid=f"{model} onset",
+                label="_nolegend_", zorder=3)
+        return True
+    return False
+
+
+_ONSET_PROXY_LABEL = "capture sets in (curve ends)"
+
+
+def _onset_proxy():
+    return Line2D([], [], marker="o", markersize=5, markerfacecolor="white", color="0.3",
+                  linestyle="none", label=_ONSET_PROXY_LABEL)
+
+
+def _figure_legend(fig, handles):
+    """One legend for the whole figure, outside the axes (never over the data)."""
+    fig.legend(handles=handles, loc="outside right upper", frameon=False)
+
+
+# --- theory figures -------------------------------------------------------------------------
+
+def contact_time_figure(vtilde=23, zeta_max=1.5, points=301):
+    """Dimensionless contact time ω0τ against damping ratio ζ for the five models.
+
+    Recomputes the paper's figure "time" (which omits Ib as indistinguishable from the hybrid;
+    all five are drawn here).
+
+    Parameters
+    ----------
+    vtilde : float, default 23
+        Dimensionless impact speed ṽ = v0·ω0/g (> 0).
+    zeta_max : float, default 1.5
+        Largest damping ratio ζ = β/ω0 shown (dimensionless, > 0).
+    points : int, default 301
+        Grid points in ζ (more are added near each capture onset).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes: ω0τ (dimensionless) against ζ. Ia, Ib and the hybrid give the duration of
+        nonzero compression, IIa and IIb of nonzero force. Curves end where capture sets in
+        (open circle). Ia's ω0τ = π/√(1 − ζ²) diverges as ζ → 1; the y range is set by the
+        other models and Ia's curve leaves the top.
+    """
+    vtilde = float(check_positive("vtilde", vtilde))
+    zeta = _grid("zeta_max", zeta_max, points)
+    fig = Figure(figsize=(8.5, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    handles, curves, ended = [], {}, False
+    for model in MODELS:
+        x, tau = _curve_without_capture(_contact_time_against_zeta(model, vtilde), zeta)
+        handles.append(_model_line(ax, model, x, tau))
+        ended |= _mark_end(ax, model, x, tau)
+        curves[model] = (x, tau)
+    # Ia's π/√(1 − ζ²) diverges at ζ = 1: the other models set the range.
+    bounded = [np.nanmax(t) for m, (_, t) in curves.items() if m != "Ia" and np.isfinite(t).any()]
+    top = 1.1 * max(bounded + [np.pi])
+    ax.set_ylim(0.0, top)
+    ax.set_xlim(0.0, zeta[-1])
+    ia_zeta, ia_tau = curves["Ia"]
+    above = np.flatnonzero(ia_tau > top)
+    if above.size:
+        exit_zeta = ia_zeta[above[0]]
+        ax.annotate(r"Ia (A): $\omega_0\tau = \pi/\sqrt{1 - \zeta^2} \to \infty$ as $\zeta \to 1$",
+                    xy=(exit_zeta, 0.99 * top), xytext=(exit_zeta - 0.04 * zeta[-1], 0.93 * top),
+                    fontsize="small", color=_style("Ia")["color"], ha="right", va="top",
+                    arrowprops={"arrowstyle": "->", "color": _style("Ia")["color"]})
+    ax.set_xlabel(ZETA_LABEL)
+    ax.set_ylabel(TAU_LABEL)
+    ax.set_title(rf"Contact time at $\tilde v = {vtilde:g}$")
+    if ended:
+        handles.append(_onset_proxy())
+    _figure_legend(fig, handles)
+    return fig
+
+
+def restitution_figure(speeds=(23, 15, 5), zeta_max=1.5, points=301):
+    """Restitution ε against damping ratio ζ, one panel per impact speed ṽ, five models.
+
+    Recomputes the paper's figures "epsilon", "epsilon2" and "epsilon3" (ṽ = 23, 15, 5).
+
+    Parameters
+    ----------
+    speeds : sequence of float, default (23, 15, 5)
+        Dimensionless impact speeds ṽ = v0·ω0/g (> 0), one panel each, in this order.
+    zeta_max : float, default 1.5
+        Largest damping ratio ζ = β/ω0 shown (dimensionless, > 0).
+    points : int, default 301
+        Grid points in ζ (more are added near each capture onset).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes per speed: ε (dimensionless) against ζ. Each curve ends where the model
+        captures the ball (open circle): captured points are not drawn, so there are no ε = 0
+        lines. Ib and the hybrid end with ε → 0 like a square root, IIb at a finite ε; Ia's
+        ε = exp(−πζ/√(1 − ζ²)) vanishes as ζ → 1 while it still rebounds.
+    """
+    speeds = np.atleast_1d(check_positive("speeds", speeds)).ravel()
+    if speeds.size == 0:
+        raise ValueError("speeds must hold at least one impact speed")
+    zeta = _grid("zeta_max", zeta_max, points)
+    fig = Figure(figsize=(4.0 * speeds.size + 2.2, 4.3), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, speeds.size, sharey=True, squeeze=False)[0])
+    handles, ended = {}, False
+    for index, (ax, vtilde) in enumerate(zip(axes, speeds)):
+        for model in MODELS:
+            x, eps = _curve_without_capture(_eps_against_zeta(model, vtilde), zeta)
+            handles[model] = _model_line(ax, model, x, eps)
+            ended |= _mark_end(ax, model, x, eps)
+        ax.set_xlim(0.0, zeta[-1])
+        ax.set_ylim(0.0, 1.02)
+        ax.set_xlabel(ZETA_LABEL)
+        # sharey hides the tick labels of the inner panels, not their axis labels.
+        ax.set_ylabel(EPS_LABEL if index == 0 else r"$\varepsilon$")
+        ax.set_title(rf"$\tilde v = {vtilde:g}$")
+        ax.grid(alpha=0.3)
+    fig.suptitle("Coefficient of restitution against damping ratio")
+    legend = list(handles.values()) + ([_onset_proxy()] if ended else [])
+    _figure_legend(fig, legend)
+    return fig
+
+
+def critical_speed_figure(zeta_max=1.5, points=301):
+    """Critical impact speed ṽc (log scale) against damping ratio ζ for the gravity models.
+
+    Recomputes the paper's figure "critical". Below ṽc the ball is captured.
+
+    Parameters
+    ----------
+    zeta_max : float, default 1.5
+        Largest damping ratio ζ = β/ω0 shown (dimensionless, > 0).
+    points : int, default 301
+        Grid points in ζ.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes: ṽc = vc·ω0/g (dimensionless, log scale) against ζ for Ib, IIb and the hybrid.
+        Ib's ṽc grows like exp(πζ/√(1 − ζ²)) and diverges as ζ → 1: its curve runs off the top
+        of the axes, and where ṽc is infinite (Ib captures at every speed) the band is shaded.
+        ṽc = 0 (ζ = 0) cannot be shown on a log axis and is left out. The gravity-free models
+        have no critical speed (IIa never captures; Ia captures at every speed for ζ >= 1).
+    """
+    zeta = _grid("zeta_max", zeta_max, points)
+    fig = Figure(figsize=(8.5, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    ax.set_yscale("log")
+    handles, bounded, lowest = [], [], []
+    never = None
+    for model in GRAVITY_MODELS:
+        vc = critical_velocity(model, zeta)
+        shown = np.where(np.isfinite(vc) & (vc > 0.0), vc, np.nan)
+        handles.append(_model_line(ax, model, zeta, shown))
+        if np.isfinite(shown).any():
+            lowest.append(np.nanmin(shown))
+        if np.all(np.isfinite(vc)):
+            bounded.append(np.nanmax(shown) if np.isfinite(shown).any() else 1.0)
+        if model == "Ib" and np.isinf(vc).any():
+            never = zeta[np.argmax(np.isinf(vc))]
+    top = 10.0 ** np.ceil(np.log10(3.0 * max(bounded + [10.0])))
+    bottom = 10.0 ** np.floor(np.log10(min(lowest + [1.0])))
+    ax.set_ylim(bottom, top)
+    ax.set_xlim(0.0, zeta[-1])
+    if never is not None:
+        handles.append(ax.axvspan(never, zeta[-1], color=_style("Ib")["color"], alpha=0.15,
+                                  linewidth=0, label=r"Ib (B): captured at every $\tilde v$"))
+    ax.set_xlabel(ZETA_LABEL)
+    ax.set_ylabel(VC_LABEL)
+    ax.set_title("Critical impact speed (captured below it)")
+    ax.grid(alpha=0.3)
+    _figure_legend(fig, handles)
+    return fig
+
+
+def restitution_vs_speed_figure(zetas=(0.05, 0.2, 0.5), vtilde_range=(0.5, 1e3), points=400):
+    """Restitution ε against impact speed ṽ (log scale), one panel per damping ratio ζ.
+
+    Not in the paper: it shows the speed dependence that gravity gives Ib, IIb and the hybrid,
+    each tending to its gravity-free twin (Ia, IIa) at high speed, and falling to capture at ṽc.
+
+    Parameters
+    ----------
+    zetas : sequence of float, default (0.05, 0.2, 0.5)
+        Damping ratios ζ = β/ω0 (dimensionless, >= 0), one panel each, in this order.
+    vtilde_range : (float, float), default (0.5, 1000)
+        Smallest and largest dimensionless impact speed ṽ = v0·ω0/g, 0 < low < high.
+    points : int, default 400
+        Grid points in ṽ, logarithmically spaced (more are added near each capture onset).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes per ζ: ε (dimensionless) against ṽ (log scale). Captured speeds are not drawn;
+        curves start at the critical speed (open circle).
+    """
+    zetas = np.atleast_1d(np.asarray(zetas, dtype=float)).ravel()
+    if zetas.size == 0 or not np.all(np.isfinite(zetas)) or np.any(zetas < 0.0):
+        raise ValueError(f"zetas must be finite damping ratios >= 0; got {zetas!r}")
+    low, high = (float(v) for v in check_positive("vtilde_range", vtilde_range))
+    if not low < high:
+        raise ValueError(f"vtilde_range must be (low, high) with low < high; got {vtilde_range!r}")
+    vtilde = _grid("vtilde_range", high, points, lower=low, log=True)
+    fig = Figure(figsize=(4.0 * zetas.size + 2.2, 4.3), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, zetas.size, sharey=True, squeeze=False)[0])
+    handles, started = {}, False
+    for index, (ax, zeta) in enumerate(zip(axes, zetas)):
+        ax.set_xscale("log")
+        for model in MODELS:
+            x, eps = _curve_without_capture(_eps_against_speed(model, zeta), vtilde)
+            handles[model] = _model_line(ax, model, x, eps)
+            # Reversed: the curve starts (not ends) where capture stops.
+            started |= _mark_end(ax, model, x[::-1], eps[::-1])
+        ax.set_xlim(low, high)
+        ax.set_ylim(0.0, 1.02)
+        ax.set_xlabel(VTILDE_LABEL)
+        ax.set_ylabel(EPS_LABEL if index == 0 else r"$\varepsilon$")
+        ax.set_title(rf"$\zeta = {zeta:g}$")
+        ax.grid(alpha=0.3, which="both")
+    fig.suptitle("Coefficient of restitution against impact speed")
+    legend = list(handles.values())
+    if started:
+        legend.append(Line2D([], [], marker="o", markersize=5, markerfacecolor="white",
+                             color="0.3", linestyle="none",
+                             label=r"critical speed $\tilde v_c$ (captured below)"))
+    _figure_legend(fig, legend)
+    return fig
+
+
+# --- scene figures --------------------------------------------------------------------------
+
+def _minmax_decimate(x, y, columns):
+    """At most ~2·`columns` points drawing the same picture as (x, y) at that width.
+
+    Splits the samples into `columns` runs of equal count and keeps each run's minimum and
+    maximum, in time order, so peaks survive. NaN (a gap) is kept where a run holds one.
+    """
+    n = x.size
+    if n <= 2 * columns:
+        return x, y
+    per = n // columns
+    used = per * columns
+    runs = y[:used].reshape(columns, per)
+    low, high = np.argmin(runs, axis=1), np.argmax(runs, axis=1)
+    base = np.arange(columns) * per
+    index = np.stack([base + np.minimum(low, high), base + np.maximum(low, high)], axis=1).ravel()
+    if used < n:
+        rest = y[used:]
+        index = np.concatenate([index, used + np.unique([np.argmin(rest), np.argmax(rest)])])
+    return x[index], y[index]
+
+
+def _window(x, y, start, stop, columns):
+    i, j = np.searchsorted(x, [start, stop])
+    i, j = max(i - 1, 0), min(j + 1, x.size)
+    return _minmax_decimate(x[i:j], y[i:j], columns)
+
+
+def _as_series(name, value):
+    array = np.asarray(value, dtype=float).ravel()
+    if array.size == 0:
+        raise ValueError(f"{name} must not be empty")
+    return array
+
+
+def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=None,
+                     tail_count=8):
+    """The recording's envelope with the detected impacts, and a close-up of the last bounces.
+
+    Parameters
+    ----------
+    time : array_like
+        Time of each envelope point in s, increasing.
+    envelope : array_like
+        Signal envelope in full-scale units (1 = the recorder's full scale), same length as
+        `time`. Any length: it is reduced to the minimum and maximum per pixel column for
+        drawing, so 10⁶ points draw in a fraction of a second.
+    impact_times : array_like
+        Detected impact times in s.
+    sample_time, samples : array_like, optional
+        Raw recording (times in s, samples in full-scale units), drawn behind the envelope in
+        the close-up. Give both or neither.
+    tail_count : int, default 8
+        Number of final impacts the close-up shows.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Top: the whole envelope against time (s), impacts marked by ticks above it and the
+        close-up window shaded. Bottom: the close-up of the last `tail_count` impacts, numbered
+        from 1 in time order, with the raw samples if given.
+    """
+    time, envelope = _as_series("time", time), _as_series("envelope", envelope)
+    if time.shape != envelope.shape:
+        raise ValueError(f"time and envelope must have the same length; got {time.size} and "
+                         f"{envelope.size}")
+    impacts = np.sort(np.asarray(impact_times, dtype=float).ravel())
+    if (sample_time is None) != (samples is None):
+        raise ValueError("give both sample_time and samples, or neither")
+    tail_count = int(tail_count)
+    if tail_count < 1:
+        raise ValueError(f"tail_count must be >= 1; got {tail_count}")
+
+    fig = Figure(figsize=(10.0, 6.5), layout="constrained")
+    overview, close = fig.subplots(2, 1)
+    ink = "0.25"
+    mark = "#D55E00"
+
+    x, y = _minmax_decimate(time, envelope, 2000)
+    overview.plot(x, y, color=ink, linewidth=0.6, label="envelope")
+    marks = overview.get_xaxis_transform()  # x in data, y in axes fraction
+    overview.vlines(impacts, 0.0, 0.94, transform=marks, color=mark, linewidth=0.5, alpha=0.35)
+    overview.plot(impacts, np.full(impacts.shape, 0.97), transform=marks, linestyle="none",
+                  marker="v", markersize=4, color=mark,
+                  label=f"detected impacts ({impacts.size})")
+
+    tail = impacts[-tail_count:]
+    if tail.size >= 2:
+        pad = 0.5 * np.max(np.diff(tail))
+    else:
+        pad = 0.02 * max(time[-1] - time[0], 1e-9)
+    if tail.size:
+        start, stop = max(tail[0] - pad, time[0]), min(tail[-1] + pad, time[-1])
+        if not stop > start:
+            start, stop = tail[0] - pad, tail[-1] + pad
+        overview.axvspan(start, stop, color="0.5", alpha=0.15, linewidth=0,
+                         label="close-up below")
+    else:
+        start, stop = time[0], time[-1]
+    overview.set_xlim(time[0], time[-1])
+    overview.set_xlabel("time $t$ (s)")
+    overview.set_ylabel("envelope (full scale)")
+    overview.set_title(f"Recording with {impacts.size} detected impacts")
+    overview.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+                    frameon=False)
+    # Leave room above the envelope for the impact ticks and the legend.
+    ymin, ymax = overview.get_ylim()
+    overview.set_ylim(ymin, ymin + 1.35 * (ymax - ymin))
+
+    if samples is not None:
+        st, sv = _as_series("sample_time", sample_time), _as_series("samples", samples)
+        if st.shape != sv.shape:
+            raise ValueError(f"sample_time and samples must have the same length; got "
+                             f"{st.size} and {sv.size}")
+        sx, sy = _window(st, sv, start, stop, 2000)
+        close.plot(sx, sy, color="0.7", linewidth=0.5, label="raw samples")
+    cx, cy = _window(time, envelope, start, stop, 2000)
+    close.plot(cx, cy, color=ink, linewidth=0.9, label="envelope")
+    first = impacts.size - tail.size
+    for number, t in enumerate(tail, start=first + 1):
+        close.axvline(t, color=mark, linewidth=0.9, linestyle="--")
+        close.annotate(f"{number}", xy=(t, 1.0), xycoords=("data", "axes fraction"),
+                       xytext=(2, -2), textcoords="offset points", fontsize="x-small",
+                       color=mark, ha="left", va="top")
+    if tail.size:
+        close.plot([], [], color=mark, linewidth=0.9, linestyle="--",
+                   label="detected impact (number)")
+    close.set_xlim(start, stop)
+    close.set_xlabel("time $t$ (s)")
+    close.set_ylabel("signal (full scale)")
+    close.set_title(f"Close-up: last {tail.size} of {impacts.size} impacts")
+    close.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
+    ymin, ymax = close.get_ylim()
+    close.set_ylim(ymin, ymin + 1.3 * (ymax - ymin))
+    return fig
+
+
+def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, *, failed=()):
+    """Bounce intervals T_n, observed and predicted by each fitted model, with residuals.
+
+    Parameters
+    ----------
+    bounce_index : array_like
+        Bounce number n of each interval (dimensionless).
+    observed : array_like
+        Observed intervals T_n in s (impact n to impact n + 1).
+    observed_uncertainty : array_like or None
+        1σ uncertainty of each T_n in s. If it is None or not finite and positive everywhere,
+        residuals are shown in ms instead of in units of σ.
+    predictions : dict of str to array_like
+        Model name -> predicted intervals in s, aligned with `observed` from its first entry.
+        May be shorter (a model that captures the ball early predicts fewer bounces) or hold
+        NaN; entries beyond `observed` are ignored.
+    failed : collection of str, default ()
+        Models whose fit failed: listed in the legend as failed, not drawn (even if they also
+        appear in `predictions`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Top: T_n (s) against n, observed with error bars, each model's prediction as a line.
+        Bottom: residual observed − predicted, in units of σ (dimensionless, ±1 band shaded)
+        or in ms.
+    """
+    n = _as_series("bounce_index", bounce_index)
+    observed = np.asarray(observed, dtype=float).ravel()
+    if observed.shape != n.shape:
+        raise ValueError(f"observed must have one interval per bounce index; got "
+                         f"{observed.size} for {n.size}")
+    sigma = None
+    if observed_uncertainty is not None:
+        sigma = np.asarray(observed_uncertainty, dtype=float).ravel()
+        if sigma.shape != n.shape:
+            raise ValueError(f"observed_uncertainty must match observed; got {sigma.size} "
+                             f"for {n.size}")
+    in_sigma = sigma is not None and bool(np.all(np.isfinite(sigma) & (sigma > 0.0)))
+    failed = set(failed)
+
+    fig = Figure(figsize=(9.5, 7.0), layout="constrained")
+    top, bottom = fig.subplots(2, 1, gridspec_kw={"height_ratios": (2.0, 1.0)})
+    handles = [top.errorbar(n, observed, yerr=sigma, fmt="o", markersize=3.5, color=_DATA_COLOR,
+                            elinewidth=1.0, capsize=2, label="observed", zorder=3)]
+    if in_sigma:
+        bottom.axhspan(-1.0, 1.0, color="0.5", alpha=0.15, linewidth=0)
+    elif sigma is not None:
+        bottom.errorbar(n, np.zeros(n.shape), yerr=1e3 * sigma, fmt="none", color="0.6",
+                        elinewidth=1.0, capsize=2)
+    bottom.axhline(0.0, color="0.3", linewidth=0.8)
+    for model in _ordered(set(predictions) | failed):
+        if model in failed:
+            style = _style(model)
+            handles.append(Line2D([], [], color=style["color"], marker=style["marker"],
+                                  linestyle="none", markerfacecolor="none", alpha=0.6,
+                                  label=f"{_label(model)}: fit failed, not drawn"))
+            continue
+        predicted = np.asarray(predictions[model], dtype=float).ravel()[:n.size]
+        m = predicted.size
+        handles.append(_model_line(top, model, n[:m], predicted, markers=True, markersize=3,
+                                   linewidth=1.0, alpha=0.85))
+        residual = observed[:m] - predicted
+        residual = residual / sigma[:m] if in_sigma else 1e3 * residual
+        _model_line(bottom, model, n[:m], residual, markers=True, markersize=3, linewidth=0.8,
+                    alpha=0.85)
+    for ax in (top, bottom):
+        ax.set_xlabel("bounce number $n$")
+        ax.set_xlim(n.min() - 0.5, n.max() + 0.5)
+        ax.grid(alpha=0.3)
+    top.set_ylabel("interval $T_n$ (s)")
+    top.set_title("Bounce intervals: observed and predicted")
+    if in_sigma:
+        bottom.set_ylabel(r"residual $(T_n - T_n^\mathrm{model})/\sigma_n$" "\n(dimensionless)")
+    else:
+        bottom.set_ylabel(r"residual $T_n - T_n^\mathrm{model}$ (ms)")
+    _figure_legend(fig, handles)
+    return fig
+
+
+def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
+                             restitution_uncertainty, curves):
+    """Measured restitution against impact speed, with each fitted model's ε(v).
+
+    Parameters
+    ----------
+    impact_speed : array_like
+        Impact speed of each measured bounce in m/s.
+    restitution : array_like
+        Measured coefficient of restitution ε of each bounce (dimensionless).
+    speed_uncertainty, restitution_uncertainty : array_like or None
+        1σ uncertainties of the speeds (m/s) and of ε (dimensionless); None for no error bar.
+    curves : dict of str to (array_like, array_like)
+        Model name -> (impact speed in m/s, ε). Points with ε <= 0 (the model captures the
+        ball there) are not drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes: ε (dimensionless) against impact speed (m/s).
+    """
+    speed = np.asarray(impact_speed, dtype=float).ravel()
+    eps = np.asarray(restitution, dtype=float).ravel()
+    if speed.shape != eps.shape:
+        raise ValueError(f"impact_speed and restitution must have the same length; got "
+                         f"{speed.size} and {eps.size}")
+    xerr = None if speed_uncertainty is None else np.asarray(speed_uncertainty, float).ravel()
+    yerr = None if restitution_uncertainty is None else np.asarray(restitution_uncertainty,
+                                                                   float).ravel()
+    fig = Figure(figsize=(8.5, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    handles = []
+    for model in _ordered(curves):
+        curve_speed, curve_eps = (np.asarray(a, dtype=float).ravel() for a in curves[model])
+        if curve_speed.shape != curve_eps.shape:
+            raise ValueError(f"curve of {model!r}: speed and eps lengths differ "
+                             f"({curve_speed.size} and {curve_eps.size})")
+        order = np.argsort(curve_speed, kind="stable")
+        curve_speed, curve_eps = curve_speed[order], curve_eps[order]
+        shown = np.where(curve_eps > 0.0, curve_eps, np.nan)
+        handles.append(_model_line(ax, model, curve_speed, shown, linewidth=1.5))
+    handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
+                                  color=_DATA_COLOR, elinewidth=0.8, capsize=2,
+                                  label="measured", zorder=3))
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlim(left=0.0)
+    ax.set_xlabel("impact speed $v$ (m/s)")
+    ax.set_ylabel(EPS_LABEL)
+    ax.set_title("Restitution against impact speed")
+    ax.grid(alpha=0.3)
+    _figure_legend(fig, handles)
+    return fig
+
+
+def selection_figure(models, akaike_weights, delta_aic):
+    """Akaike weight of each model as a bar, with its ΔAIC written above it.
+
+    Parameters
+    ----------
+    models : sequence of str
+        Model names, in the order to show.
+    akaike_weights : array_like
+        Akaike weight w_i = exp(−ΔAIC_i/2)/Σ_j exp(−ΔAIC_j/2) of each model (dimensionless,
+        0 to 1). NaN for a failed fit: no bar, "fit failed" written instead.
+    delta_aic : array_like
+        AIC_i − min AIC of each model (dimensionless).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One axes: Akaike weight (dimensionless) per model.
+    """
+    models = [str(m) for m in models]
+    weights = np.asarray(akaike_weights, dtype=float).ravel()
+    delta = np.asarray(delta_aic, dtype=float).ravel()
+    if not (weights.size == delta.size == len(models)):
+        raise ValueError(f"models, akaike_weights and delta_aic must have the same length; got "
+                         f"{len(models)}, {weights.size} and {delta.size}")
+    fig = Figure(figsize=(1.3 * max(len(models), 3) + 2.0, 4.5), layout="constrained")
+    ax = fig.add_subplot()
+    position = np.arange(len(models))
+    ok = np.isfinite(weights)
+    heights = np.where(ok, weights, 0.0)
+    bars = ax.bar(position, heights, width=0.65,
+                  color=[_style(m)["color"] for m in models], edgecolor="0.2", linewidth=0.6)
+    for bar, weight, d, good in zip(bars, weights, delta, ok):
+        if not good:
+            text = "fit failed"
+        elif np.isfinite(d):
+            text = rf"$\Delta$AIC = {d:.1f}" f"\nw = {weight:.2f}"
+        else:
+            text = r"$\Delta$AIC = ∞" f"\nw = {weight:.2f}"
+        ax.annotate(text, xy=(bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                    xytext=(0, 3), textcoords="offset points", ha="center", va="bottom",
+                    fontsize="small")
+    ax.set_xticks(position, [_label(m) for m in models])
+    ax.set_ylim(0.0, 1.15)
+    ax.set_xlim(-0.6, len(models) - 0.4)
+    ax.set_xlabel("contact model")
+    ax.set_ylabel("Akaike weight (dimensionless)")
+    ax.set_title("Model selection: Akaike weights")
+    ax.grid(axis="y", alpha=0.3)
+    return fig
+
+
+# --- output ---------------------------------------------------------------------------------
+
+def save_figure(figure, stem):
+    """Write `figure` as ``stem.png`` (150 dpi) and ``stem.pdf``, each atomically.
+
+    Both files are first written to hidden temporary names in the target directory and only
+    then renamed over the targets, so an error leaves neither a partial file nor a temporary
+    one (and existing files untouched). The parent directory is created. No dates are written,
+    so saving the same figure again gives the same bytes.
+
+    Parameters
+    ----------
+    figure : matplotlib.figure.Figure
+        Figure to save.
+    stem : str or os.PathLike
+        Output path without extension (``results/scene`` -> ``results/scene.png`` and
+        ``results/scene.pdf``; any dots in the name are kept).
+
+    Returns
+    -------
+    tuple of pathlib.Path
+        Paths of the PNG and the PDF.
+    """
+    stem = Path(stem)
+    if not stem.name:
+        raise ValueError(f"stem must name a file; got {os.fspath(stem)!r}")
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    targets = {fmt: stem.with_name(f"{stem.name}.{fmt}") for fmt in ("png", "pdf")}
+    temporaries = []
+    try:
+        for fmt, target in targets.items():
+            temporary = target.with_name(f".{target.name}.{uuid.uuid4().hex}.tmp")
+            # os.open with the usual 0o666 (umask applies), unlike mkstemp's private 0o600.
+            descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            temporaries.append(temporary)
+            with os.fdopen(descriptor, "wb") as handle:
+                figure.savefig(handle, format=fmt, dpi=PNG_DPI, metadata=_METADATA[fmt])
+        for temporary, target in zip(temporaries, targets.values()):
+            os.replace(temporary, target)
+    except BaseException:
+        for temporary in temporaries:
+            try:
+                os.unlink(temporary)
+            except FileNotFoundError:
+                pass
+        raise
+    return tuple(targets.values())

@@ -1,0 +1,288 @@
+"""Figures: labelled axes, no captured point drawn, inf handled, atomic deterministic saving."""
+
+import io
+import os
+import time
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+import dashpot
+from dashpot import plots
+
+
+def _render(fig):
+    """Draw the figure (all artists, layout) and return the PNG bytes."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=40)
+    return buffer.getvalue()
+
+
+def _model_lines(ax):
+    """The model curves of an axes, keyed by model (their gid)."""
+    return {line.get_gid(): line for line in ax.get_lines() if line.get_gid() in dashpot.MODELS}
+
+
+def _legend_texts(fig):
+    return [text.get_text() for legend in fig.legends + [ax.get_legend() for ax in fig.axes]
+            if legend is not None for text in legend.get_texts()]
+
+
+def _scene():
+    n = np.arange(1, 21)
+    observed = 0.5 * 0.9 ** n
+    sigma = np.full(n.size, 1e-4)
+    predictions = {"Ia": 0.5 * 0.905 ** n,
+                   "Ib": 0.5 * 0.9 ** n[:15],                       # captures earlier
+                   "IIb": np.where(n % 5 == 0, np.nan, 0.5 * 0.899 ** n),
+                   "hybrid": 0.5 * 0.9 ** n}
+    return n, observed, sigma, predictions
+
+
+def _detection_inputs(n=600_000, rate=44_100.0):
+    time_s = np.arange(n) / rate
+    impacts = 0.2 + np.cumsum(0.5 * 0.85 ** np.arange(30))
+    impacts = impacts[impacts < time_s[-1]]
+    envelope = np.full(n, 0.01)
+    for k, t in enumerate(impacts):
+        i = int(t * rate)
+        envelope[i:i + 200] += 0.8 * 0.95 ** k * np.exp(-np.arange(min(200, n - i)) / 50.0)
+    return time_s, envelope, impacts
+
+
+BUILDERS = {
+    "contact_time": lambda: plots.contact_time_figure(points=61),
+    "restitution": lambda: plots.restitution_figure(speeds=(15, 5), points=61),
+    "critical_speed": lambda: plots.critical_speed_figure(points=61),
+    "restitution_vs_speed": lambda: plots.restitution_vs_speed_figure(zetas=(0.2,), points=60),
+    "detection": lambda: plots.detection_figure(*_detection_inputs(20_000)),
+    "intervals": lambda: plots.intervals_figure(*_scene(), failed=("IIa",)),
+    "restitution_speed": lambda: plots.restitution_speed_figure(
+        [0.5, 1.0, 2.0], [0.7, 0.8, 0.85], [0.01, 0.02, 0.04], [0.02, 0.02, 0.02],
+        {"Ib": (np.linspace(0.1, 2.5, 50), np.linspace(0.0, 0.88, 50))}),
+    "selection": lambda: plots.selection_figure(dashpot.MODELS, [0.1, 0.4, np.nan, 0.05, 0.45],
+                                                [2.9, 0.2, np.nan, 4.4, 0.0]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BUILDERS))
+def test_figure_has_labelled_axes_and_renders(name):
+    fig = BUILDERS[name]()
+    assert isinstance(fig, Figure)
+    assert fig.axes
+    for ax in fig.axes:
+        assert ax.get_xlabel().strip(), f"{name}: axes without x label"
+        assert ax.get_ylabel().strip(), f"{name}: axes without y label"
+    assert _render(fig).startswith(b"\x89PNG")
+
+
+def test_models_keep_one_style_and_paper_label_everywhere():
+    assert plots.MODEL_LABELS == {"Ia": "Ia (A)", "Ib": "Ib (B)", "IIa": "IIa (C)",
+                                  "IIb": "IIb (D)", "hybrid": "hybrid"}
+    assert set(plots.MODEL_STYLES) == set(dashpot.MODELS)
+    colours = {style["color"] for style in plots.MODEL_STYLES.values()}
+    assert len(colours) == len(dashpot.MODELS)
+    theory = plots.restitution_figure(speeds=(10,), points=31)
+    scene = plots.intervals_figure(*_scene())
+    for fig in (theory, scene):
+        for model, line in _model_lines(fig.axes[0]).items():
+            assert line.get_color() == plots.MODEL_STYLES[model]["color"]
+            assert line.get_linestyle() == plots.MODEL_STYLES[model]["linestyle"]
+            assert line.get_label() == plots.MODEL_LABELS[model]
+
+
+def test_restitution_curves_stop_where_capture_sets_in():
+    """No drawn point is captured (recomputed with collide); gravity curves end at the onset."""
+    speeds = (23, 15, 5)
+    fig = plots.restitution_figure(speeds=speeds)
+    assert len(fig.axes) == len(speeds)
+    for ax, vtilde in zip(fig.axes, speeds):
+        lines = _model_lines(ax)
+        assert set(lines) == set(dashpot.MODELS)
+        for model, line in lines.items():
+            zeta, eps = (np.asarray(a, dtype=float) for a in line.get_data())
+            drawn = np.isfinite(eps)
+            result = dashpot.collide(model, zeta, np.full(zeta.shape, float(vtilde)))
+            assert not result.captured[drawn].any(), f"{model} at ṽ={vtilde}: captured drawn"
+            assert result.captured[~drawn].all(), f"{model} at ṽ={vtilde}: rebound not drawn"
+            np.testing.assert_array_equal(eps[drawn], result.eps[drawn])
+            if model in ("Ib", "IIb", "hybrid"):
+                last = zeta[drawn].max()
+                assert eps[drawn][np.argmax(zeta[drawn])] > 0.0
+                # Below the onset, and within 1e-4 of it: the curve reaches the capture.
+                assert dashpot.critical_velocity(model, last) < vtilde
+                assert dashpot.critical_velocity(model, last + 1e-4) >= vtilde
+                assert np.all(zeta[~drawn] > last)
+        # Every curve from ζ = 0, where ε = 1 exactly.
+        for line in lines.values():
+            assert line.get_xdata()[0] == 0.0 and line.get_ydata()[0] == 1.0
+
+
+def test_ib_and_hybrid_restitution_fall_toward_zero_at_capture():
+    fig = plots.restitution_figure(speeds=(5,), points=101)
+    lines = _model_lines(fig.axes[0])
+    for model in ("Ib", "hybrid"):
+        eps = np.asarray(lines[model].get_ydata(), dtype=float)
+        assert np.nanmin(eps) < 2e-3  # the paper: ε → 0 at the critical speed
+    iib = np.asarray(lines["IIb"].get_ydata(), dtype=float)
+    assert np.nanmin(iib) > 0.1  # the paper: IIb terminates at a finite ε
+
+
+def test_speed_curves_start_at_the_critical_speed():
+    zetas = (0.05, 0.5)
+    fig = plots.restitution_vs_speed_figure(zetas=zetas, vtilde_range=(0.5, 100.0), points=80)
+    for ax, zeta in zip(fig.axes, zetas):
+        assert ax.get_xscale() == "log"
+        for model, line in _model_lines(ax).items():
+            vtilde, eps = (np.asarray(a, dtype=float) for a in line.get_data())
+            drawn = np.isfinite(eps)
+            captured = dashpot.collide(model, np.full(vtilde.shape, zeta), vtilde).captured
+            assert not captured[drawn].any() and captured[~drawn].all()
+            if model in ("Ib", "IIb", "hybrid"):
+                first = vtilde[drawn].min()
+                critical = dashpot.critical_velocity(model, zeta)
+                assert critical < first <= critical * (1 + 1e-4)
+
+
+def test_contact_time_curves_are_finite_and_ia_leaves_the_top():
+    fig = plots.contact_time_figure()
+    ax = fig.axes[0]
+    top = ax.get_ylim()[1]
+    for model, line in _model_lines(ax).items():
+        tau = np.asarray(line.get_ydata(), dtype=float)
+        assert not np.isinf(tau).any()
+        if model != "Ia":
+            assert np.nanmax(tau) < top
+    assert np.nanmax(_model_lines(ax)["Ia"].get_ydata()) > top  # diverges as ζ → 1
+
+
+def test_critical_speed_ib_runs_off_the_top_without_inf():
+    fig = plots.critical_speed_figure()
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log"
+    lines = _model_lines(ax)
+    assert set(lines) == {"Ib", "IIb", "hybrid"}
+    bottom, top = ax.get_ylim()
+    for model, line in lines.items():
+        zeta, vc = (np.asarray(a, dtype=float) for a in line.get_data())
+        assert not np.isinf(vc).any()
+        drawn = np.isfinite(vc)
+        np.testing.assert_allclose(vc[drawn], dashpot.critical_velocity(model, zeta[drawn]))
+        if model == "Ib":
+            assert np.nanmax(vc) > top
+        else:
+            assert np.nanmax(vc) < top and np.nanmin(vc) >= bottom
+    assert any("every" in text for text in _legend_texts(fig))  # the shaded Ib band
+    # Drawing the log axis with NaN and 1e300 values: test_figure_has_labelled_axes_and_renders.
+
+
+def test_detection_figure_handles_600k_points_quickly():
+    time_s, envelope, impacts = _detection_inputs(600_000)
+    # CPU time of this process, not wall time: other jobs on the machine do not count.
+    start = time.process_time()
+    fig = plots.detection_figure(time_s, envelope, impacts, sample_time=time_s,
+                                 samples=envelope - 0.01, tail_count=8)
+    _render(fig)
+    elapsed = time.process_time() - start
+    assert elapsed < 3.0, f"took {elapsed:.2f} s of CPU time"
+    overview, close = fig.axes
+    drawn = [line for line in overview.get_lines() if line.get_label() == "envelope"][0]
+    assert len(drawn.get_ydata()) <= 5000
+    assert np.max(drawn.get_ydata()) == envelope.max()  # min/max decimation keeps the peaks
+    lo, hi = close.get_xlim()
+    assert lo <= impacts[-8] and hi >= impacts[-1] and lo > impacts[-9]
+
+
+def test_detection_figure_with_few_or_no_impacts():
+    time_s, envelope, impacts = _detection_inputs(5_000, rate=1000.0)
+    for subset in (impacts[:2], impacts[:1]):
+        fig = plots.detection_figure(time_s, envelope, subset, tail_count=8)
+        lo, hi = fig.axes[1].get_xlim()
+        assert lo < subset[0] and hi > subset[-1]
+    _render(plots.detection_figure(time_s, envelope, impacts[:0]))
+    with pytest.raises(ValueError, match="both"):
+        plots.detection_figure(time_s, envelope, impacts, samples=envelope)
+
+
+def test_intervals_figure_with_failed_model_and_nan_predictions():
+    n, observed, sigma, predictions = _scene()
+    predictions["IIa"] = 0.5 * 0.91 ** n  # given, but the fit failed: must not be drawn
+    fig = plots.intervals_figure(n, observed, sigma, predictions, failed=("IIa", "Ia"))
+    top, residual = fig.axes
+    drawn = _model_lines(top)
+    assert set(drawn) == {"Ib", "IIb", "hybrid"}
+    assert len(drawn["Ib"].get_xdata()) == 15
+    assert np.isnan(drawn["IIb"].get_ydata()).sum() == 4
+    texts = _legend_texts(fig)
+    assert any(t.startswith("IIa (C)") and "failed" in t for t in texts)
+    assert any(t.startswith("Ia (A)") and "failed" in t for t in texts)
+    assert "sigma" in residual.get_ylabel()
+    np.testing.assert_allclose(_model_lines(residual)["hybrid"].get_ydata(), 0.0, atol=1e-9)
+    # Without usable uncertainties the residuals are in ms.
+    fig = plots.intervals_figure(n, observed, None, predictions)
+    assert "ms" in fig.axes[1].get_ylabel()
+
+
+def test_restitution_speed_curve_hides_captured_speeds():
+    speed = np.linspace(0.1, 2.0, 20)
+    eps = np.where(speed < 0.5, 0.0, 0.8)
+    fig = plots.restitution_speed_figure([1.0], [0.8], None, None, {"hybrid": (speed, eps)})
+    line = _model_lines(fig.axes[0])["hybrid"]
+    assert np.all(np.isnan(np.asarray(line.get_ydata())[speed < 0.5]))
+    assert "m/s" in fig.axes[0].get_xlabel()
+
+
+def test_selection_figure_annotates_delta_aic():
+    fig = plots.selection_figure(["Ib", "hybrid"], [0.3, 0.7], [1.7, 0.0])
+    ax = fig.axes[0]
+    assert len(ax.patches) == 2
+    notes = [t.get_text() for t in ax.texts]
+    assert any("1.7" in t for t in notes) and any("0.0" in t for t in notes)
+
+
+def _small_figure():
+    fig = Figure(figsize=(2.0, 1.5))
+    ax = fig.add_subplot()
+    ax.plot([0.0, 1.0], [1.0, 0.5])
+    ax.set_xlabel("x (s)")
+    ax.set_ylabel("y (m)")
+    return fig
+
+
+def test_save_figure_writes_png_and_pdf_atomically_and_deterministically(tmp_path):
+    fig = _small_figure()
+    paths = plots.save_figure(fig, tmp_path / "out" / "scene.v1")
+    assert sorted(os.listdir(tmp_path / "out")) == ["scene.v1.pdf", "scene.v1.png"]
+    first = [p.read_bytes() for p in paths]
+    assert first[0].startswith(b"\x89PNG") and first[1].startswith(b"%PDF")
+    plots.save_figure(fig, tmp_path / "out" / "scene.v1")
+    assert [p.read_bytes() for p in paths] == first  # no dates: reruns give the same bytes
+    assert sorted(os.listdir(tmp_path / "out")) == ["scene.v1.pdf", "scene.v1.png"]
+
+
+def test_failed_save_leaves_nothing_behind(tmp_path, monkeypatch):
+    fig = _small_figure()
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    with pytest.raises(OSError):
+        plots.save_figure(fig, blocker / "scene")  # the directory cannot be created
+    assert sorted(os.listdir(tmp_path)) == ["file"]
+
+    # Old results stay intact when writing the second format fails half way.
+    target = tmp_path / "results"
+    target.mkdir()
+    (target / "scene.png").write_bytes(b"old png")
+    original = fig.savefig
+
+    def failing_savefig(handle, *, format, **kwargs):
+        if format == "pdf":
+            handle.write(b"%PDF-partial")
+            raise RuntimeError("disk full")
+        return original(handle, format=format, **kwargs)
+
+    monkeypatch.setattr(fig, "savefig", failing_savefig)
+    with pytest.raises(RuntimeError, match="disk full"):
+        plots.save_figure(fig, target / "scene")
+    assert sorted(os.listdir(target)) == ["scene.png"]
+    assert (target / "scene.png").read_bytes() == b"old png"
