@@ -68,11 +68,18 @@ def _fit(args):
     from .store import write_scene_fit
 
     scene = load_scene(args.scene) if args.scene else Scene()
-    if Path(args.output).resolve() in {Path(args.impacts).resolve()}:
+    inputs = [args.impacts] + ([args.scene] if args.scene else [])
+    if Path(args.output).resolve() in {Path(source).resolve() for source in inputs}:
         raise InputError(args.output, "refusing to overwrite the input with the output")
+    if Path(args.output).is_dir():
+        raise InputError(args.output, "is a folder; give the HDF5 file to write")
     impacts, scene_fit = analyze(args.impacts, scene, models=args.models)
-    write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
-                    config={"models": list(scene_fit.results)})
+    try:
+        write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
+                        config={"models": list(scene_fit.results)})
+    except OSError as error:
+        raise InputError(args.output, f"cannot write the output ({error.strerror or error})") \
+            from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")

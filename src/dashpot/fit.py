@@ -35,7 +35,7 @@ import pandas as pd
 
 from .bounces import bounce_table
 from .physics.models import GRAVITY_MODELS, MODELS, collide
-from .physics.train import impact_train
+from .physics.train import impact_train, impact_trains
 from .physics.units import _zeta_for_restitution
 from .scene import Scene
 
@@ -45,10 +45,10 @@ __all__ = ["FitData", "FitResult", "Estimate", "prepare_data", "fit_model", "fit
 Z68 = 0.9944578832097535  # two-sided 68.27 % normal quantile
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
-ZETA_RANGE = (1e-7, 20.0)
-SCAN_POINTS = 25
-ZETA_SCAN_POINTS = 60
-METHOD, OPTIONS = "leastsq", {}
+ZETA_RANGE = (1e-9, 20.0)
+PROFILE_POINTS = 9
+REJECTED = 1e12  # residual of a step outside the physical range
+METHOD, OPTIONS = "leastsq", {"epsfcn": 1e-6}
 # Relative errors above which a parameter is reported as not determined by the data.
 WEAK_RELATIVE_ERROR = 0.5
 STRONG_CORRELATION = 0.98
@@ -279,27 +279,102 @@ def _numerical_tolerance(data):
     return float(min(1e-13, 0.01 * np.min(data.sigma) / span))
 
 
-def _scan_times(model, zeta, vtilde0, count):
-    """Dimensionless impact times of many trains at once (one collide call per impact).
+def _train_times(model, data, zeta, omega0, v0, start=None):
+    """Predicted times (s, from the first impact) of the observed impacts, many trains at once.
 
-    The bounce map is sequential in the impacts but vectorized over the parameter sets of a
-    start-value scan; a captured train rests at its last impact.
+    A train captured before the last observed impact rests at its last one.
+
+    Returns
+    -------
+    times : ndarray, shape (trains, observed impacts)
+    trains : ImpactTrains
     """
-    times = np.zeros((zeta.size, count))
-    speeds = vtilde0.copy()
-    alive = np.ones(zeta.size, bool)
-    for k in range(count - 1):
-        outcome = collide(model, zeta, np.where(alive, speeds, 1.0))
-        alive &= ~outcome.captured
-        step = np.where(alive, outcome.contact_time + 2.0 * outcome.eps * speeds, 0.0)
-        times[:, k + 1] = times[:, k] + step
-        speeds = np.where(alive, outcome.eps * speeds, 1.0)
-        alive &= speeds > 0.0
-    return times
+    trains = impact_trains(model, zeta, v0 * omega0 / data.g, data.count, start=start)
+    times = np.concatenate([np.zeros((zeta.size, 1)), np.cumsum(trains.intervals, axis=1)],
+                           axis=1) / omega0[:, None]
+    return times[:, data.index], trains
 
 
-def _start_values(model, data, scene, known_v0, known_omega0):
-    """Start values of ζ, ω0, v0 and t0 from the data, with notes on how they were found."""
+def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6):
+    """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
+
+    Every iteration evaluates the trains at the current values and at a small step in each
+    parameter (forward differences) for all ω0 at once; the time offset is eliminated as the
+    weighted mean misfit. Used for start values: the misfit is flat along ω0 where gravity's
+    effect is at the noise level, so a full fit started far away crawls along that valley,
+    while at fixed ω0 the rest converges in a few steps.
+
+    `start` (speeds relative to the first, one row per ω0 or one row for all) starts the
+    trains' Newton iterations.
+
+    Returns
+    -------
+    chisqr, zeta, v0, t0 : ndarray
+        Per ω0, at the best values found.
+    ratios : ndarray
+        Relative speeds of the best train found (a start for further trains).
+    """
+    weights = data.sigma ** -2.0
+    count = zeta.size
+    names = 2 if fit_v0 else 1
+    current = np.stack([zeta, v0], axis=1)
+    best = current.copy()
+    best_chisqr = np.full(count, np.inf)
+    best_t0 = np.zeros(count)
+    best_residual = np.zeros((count, data.times.size))
+    best_jacobian = np.zeros((count, data.times.size, names))
+    damping = np.full(count, 1e-3)
+    start = np.broadcast_to(start, (names + 1, count, data.count)).reshape(-1, data.count)
+    for _ in range(iterations):
+        trial = np.repeat(current[None], names + 1, axis=0)
+        for k in range(names):
+            trial[k + 1, :, k] *= 1.0 + step
+        trial = trial.reshape(-1, 2)
+        times, trains = _train_times(model, data, trial[:, 0], np.tile(omega0, names + 1),
+                                     trial[:, 1], start=start)
+        misfit = data.times[None, :] - times
+        t0 = np.sum(misfit * weights, axis=1) / weights.sum()
+        residual = ((misfit - t0[:, None]) / data.sigma).reshape(names + 1, count, -1)
+        chisqr = np.sum(residual[0] ** 2, axis=1)
+        # Levenberg–Marquardt bookkeeping per ω0: keep a step that lowers χ², else retry
+        # from the best point with more damping.
+        improved = chisqr < best_chisqr
+        if np.all(~improved | (chisqr > best_chisqr * (1.0 - 1e-9))):
+            break  # converged everywhere: no step lowers χ² by more than rounding
+        best[improved], best_chisqr[improved] = current[improved], chisqr[improved]
+        best_t0[improved], best_residual[improved] = t0[:count][improved], residual[0][improved]
+        best_jacobian[improved] = np.stack(
+            [(residual[k + 1] - residual[0]) / (step * current[:, k:k + 1])
+             for k in range(names)], axis=2)[improved]
+        damping = np.where(improved, damping / 10.0, damping * 10.0)
+        normal = np.einsum("gmi,gmj->gij", best_jacobian, best_jacobian)
+        normal = normal + (damping[:, None] * np.einsum("gii->gi", normal))[:, :, None] * np.eye(
+            names)[None]
+        gradient = np.einsum("gmi,gm->gi", best_jacobian, best_residual)
+        # Pseudo-inverse: a singular system (a parameter without effect) must not stop the rest.
+        with np.errstate(all="ignore"):
+            delta = -np.einsum("gij,gj->gi", np.linalg.pinv(normal), gradient)
+        current = best.copy()
+        current[:, :names] += np.where(np.isfinite(delta), delta, 0.0)
+        current = np.where(current > 0.0, current, 0.5 * best)
+        # The next trains start from these ones' speeds (captured ones from scratch).
+        ratios = trains.speeds[:count] / trains.speeds[:count, :1]
+        start = np.tile(np.where(trains.impacts[:count, None] == data.count, ratios, np.nan),
+                        (names + 1, 1))
+    winner = int(np.argmin(best_chisqr))
+    return best_chisqr, best[:, 0], best[:, 1], best_t0, start[winner]
+
+
+def _start_values(model, data, known_v0, known_omega0):
+    """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
+
+    The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
+    at a typical speed of the train; then the best ζ and v0 at each ω0 of a broad and a fine
+    grid (:func:`_profile`) pick ω0. Without gravity ω0 enters only through the contact time:
+    T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n give T_n = εT_{n−1} + τ(1 − ε), a straight line
+    whose intercept gives τ and so the grid's centre.
+    """
+    g = data.g
     intervals = np.diff(data.times) / np.diff(data.index)
     flags = data.bounces["flag"].to_numpy()[: intervals.size]
     eps = _flight_ratio_start(intervals, flags)
@@ -314,44 +389,50 @@ def _start_values(model, data, scene, known_v0, known_omega0):
         v0 = float(data.impact_speed[0])
     else:
         # Rebound speed after the first impact from its flight, g·T/2, divided by ε.
-        v0 = 0.5 * data.g * intervals[0] / eps
-    # Each interval gives the impact speed that follows it (v = g·T/2) and each ratio of
-    # intervals the ε at that speed: compare ε(ζ, v·ω0/g) with the measured ratios on a grid of
-    # (ζ, ω0), in one vectorized call, without propagating the train. Contact times are
-    # neglected here; the fit restores them.
-    speeds = 0.5 * data.g * intervals[:-1]
-    ratios = intervals[1:] / intervals[:-1]
-    ratio_sd = np.hypot(data.sigma[1:-1], data.sigma[2:]) * 2.0 / intervals[:-1]
+        v0 = 0.5 * g * intervals[0] / eps
     if known_omega0 is not None:
-        omega0 = np.array([known_omega0])
+        centre, spread = known_omega0, 1.0
     elif model in GRAVITY_MODELS:
-        omega0 = np.geomspace(*OMEGA0_RANGE, SCAN_POINTS)
+        # Gravity matters from the capture speed (ṽ ~ 1) up to ṽ ~ 1e5 at the slowest impact.
+        slowest = 0.5 * g * intervals[-1]
+        centre, spread = math.sqrt(1e5) * g / slowest, math.sqrt(1e5)
     else:
-        # Without gravity ε does not depend on speed and ω0 enters only through the contact
-        # duration τ: T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n give T_n = εT_{n-1} + τ(1 − ε),
-        # a straight line whose intercept gives τ.
-        slope, intercept = np.polyfit(intervals[:-1], intervals[1:], 1)
-        floor = 0.1 * float(np.median(data.sigma))
-        contact = max(intercept / max(1.0 - slope, 1e-3), floor)
-        scaled = collide(model, np.geomspace(1e-5, 5.0, ZETA_SCAN_POINTS), 1.0).contact_time
-        omega0 = np.clip(scaled / contact, *OMEGA0_RANGE)
-    zeta = np.geomspace(1e-5, 5.0, ZETA_SCAN_POINTS)
-    if model in GRAVITY_MODELS or known_omega0 is not None:
-        zeta, omega0 = (axis.ravel() for axis in np.meshgrid(zeta, omega0))
-    outcome = collide(model, zeta[:, None], speeds[None, :] * omega0[:, None] / data.g)
-    misfit = np.where(outcome.captured, 1.0, outcome.eps - ratios) / ratio_sd
-    chisqr = np.sum(misfit ** 2, axis=1)
+        if intervals.size >= 3:
+            slope, intercept = np.polyfit(intervals[:-1], intervals[1:], 1)
+            contact = intercept / max(1.0 - slope, 1e-3)
+        else:
+            contact = 0.0
+        contact = max(contact, 0.1 * float(np.median(data.sigma)))
+        zeta = _zeta_for_restitution(model, np.array([eps]), np.array([1.0]))
+        centre = float(collide(model, np.nan_to_num(zeta, nan=0.1), 1.0).contact_time[0]
+                       / contact)
+        spread = 3.0
+    fit_v0 = known_v0 is None
+    points = PROFILE_POINTS if spread > 1.0 else 1
+    # Newton starts the first trains from a geometric train (failures fall back to the map).
+    ratios = eps ** np.arange(data.count, dtype=float)
+    omega0 = np.clip(centre * spread ** np.linspace(-1.0, 1.0, points), *OMEGA0_RANGE)
+    typical = np.maximum(v0 * omega0 / g * eps ** (0.5 * data.count), 1e-3)
+    zeta = _zeta_for_restitution(model, np.full(omega0.size, eps), typical)
+    usable = np.isfinite(zeta)
+    if not usable.any():
+        return None, "no damping ratio reproduces the interval ratios at any stiffness tried"
+    omega0 = omega0[usable]
+    chisqr, zeta, v0_fit, t0, _ = _profile(model, data, zeta[usable], omega0,
+                                           np.full(omega0.size, v0), ratios, fit_v0=fit_v0)
     best = int(np.argmin(chisqr))
-    first = collide(model, zeta[best], speeds[0] * omega0[best] / data.g)
-    if known_v0 is None and not (data.has_speeds and np.isfinite(data.impact_speed[0])):
-        v0 = speeds[0] / max(float(first.eps), 1e-3)
-    times = _scan_times(model, zeta[best:best + 1], np.array([v0 * omega0[best] / data.g]),
-                        data.count)[0, data.index] / omega0[best]
-    offset = float(np.average(data.times - times, weights=data.sigma ** -2.0))
-    start = {"zeta": float(zeta[best]), "omega0": float(omega0[best]), "v0": float(v0),
-             "t0": offset}
-    how = (f"start: median eps = {eps:.4g}, v0 = {v0:.4g} m/s, zeta = {zeta[best]:.4g} and "
-           f"omega0 = {omega0[best]:.4g} rad/s from a scan of {zeta.size} pairs")
+    centre = float(omega0[best])
+    if 0 < best < omega0.size - 1 and np.all(np.isfinite(chisqr[best - 1:best + 2])):
+        # Vertex of the parabola through the best point and its neighbours, in ln ω0.
+        x = np.log(omega0[best - 1:best + 2])
+        curvature, slope, _ = np.polyfit(x - x[1], chisqr[best - 1:best + 2], 2)
+        if curvature > 0:
+            centre = float(np.exp(x[1] + np.clip(-slope / (2 * curvature), x[0] - x[1],
+                                                 x[2] - x[1])))
+    start = {"zeta": float(zeta[best]), "omega0": centre, "v0": float(v0_fit[best]),
+             "t0": float(t0[best])}
+    how = (f"start: median eps = {eps:.4g}; zeta = {start['zeta']:.4g}, v0 = {start['v0']:.4g} "
+           f"m/s and omega0 = {centre:.4g} rad/s from fits at fixed omega0 on two grids")
     return start, how
 
 
@@ -405,12 +486,18 @@ def fit_model(data, model, scene=None, *, max_nfev=2000):
 
 
 def _failed(model, message, notes, data):
+    """A fit that could not be made: kept in the output with its reason, same layout."""
     empty = np.full(data.times.size, np.nan)
+    nothing = np.zeros(0)
     return FitResult(model=model, success=False, message=message, estimates={}, varied=(),
                      correlation=np.zeros((0, 0)), chisqr=math.inf, redchi=math.inf,
                      aic=math.inf, bic=math.inf, ndata=int(data.times.size), nvarys=0, nfev=0,
-                     time_residuals=empty, normalized_residuals=empty, predicted={},
-                     eps_curve={}, notes=notes + [message], numerical_tolerance=math.nan,
+                     time_residuals=empty, normalized_residuals=empty,
+                     predicted={"times": nothing, "speeds": nothing, "restitution": nothing,
+                                "contact_durations": nothing, "at_data": empty},
+                     eps_curve={"speed": nothing, "eps": nothing,
+                                "captured": np.zeros(0, bool)},
+                     notes=notes + [message], numerical_tolerance=math.nan,
                      error_bound=math.nan)
 
 
@@ -425,20 +512,34 @@ def _fit(data, model, scene, notes, max_nfev):
                     if stiffness is not None and stiffness.uncertainty is None
                     and mass.uncertainty is None else None)
     fixed_v0 = known_v0.value if known_v0 is not None and known_v0.uncertainty is None else None
-    start, how = _start_values(model, data, scene,
-                               None if known_v0 is None else known_v0.value,
+    unknowns = 2 + (fixed_omega0 is None) + (fixed_v0 is None)
+    measured = data.times.size + int(np.isfinite(data.impact_speed).sum()
+                                     + np.isfinite(data.rebound_speed).sum())
+    if measured <= unknowns:
+        return _failed(model, f"fit failed: {measured} measured values cannot determine "
+                              f"{unknowns} unknowns (zeta, t0"
+                              + (", omega0" if fixed_omega0 is None else "")
+                              + (", v0" if fixed_v0 is None else "")
+                              + "); give more impacts or known quantities in the scene",
+                       notes, data)
+    start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
                                None if stiffness is None else math.sqrt(stiffness.value
                                                                         / mass.value))
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
 
+    # Fitted as ζ and the characteristic speed v* = g/ω0: gravity's effect on ε grows like
+    # v*/v and the contact time like 1/ω0 ∝ v*, so the misfit valley is nearly straight in
+    # (ζ, v*); in (ln ζ, ln ω0) it is a banana along which Levenberg–Marquardt crawls.
+    g = data.g
     params = lmfit.Parameters()
-    params.add("log_zeta", value=math.log(start["zeta"]), min=math.log(ZETA_RANGE[0]),
-               max=math.log(ZETA_RANGE[1]))
-    params.add("log_omega0", value=math.log(start["omega0"]), min=math.log(OMEGA0_RANGE[0]),
-               max=math.log(OMEGA0_RANGE[1]), vary=fixed_omega0 is None)
-    params.add("v0", value=start["v0"], min=1e-9, vary=fixed_v0 is None)
+    # No bounds: lmfit maps bounded parameters through sqrt or sine transforms, which bend the
+    # valley again (ζ ≈ u²/2 near 0). A step to a non-physical value is rejected instead, by
+    # the residual function returning an enormous misfit there.
+    params.add("zeta", value=start["zeta"])
+    params.add("v_star", value=g / start["omega0"], vary=fixed_omega0 is None)
+    params.add("v0", value=start["v0"], vary=fixed_v0 is None)
     params.add("t0", value=start["t0"])
     fixed = {}
     if fixed_omega0 is not None:
@@ -450,8 +551,8 @@ def _fit(data, model, scene, notes, max_nfev):
     if stiffness is not None and fixed_omega0 is None:
         sd = math.hypot(stiffness.uncertainty or 0.0,
                         stiffness.value * (mass.uncertainty or 0.0) / mass.value)
-        priors.append(("log_omega0", 0.5 * math.log(stiffness.value / mass.value),
-                       0.5 * sd / stiffness.value))
+        prior_v_star = g / math.sqrt(stiffness.value / mass.value)
+        priors.append(("v_star", prior_v_star, prior_v_star * 0.5 * sd / stiffness.value))
         notes.append("prior on omega0 from the known stiffness and mass")
     if known_v0 is not None and fixed_v0 is None:
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
@@ -462,10 +563,15 @@ def _fit(data, model, scene, notes, max_nfev):
     impact_rows = np.isfinite(data.impact_speed)
     rebound_rows = np.isfinite(data.rebound_speed)
 
+    size = data.times.size + int(impact_rows.sum()) + int(rebound_rows.sum()) + len(priors)
+
     def residual(p):
         values = p.valuesdict()
-        zeta, omega0 = math.exp(values["log_zeta"]), math.exp(values["log_omega0"])
-        _, times, speeds, rebound = predictor(zeta, omega0, values["v0"])
+        if not (values["zeta"] >= 0.0 and values["v_star"] > g / OMEGA0_RANGE[1]
+                and values["v0"] > 0.0):
+            return np.full(size, REJECTED)
+        _, times, speeds, rebound = predictor(values["zeta"], g / values["v_star"],
+                                              values["v0"])
         parts = [(data.times - values["t0"] - times[data.index]) / data.sigma]
         if impact_rows.any():
             parts.append((data.impact_speed[impact_rows] - speeds[data.index[impact_rows]])
@@ -482,7 +588,8 @@ def _fit(data, model, scene, notes, max_nfev):
     values = result.params.valuesdict()
     if not np.all(np.isfinite(result.residual)):
         return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
-    zeta, omega0 = math.exp(values["log_zeta"]), math.exp(values["log_omega0"])
+    zeta, v_star = values["zeta"], values["v_star"]
+    omega0 = g / v_star
     train, times, speeds, rebound = predictor(zeta, omega0, values["v0"])
     message = result.message
     success = bool(result.success)
@@ -505,7 +612,7 @@ def _fit(data, model, scene, notes, max_nfev):
     correlation = np.where(np.isfinite(correlation), correlation, np.nan)
 
     def log_sd(*weights_by_name):
-        """sd of Σ w·(log parameter) from the covariance (fixed parameters contribute 0)."""
+        """sd of ln q from the covariance, given ∂ln q/∂p per parameter (fixed ones add 0)."""
         vector = np.zeros(len(varied))
         for name, weight in weights_by_name:
             if name in varied:
@@ -522,25 +629,28 @@ def _fit(data, model, scene, notes, max_nfev):
     def status(name, prior_name=None):
         if name in varied:
             return ("prior" if any(p[0] == (prior_name or name) for p in priors) else "fitted"), ""
-        return "fixed", fixed.get(name.replace("log_", ""), "")
+        return "fixed", fixed.get({"v_star": "omega0"}.get(name, name), "")
 
     estimates = {}
-    st, why = status("log_zeta")
-    estimates["zeta"] = _log_estimate(zeta, log_sd(("log_zeta", 1.0)), "1", st, why)
-    st, why = status("log_omega0")
-    estimates["omega0"] = _log_estimate(omega0, log_sd(("log_omega0", 1.0)), "rad/s", st, why)
-    estimates["beta"] = _log_estimate(zeta * omega0,
-                                      log_sd(("log_zeta", 1.0), ("log_omega0", 1.0)), "1/s",
+    # ω0 = g/v*, β = ζg/v*, k = mg²/v*²: derivatives of their logarithms.
+    d_zeta, d_v_star = ("zeta", 1.0 / zeta), ("v_star", -1.0 / v_star)
+    st, why = status("zeta")
+    estimates["zeta"] = _log_estimate(zeta, log_sd(d_zeta), "1", st, why)
+    st, why = status("v_star")
+    estimates["omega0"] = _log_estimate(omega0, log_sd(d_v_star), "rad/s", st, why)
+    estimates["v_star"] = _log_estimate(v_star, log_sd(d_v_star), "m/s", st,
+                                        why or "characteristic speed g/omega0")
+    estimates["beta"] = _log_estimate(zeta * omega0, log_sd(d_zeta, d_v_star), "1/s",
                                       "derived", "beta = zeta * omega0")
     st, why = status("v0")
     estimates["v0"] = _linear_estimate(values["v0"], sd.get("v0", 0.0), "m/s", st, why)
     estimates["t0"] = _linear_estimate(values["t0"], sd.get("t0", 0.0), "s", "fitted")
     if mass is not None:
         mass_sd = (mass.uncertainty or 0.0) / mass.value
-        k_sd = math.hypot(log_sd(("log_omega0", 2.0)), mass_sd)
+        k_sd = math.hypot(log_sd(("v_star", -2.0 / v_star)), mass_sd)
         estimates["k"] = _log_estimate(mass.value * omega0 ** 2, k_sd, "N/m", "derived",
                                        "k = m * omega0^2")
-        gamma_sd = math.hypot(log_sd(("log_zeta", 1.0), ("log_omega0", 1.0)), mass_sd)
+        gamma_sd = math.hypot(log_sd(d_zeta, d_v_star), mass_sd)
         estimates["gamma"] = _log_estimate(2.0 * mass.value * zeta * omega0, gamma_sd, "kg/s",
                                            "derived", "gamma = 2 m beta")
     notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
@@ -575,11 +685,11 @@ def _fit(data, model, scene, notes, max_nfev):
 def _identifiability_notes(estimates, varied, correlation, params):
     """Plain-words warnings where the data do not pin a parameter down."""
     notes = []
-    labels = {"log_zeta": "zeta", "log_omega0": "omega0 (and so k)", "v0": "v0", "t0": "t0"}
+    labels = {"zeta": "zeta", "v_star": "omega0 (and so k)", "v0": "v0", "t0": "t0"}
     for name in varied:
         param = params[name]
-        if param.min is not None and param.max is not None and (
-                abs(param.value - param.min) < 1e-3 or abs(param.value - param.max) < 1e-3):
+        if any(np.isfinite(bound) and abs(param.value - bound) <= 1e-3 * abs(bound)
+               for bound in (param.min, param.max)):
             notes.append(f"{labels[name]} ended at its bound: not determined by these data")
     for key, label in (("omega0", "omega0 (and so k)"), ("zeta", "zeta"), ("beta", "beta")):
         estimate = estimates.get(key)

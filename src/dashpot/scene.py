@@ -15,7 +15,8 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+import re
+from dataclasses import dataclass, field, fields, replace
 from importlib.resources import files
 from pathlib import Path
 
@@ -139,6 +140,41 @@ def _schema():
     return yaml.safe_load(files("dashpot").joinpath("scene.schema.yaml").read_text())
 
 
+def _yaml_loader():
+    """PyYAML's safe loader, also reading exponent floats without a dot (``5e4``, ``1e-3``).
+
+    YAML 1.1, which PyYAML implements, reads ``1e-3`` as a string; YAML 1.2 and every
+    scientist read it as a number.
+    """
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    Loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                    |[-+]?\.(?:inf|Inf|INF)
+                    |\.(?:nan|NaN|NAN))$""", re.X),
+        list("-+0123456789."))
+    return Loader
+
+
+def _non_finite(value, where=()):
+    """Path of the first NaN or infinite number in a nested mapping/list, else None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where
+    items = value.items() if isinstance(value, dict) else (
+        enumerate(value) if isinstance(value, list) else ())
+    for key, item in items:
+        found = _non_finite(item, where + (key,))
+        if found is not None:
+            return found
+    return None
+
+
 def scene_from_mapping(mapping, *, source="scene", base=None):
     """Scene from a mapping with the keys of ``scene.yaml``.
 
@@ -168,12 +204,17 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
     except jsonschema.ValidationError as error:
         where = "/".join(str(part) for part in error.absolute_path) or "top level"
         raise InputError(source, f"invalid scene ({where}: {error.message})") from None
+    bad = _non_finite(mapping)
+    if bad is not None:
+        where = "/".join(str(part) for part in bad)
+        raise InputError(source, f"invalid scene ({where}: not a finite number)")
     apparatus = dict(mapping.get("apparatus", {}))
     kwargs = {}
     for key in _KNOWN_KEYS:
         value = apparatus.pop(key, None)
         if isinstance(value, dict):
-            kwargs[key] = Known(float(value["value"]), value.get("uncertainty"))
+            spread = value.get("uncertainty")
+            kwargs[key] = Known(float(value["value"]), None if spread is None else float(spread))
         elif value is not None:
             kwargs[key] = Known(float(value))
     for key in ("gravity", "incline_angle", "g_eff"):
@@ -214,15 +255,22 @@ def load_scene(path):
 
     path = Path(path)
     try:
-        mapping = yaml.safe_load(path.read_text())
+        mapping = yaml.load(path.read_text(encoding="utf-8"), Loader=_yaml_loader())
     except OSError as error:
         raise InputError(path, f"cannot read the scene file ({error.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(path, "not a text file in UTF-8") from None
     except yaml.YAMLError as error:
-        problem = str(error).splitlines()[0]
-        raise InputError(path, f"not valid YAML ({problem})") from None
+        mark = getattr(error, "problem_mark", None)
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        raise InputError(path, f"not valid YAML ({where}{problem})") from None
     if mapping is None:
         mapping = {}
     if not isinstance(mapping, dict):
         raise InputError(path, "a scene file must be a mapping of keys to values")
-    mapping.setdefault("name", path.resolve().parent.name)
-    return scene_from_mapping(mapping, source=path, base=path.parent)
+    scene = scene_from_mapping(mapping, source=path, base=path.parent)
+    if "name" not in mapping:
+        # The folder's name, which need not follow the pattern a written name must.
+        scene = replace(scene, name=path.resolve().parent.name or "scene")
+    return scene

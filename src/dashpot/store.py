@@ -110,6 +110,9 @@ def _write_fit(group, fit):
              "status": e.status, "note": e.note} for name, e in fit.estimates.items()]
     parameters = pd.DataFrame(rows, columns=["name", "value", "stderr", "low68", "high68",
                                              "low95", "high95", "unit", "status", "note"])
+    # A failed fit has no rows: keep the numeric columns numeric (not empty string datasets).
+    parameters = parameters.astype({column: float for column in
+                                    ("value", "stderr", "low68", "high68", "low95", "high95")})
     table = _table(group, "parameters", parameters, {})
     # Each row has its own unit: the numeric columns carry the row's "unit" column.
     for column in ("value", "stderr", "low68", "high68", "low95", "high95"):
@@ -159,8 +162,12 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
         table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
         group = _table(out, "impacts", table, IMPACT_UNITS)
         group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
-        used = np.ones(len(table), bool)
-        used[scene_fit.data.excluded] = False
+        # data.excluded counts rows of the fitted (first) run only.
+        run = impacts["run"].to_numpy() if "run" in impacts else np.zeros(len(table))
+        fitted_rows = np.flatnonzero(run == np.min(run)) if len(table) else np.zeros(0, int)
+        used = np.zeros(len(table), bool)
+        used[fitted_rows] = True
+        used[fitted_rows[scene_fit.data.excluded]] = False
         _dataset(group, "used_in_fit", used, "1")
         _table(out, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
         fits = out.create_group("fits")

@@ -8,9 +8,10 @@ nearby trains. Here the speeds of all impacts are unknowns of one nonlinear syst
     u_{k+1} = ε(u_k)·u_k,   k = 0 … n − 2,   u_0 = ṽ0,
 
 solved by Newton's method with every ε (and its slope) evaluated in ONE vectorized call per
-iteration. Started from the train of a nearby parameter set (the previous evaluation of a fit),
-one or two iterations reach machine precision; without a start, or if Newton stalls, the
-impact-by-impact map is used, so the result is always the exact train.
+iteration — for many trains (parameter sets) at once. Started from the train of a nearby
+parameter set (the previous evaluation of a fit), one or two iterations reach machine
+precision; without a start, or where Newton stalls, the map is applied impact by impact
+(vectorized over the trains), so the result is always the exact train.
 
 Speeds are in units of v* = g/ω0, times in units of 1/ω0. The interval after impact k is
 τ_k + 2u_{k+1}: contact duration plus the flight at the rebound speed (for IIa and IIb the
@@ -33,35 +34,64 @@ import numpy as np
 
 from .models import GRAVITY_MODELS, collide
 
-__all__ = ["ImpactTrain", "impact_train"]
+__all__ = ["ImpactTrain", "ImpactTrains", "impact_train", "impact_trains"]
 
-# Relative step of the finite-difference slope dε/du: balances truncation (∝ step) against
-# rounding (∝ 1e-16/step); the slope only steers Newton, it does not enter the result.
-SLOPE_STEP = 1e-7
+# Relative step of the central differences for d(εu)/du and its curvature: truncation ∝ step²
+# against rounding ∝ 1e-16/step.
+SLOPE_STEP = 1e-5
 MAX_NEWTON = 6
 
 
 @dataclass(frozen=True)
-class ImpactTrain:
-    """Dimensionless impact train (speeds in v* = g/ω0, times in 1/ω0).
+class ImpactTrains:
+    """Many dimensionless impact trains (speeds in v* = g/ω0, times in 1/ω0), one per row.
 
     Attributes
     ----------
-    speeds : ndarray
-        Impact speed u_k of each impact that happens (length <= requested count).
-    restitution : ndarray
-        ε of each of those impacts (0 for a final captured one).
-    contact_times : ndarray
-        Dimensionless contact duration ω0·τ_k of each impact (inf if captured).
+    speeds : ndarray, shape (trains, count)
+        Impact speed u_k of each impact; 0 past the last impact of a captured train.
+    restitution : ndarray, shape (trains, count)
+        ε of each impact (0 for a final captured one and past it).
+    contact_times : ndarray, shape (trains, count)
+        Dimensionless contact duration ω0·τ_k (inf for a final captured impact, 0 past it).
+    impacts : ndarray of int, shape (trains,)
+        Number of impacts that happen (< count where the ball is captured first).
+    error_bound : ndarray, shape (trains,)
+        Largest relative defect |u_{k+1} − ε(u_k)u_k|/u_{k+1} of the speeds returned, or the
+        bound on the error left by an accepted Newton step; 0 for the impact-by-impact map.
+    evaluations : int
+        Number of vectorized :func:`collide` calls used.
+    """
+
+    speeds: np.ndarray
+    restitution: np.ndarray
+    contact_times: np.ndarray
+    impacts: np.ndarray
+    error_bound: np.ndarray
+    evaluations: int
+
+    @property
+    def intervals(self):
+        """ω0·(t_{k+1} − t_k) = τ_k + 2u_{k+1}, shape (trains, count − 1); 0 past capture."""
+        exists = np.arange(1, self.speeds.shape[1]) < self.impacts[:, None]
+        with np.errstate(invalid="ignore"):
+            return np.where(exists, self.contact_times[:, :-1] + 2.0 * self.speeds[:, 1:], 0.0)
+
+
+@dataclass(frozen=True)
+class ImpactTrain:
+    """One dimensionless impact train, cut at its last impact (see :class:`ImpactTrains`).
+
+    Attributes
+    ----------
+    speeds, restitution, contact_times : ndarray
+        Per impact that happens.
     intervals : ndarray
-        ω0·(t_{k+1} − t_k) = τ_k + 2u_{k+1} (length: impacts − 1).
+        τ_k + 2u_{k+1} (length: impacts − 1).
     captured : bool
         True if the last impact does not rebound (fewer impacts than requested).
     error_bound : float
-        Largest relative defect |u_{k+1} − ε(u_k)u_k|/u_{k+1} of the returned speeds, or the
-        estimated relative error after an accepted Newton step.
     evaluations : int
-        Number of vectorized :func:`collide` calls used.
     """
 
     speeds: np.ndarray
@@ -73,116 +103,210 @@ class ImpactTrain:
     evaluations: int
 
 
-def _assemble(speeds, restitution, contact_times, captured, error_bound, evaluations):
-    """Cut the train at the first capture and form the intervals."""
-    stop = np.flatnonzero(captured)
-    count = stop[0] + 1 if stop.size else speeds.size
-    speeds, restitution = speeds[:count], restitution[:count]
-    contact_times = contact_times[:count]
-    intervals = contact_times[:-1] + 2.0 * speeds[1:]
-    return ImpactTrain(speeds, restitution, contact_times, intervals, bool(stop.size),
-                       float(error_bound), evaluations)
+def _cut_at_capture(speeds, restitution, contact_times, captured):
+    """Zero everything past each train's first capture; count the impacts that happen."""
+    n = speeds.shape[1]
+    stops = captured.any(axis=1)
+    impacts = np.where(stops, np.argmax(captured, axis=1) + 1, n)
+    past = np.arange(n)[None, :] >= impacts[:, None]
+    return (np.where(past, 0.0, speeds), np.where(past, 0.0, restitution),
+            np.where(past, 0.0, contact_times), impacts)
 
 
 def _sequential(model, zeta, vtilde0, count):
-    """The bounce map applied one impact at a time (exact; one collide call per impact)."""
-    speeds, restitution, contact_times, captured = [], [], [], []
-    speed = vtilde0
-    for _ in range(count):
-        outcome = collide(model, zeta, speed)
-        speeds.append(speed)
-        restitution.append(float(outcome.eps))
-        contact_times.append(float(outcome.contact_time))
-        captured.append(bool(outcome.captured))
-        speed = float(outcome.eps) * speed
-        if captured[-1] or speed == 0.0:
-            captured[-1] = True
+    """The bounce map applied one impact at a time, vectorized over the trains (exact)."""
+    trains = zeta.size
+    speeds = np.zeros((trains, count))
+    restitution = np.zeros((trains, count))
+    contact_times = np.zeros((trains, count))
+    captured = np.zeros((trains, count), bool)
+    speed = vtilde0.astype(float)
+    alive = np.ones(trains, bool)
+    evaluations = 0
+    for k in range(count):
+        if not alive.any():
             break
-    return _assemble(np.array(speeds), np.array(restitution), np.array(contact_times),
-                     np.array(captured), 0.0, len(speeds))
+        outcome = collide(model, zeta[alive], speed[alive])
+        evaluations += 1
+        speeds[alive, k] = speed[alive]
+        restitution[alive, k] = outcome.eps
+        contact_times[alive, k] = outcome.contact_time
+        # ε underflows to 0 for Ia as ζ -> 1⁻: a train also ends where the speed vanishes.
+        ends = outcome.captured | (outcome.eps * speed[alive] == 0.0)
+        captured[alive, k] = ends
+        speed[alive] = outcome.eps * speed[alive]
+        alive[np.flatnonzero(alive)[ends]] = False
+    speeds, restitution, contact_times, impacts = _cut_at_capture(speeds, restitution,
+                                                                  contact_times, captured)
+    return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(trains),
+                        evaluations)
 
 
 def _newton(model, zeta, speeds, rtol):
-    """Newton iterations on the whole train from the start `speeds`; None if it stalls."""
-    n = speeds.size
-    for evaluation in range(1, MAX_NEWTON + 1):
-        probe = collide(model, zeta, np.concatenate([speeds, speeds * (1.0 + SLOPE_STEP)]))
-        eps, eps_step = probe.eps[:n], probe.eps[n:]
-        captured = probe.captured[:n]
-        mapped = eps * speeds
-        slope = (eps_step * (1.0 + SLOPE_STEP) - eps) / SLOPE_STEP  # d(εu)/du
-        # Only the impacts up to the first capture exist; later entries are not unknowns.
-        stop = np.flatnonzero(captured)
-        last = stop[0] if stop.size else n - 1
-        defect = speeds[1:last + 1] - mapped[:last]
-        defect_size = np.max(np.abs(defect) / speeds[1:last + 1], initial=0.0)
-        if defect_size <= rtol:
-            return _assemble(speeds, eps, probe.contact_time[:n], captured, defect_size,
-                             evaluation)
-        # δ_{k+1} = slope_k·δ_k − defect_k with δ_0 = 0: a first-order recurrence, sequential
-        # by nature and only as long as the train (floats, not array points).
-        step = np.zeros(n)
-        correction = 0.0
-        for k in range(last):
-            correction = slope[k] * correction - defect[k]
-            step[k + 1] = correction
-        updated = speeds + step
-        if not np.all(updated[:last + 1] > 0.0):
-            return None
-        speeds = updated
-        if stop.size:
-            # Past a capture the guess carries no information: continue geometrically.
-            tail = np.arange(1, n - last)
-            speeds[last + 1:] = speeds[last] * max(eps[last - 1] if last else 0.5, 1e-3) ** tail
-    return None
+    """Newton iterations on every train at once from the start `speeds` (trains × count).
+
+    Returns the trains and a mask of those that converged (the others are left to the
+    impact-by-impact map).
+    """
+    trains, n = speeds.shape
+    out_speeds, out_eps = np.zeros_like(speeds), np.zeros_like(speeds)
+    out_tau, out_bound = np.zeros_like(speeds), np.zeros(trains)
+    out_captured = np.zeros((trains, n), bool)
+    done = np.zeros(trains, bool)
+    failed = np.zeros(trains, bool)
+    factors = np.array([1.0, 1.0 + SLOPE_STEP, 1.0 - SLOPE_STEP])
+    evaluations = 0
+    for _ in range(MAX_NEWTON):
+        todo = np.flatnonzero(~done & ~failed)
+        if todo.size == 0:
+            break
+        evaluations += 1
+        u = speeds[todo]
+        # ε·u and τ at u and u(1 ± h), in one call: central slopes and the curvature that
+        # bounds what a Newton step leaves.
+        probe = collide(model, zeta[todo, None, None], u[:, None, :] * factors[None, :, None])
+        mapped = probe.eps * u[:, None, :] * factors[None, :, None]
+        spacing = SLOPE_STEP * u
+        slope = (mapped[:, 1] - mapped[:, 2]) / (2.0 * spacing)  # d(εu)/du
+        curvature = np.abs(mapped[:, 1] - 2.0 * mapped[:, 0] + mapped[:, 2]) / spacing ** 2
+        captured = probe.captured[:, 0]
+        # Only impacts up to a train's first capture exist; later entries are not unknowns.
+        stops = captured.any(axis=1)
+        last = np.where(stops, np.argmax(captured, axis=1), n - 1)
+        active = np.arange(n - 1)[None, :] < last[:, None]
+        defect = np.where(active, u[:, 1:] - mapped[:, 0, :-1], 0.0)
+        defect_size = np.max(np.abs(defect) / u[:, 1:], axis=1, initial=0.0)
+        # δ_{k+1} = slope_k·δ_k − defect_k with δ_0 = 0, and alongside it a bound on what the
+        # step leaves: the Taylor remainder ½|f''|δ² plus the central slope's error
+        # (~|f''|h·u, generously) times |δ|, carried through the same recurrence. Sequential
+        # along the train (its length), vectorized over the trains.
+        step = np.zeros_like(u)
+        left = np.zeros_like(u)
+        correction = np.zeros(todo.size)
+        remainder = np.zeros(todo.size)
+        for k in range(n - 1):
+            local = curvature[:, k] * np.abs(correction) * (0.5 * np.abs(correction)
+                                                            + spacing[:, k])
+            correction = np.where(active[:, k], slope[:, k] * correction - defect[:, k], 0.0)
+            remainder = np.abs(slope[:, k]) * remainder + local
+            step[:, k + 1], left[:, k + 1] = correction, remainder
+        updated = u + step
+        positive = np.all((updated > 0.0) | ~np.concatenate(
+            [np.ones((todo.size, 1), bool), active], axis=1), axis=1)
+        # Rounding in the central slope (~1e-16/h relative) is covered by the factor 10.
+        with np.errstate(invalid="ignore", divide="ignore"):
+            bound = 10.0 * np.max(np.where(active, (left[:, 1:] + 1e-9 * np.abs(step[:, 1:]))
+                                           / np.abs(updated[:, 1:]), 0.0), axis=1, initial=0.0)
+        converged = defect_size <= rtol
+        # Accept a small enough step without another evaluation (not next to a capture, where
+        # ε has a square-root edge), carrying ε and τ to the new speeds along their slopes.
+        accepted = ~converged & (bound <= rtol) & ~stops & positive
+        tau = probe.contact_time
+        with np.errstate(invalid="ignore"):  # inf − inf at a captured impact, not used
+            tau_slope = (tau[:, 1] - tau[:, 2]) / (2.0 * spacing)
+        for mask, speed_rows, eps_rows, tau_rows, bound_rows in (
+                (converged, u, probe.eps[:, 0], tau[:, 0], defect_size),
+                (accepted, updated, (mapped[:, 0] + slope * step) / updated,
+                 tau[:, 0] + tau_slope * step, bound)):
+            rows = todo[mask]
+            out_speeds[rows], out_eps[rows] = speed_rows[mask], eps_rows[mask]
+            out_tau[rows], out_bound[rows] = tau_rows[mask], bound_rows[mask]
+            out_captured[rows] = captured[mask]
+            done[rows] = True
+        # A step that makes a speed non-positive cannot be taken: leave that train to the
+        # impact-by-impact map.
+        failed[todo[~(converged | accepted) & ~positive]] = True
+        moving = ~(converged | accepted) & positive
+        # Past a capture the guess carries no information: continue geometrically.
+        last_moving = last[moving, None]
+        ratio = np.clip(np.take_along_axis(probe.eps[moving, 0],
+                                           np.maximum(last_moving - 1, 0), axis=1), 1e-3, 1.0)
+        anchor = np.take_along_axis(updated[moving], last_moving, axis=1)
+        tail = np.arange(n)[None, :] - last_moving
+        speeds[todo[moving]] = np.where(tail > 0, anchor * ratio ** np.maximum(tail, 0),
+                                        updated[moving])
+    speeds_out, eps_out, tau_out, impacts = _cut_at_capture(out_speeds, out_eps, out_tau,
+                                                            out_captured)
+    return ImpactTrains(speeds_out, eps_out, tau_out, impacts, out_bound, evaluations), done
 
 
-def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
-    """Speeds, contact times and intervals of the first `count` impacts of a train.
+def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
+    """Speeds, contact times and intervals of the first `count` impacts of many trains.
 
     Parameters
     ----------
     model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
-    zeta : float
-        Damping ratio ζ = β/ω0 (dimensionless), >= 0.
-    vtilde0 : float
-        First impact speed ṽ0 = v0/v* (dimensionless), > 0.
+    zeta : array_like, shape (trains,)
+        Damping ratio ζ = β/ω0 of each train (dimensionless), >= 0.
+    vtilde0 : array_like, shape (trains,)
+        First impact speed ṽ0 = v0/v* of each train (dimensionless), > 0.
     count : int
-        Number of impacts wanted (fewer are returned if the ball is captured first).
-    start : array_like, optional
-        Guess of the speeds relative to the first, u_k/u_0 (e.g. the previous evaluation's),
-        length `count`. Without it the train is built impact by impact.
+        Number of impacts wanted (fewer happen where the ball is captured first).
+    start : array_like, shape (trains, count), optional
+        Guess of the speeds relative to the first, u_k/u_0 (e.g. the previous evaluation's).
+        Without it the trains are built impact by impact.
     rtol : float, default 1e-13
         Largest accepted relative defect of the speeds in the bounce map.
 
     Returns
     -------
-    ImpactTrain
+    ImpactTrains
 
     Notes
     -----
     Ia and IIa do not depend on the impact speed [1]_: u_k = ṽ0·ε^k in closed form. For the
-    gravity models Newton's method [2]_ solves all the map's equations at once.
+    gravity models Newton's method [2]_ solves all the map's equations at once; trains where
+    it does not converge in a few iterations are built impact by impact.
     """
     count = int(count)
     if count < 1:
         raise ValueError(f"count must be a positive integer; got {count!r}")
+    zeta, vtilde0 = (np.atleast_1d(np.asarray(value, dtype=float)) for value in (zeta, vtilde0))
+    zeta, vtilde0 = np.broadcast_arrays(zeta, vtilde0)
     if model not in GRAVITY_MODELS:
         outcome = collide(model, zeta, vtilde0)
-        eps = float(outcome.eps)
+        eps = outcome.eps[:, None]
         with np.errstate(under="ignore"):
-            speeds = vtilde0 * eps ** np.arange(count, dtype=float)
-        # ε underflows to 0 for Ia as ζ -> 1⁻: the train ends where the speed vanishes.
-        captured = speeds == 0.0
-        if captured.any():
-            captured[np.argmax(captured) - 1] = True
-        return _assemble(speeds, np.full(count, eps), np.full(count, float(outcome.contact_time)),
-                         captured, 0.0, 1)
-    if start is None or len(start) != count:
+            speeds = vtilde0[:, None] * eps ** np.arange(count, dtype=float)[None, :]
+        # ε underflows to 0 for Ia as ζ -> 1⁻: a train ends where the speed vanishes.
+        ends = np.zeros((zeta.size, count), bool)
+        ends[:, :-1] = speeds[:, 1:] == 0.0
+        speeds, restitution, contact_times, impacts = _cut_at_capture(
+            speeds, np.broadcast_to(eps, speeds.shape),
+            np.broadcast_to(outcome.contact_time[:, None], speeds.shape), ends)
+        return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(zeta.size), 1)
+    if start is None:
         return _sequential(model, zeta, vtilde0, count)
-    guess = vtilde0 * np.asarray(start, dtype=float)
-    guess[0] = vtilde0
-    if not np.all(guess > 0.0):
-        return _sequential(model, zeta, vtilde0, count)
-    train = _newton(model, zeta, guess, rtol)
-    return train if train is not None else _sequential(model, zeta, vtilde0, count)
+    guess = vtilde0[:, None] * np.asarray(start, dtype=float).reshape(zeta.size, count)
+    guess[:, 0] = vtilde0
+    usable = np.all(np.isfinite(guess) & (guess > 0.0), axis=1)
+    trains, converged = _newton(model, zeta, np.where(usable[:, None], guess, 1.0), rtol)
+    converged &= usable
+    if converged.all():
+        return trains
+    rest = np.flatnonzero(~converged)
+    fallback = _sequential(model, zeta[rest], vtilde0[rest], count)
+    fields = {name: getattr(trains, name).copy() for name in
+              ("speeds", "restitution", "contact_times", "impacts", "error_bound")}
+    for name in fields:
+        fields[name][rest] = getattr(fallback, name)
+    return ImpactTrains(**fields, evaluations=trains.evaluations + fallback.evaluations)
+
+
+def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
+    """One train: :func:`impact_trains` for a single (ζ, ṽ0), cut at its last impact.
+
+    Parameters are those of :func:`impact_trains` as scalars (`start` of length `count`).
+
+    Returns
+    -------
+    ImpactTrain
+    """
+    trains = impact_trains(model, [zeta], [vtilde0], count,
+                           start=None if start is None else np.asarray(start)[None, :],
+                           rtol=rtol)
+    impacts = int(trains.impacts[0])
+    return ImpactTrain(trains.speeds[0, :impacts], trains.restitution[0, :impacts],
+                       trains.contact_times[0, :impacts], trains.intervals[0, :impacts - 1],
+                       bool(impacts < count or trains.restitution[0, impacts - 1] == 0.0),
+                       float(trains.error_bound[0]), trains.evaluations)

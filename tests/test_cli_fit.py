@@ -1,0 +1,169 @@
+"""`dashpot fit`: an HDF5 file and the verdict on success; one stderr line, exit 2 and no
+output file on bad input."""
+
+import contextlib
+import hashlib
+import io
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from dashpot.cli import main
+from dashpot.store import read_fit
+from dashpot.synth.scene import write_scene
+
+BALL = dict(model="IIb", beta=30.0, omega0=3000.0, g=9.81, v0=1.5, n_max=15)
+
+
+def _run(argv):
+    """main(argv) with its exit status, standard output and standard error."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
+            np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
+        status = main(argv)
+    return status, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """A recording, its impact table from `dashpot impacts`, and `dashpot fit` on the table."""
+    folder = tmp_path_factory.mktemp("cli_fit")
+    recording = write_scene(folder / "ball", "timestamps", seed=1, **BALL)
+    table = folder / "impacts.csv"
+    assert _run(["impacts", str(recording), "-o", str(table)])[0] == 0
+    scene = folder / "ball" / "scene.yaml"
+    scene.write_text("apparatus:\n  gravity: 9.81\n  mass: {value: 0.05, uncertainty: 0.001}\n")
+    output = folder / "results" / "ball.h5"
+    status, out, err = _run(["fit", str(table), "-o", str(output), "--scene", str(scene),
+                             "--models", "Ia", "IIb"])
+    return {"folder": folder, "recording": recording, "table": table, "scene": scene,
+            "output": output, "status": status, "out": out, "err": err}
+
+
+def test_fit_writes_the_file_and_prints_the_verdict(fitted):
+    assert fitted["status"] == 0 and fitted["err"] == ""
+    stored = read_fit(fitted["output"])
+    assert list(stored["selection"]["model"]) == ["Ia", "IIb"]
+    assert set(stored["fits"]) == {"Ia", "IIb"}
+    verdict = stored["attrs"]["verdict"]
+    lines = fitted["out"].splitlines()
+    assert lines[0] == f"{fitted['table']}: 15 impacts; {verdict} -> {fitted['output']}"
+    assert [line.split(":")[0].strip() for line in lines[1:]] == ["Ia", "IIb"]
+    # Each model's line reports the stored fit (the quality of the fit is tested elsewhere).
+    for line, model in zip(lines[1:], ("Ia", "IIb")):
+        attrs = stored["fits"][model]["attrs"]
+        if attrs["success"]:
+            beta = stored["fits"][model]["parameters"].loc["beta"]
+            assert line == f"  {model:>6}: beta = {beta['value']:.4g} ± {beta['stderr']:.2g} 1/s"
+        else:
+            assert line == f"  {model:>6}: failed: {attrs['message']}"
+    # Provenance: the impact table fitted, the scene used, the mass giving k.
+    assert stored["attrs"]["input_file"] == "impacts.csv"
+    assert stored["attrs"]["input_sha256"] == hashlib.sha256(
+        fitted["table"].read_bytes()).hexdigest()
+    assert '"mass": {"uncertainty": 0.001, "value": 0.05}' in stored["attrs"]["scene"]
+    assert "k" in stored["fits"]["IIb"]["parameters"].index
+    assert sorted(p.name for p in fitted["output"].parent.iterdir()) == ["ball.h5"]
+
+
+def test_fit_a_recording_with_the_scene_models(fitted, tmp_path):
+    """A raw recording is read with the scene's reader; the scene's models are fitted."""
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("sensor: timestamps\nmodels: [Ia]\napparatus: {gravity: 9.81}\n")
+    output = tmp_path / "fit.h5"
+    status, out, err = _run(["fit", str(fitted["recording"]), "-o", str(output),
+                             "--scene", str(scene)])
+    assert status == 0 and err == ""
+    stored = read_fit(output)
+    assert set(stored["fits"]) == {"Ia"} and stored["attrs"]["input_file"] == "timestamps.csv"
+    assert "15 impacts" in out and stored["attrs"]["verdict"] in out
+
+
+def _impact_table(path, times):
+    path.write_text("time,time_uncertainty\n" + "".join(f"{t},1e-5\n" for t in times))
+    return path
+
+
+BAD_INPUTS = {
+    "missing": (None, "no such file"),
+    "not_impacts": ("speed,height\n1,2\n3,4\n", "not a table of impacts"),
+    "binary": (bytes(range(256)) * 4, "binary"),
+    "two_impacts": ("time,time_uncertainty\n0.10,1e-5\n0.40,1e-5\n", "only 2 impact(s)"),
+    "backwards": ("time,time_uncertainty\n0.1,1e-5\n0.4,1e-5\n0.3,1e-5\n0.5,1e-5\n",
+                  "row 3: impact times must increase"),
+    "repeated": ("time,time_uncertainty\n0.1,1e-5\n0.4,1e-5\n0.6,1e-5\n0.6,1e-5\n",
+                 "row 4: impact times must increase"),
+    "not_a_number": ("time,time_uncertainty\n0.1,1e-5\nlate,1e-5\n0.6,1e-5\n",
+                     "row 2: impact time missing or not a number"),
+}
+
+
+@pytest.mark.parametrize("label", list(BAD_INPUTS))
+def test_bad_input_fails_cleanly(tmp_path, label):
+    content, problem = BAD_INPUTS[label]
+    source = tmp_path / ("lab.bin" if label == "binary" else "lab.csv")
+    if isinstance(content, bytes):
+        source.write_bytes(content)
+    elif content is not None:
+        source.write_text(content)
+    output = tmp_path / "out" / "fit.h5"
+    status, out, err = _run(["fit", str(source), "-o", str(output)])
+    assert status == 2 and out == ""
+    assert len(err.splitlines()) == 1
+    assert err.startswith(f"dashpot fit: error: {source}")
+    assert problem in err
+    assert not output.exists()
+    assert not list(tmp_path.rglob("*.partial"))
+
+
+def test_invalid_scene_fails_cleanly_and_keeps_an_old_output(fitted, tmp_path):
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("apparatus:\n  mass: -0.05\n")
+    output = tmp_path / "fit.h5"
+    output.write_bytes(b"an earlier result")
+    status, out, err = _run(["fit", str(fitted["table"]), "-o", str(output),
+                             "--scene", str(scene)])
+    assert status == 2 and out == ""
+    assert err == f"dashpot fit: error: {scene}: invalid scene (apparatus/mass: -0.05 is less " \
+                  "than or equal to the minimum of 0)\n"
+    assert output.read_bytes() == b"an earlier result"
+    missing = tmp_path / "no_scene.yaml"
+    status, _, err = _run(["fit", str(fitted["table"]), "-o", str(tmp_path / "new.h5"),
+                           "--scene", str(missing)])
+    assert status == 2 and err.startswith(f"dashpot fit: error: {missing}: cannot read")
+    assert not (tmp_path / "new.h5").exists()
+
+
+def test_output_over_an_input_is_refused(fitted, tmp_path):
+    for victim in (fitted["table"], fitted["scene"]):
+        before = victim.read_bytes()
+        status, out, err = _run(["fit", str(fitted["table"]), "-o", str(victim),
+                                 "--scene", str(fitted["scene"])])
+        assert status == 2 and out == ""
+        assert err == f"dashpot fit: error: {victim}: refusing to overwrite the input with " \
+                      "the output\n"
+        assert victim.read_bytes() == before
+    # The same file under another spelling is still the input.
+    before = fitted["table"].read_bytes()
+    alias = fitted["table"].parent / "." / fitted["table"].name
+    assert _run(["fit", str(fitted["table"]), "-o", str(alias)])[0] == 2
+    assert fitted["table"].read_bytes() == before
+
+
+def test_output_that_is_a_folder_is_refused(fitted, tmp_path):
+    status, out, err = _run(["fit", str(fitted["table"]), "-o", str(tmp_path)])
+    assert status == 2 and len(err.splitlines()) == 1 and str(tmp_path) in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_installed_command_reports_one_line(tmp_path):
+    """The real entry point: exit status 2 and one line, no traceback."""
+    missing = tmp_path / "nope.csv"
+    run = subprocess.run([sys.executable, "-m", "dashpot.cli", "fit", str(missing), "-o",
+                          str(tmp_path / "fit.h5")], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr == f"dashpot fit: error: {missing}: no such file\n"
+    assert list(tmp_path.iterdir()) == []
