@@ -365,7 +365,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     return best_chisqr, best[:, 0], best[:, 1], best_t0, start[winner]
 
 
-def _start_values(model, data, known_v0, known_omega0):
+def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -407,7 +407,6 @@ def _start_values(model, data, known_v0, known_omega0):
         centre = float(collide(model, np.nan_to_num(zeta, nan=0.1), 1.0).contact_time[0]
                        / contact)
         spread = 3.0
-    fit_v0 = known_v0 is None
     points = PROFILE_POINTS if spread > 1.0 else 1
     # Newton starts the first trains from a geometric train (failures fall back to the map).
     ratios = eps ** np.arange(data.count, dtype=float)
@@ -434,6 +433,15 @@ def _start_values(model, data, known_v0, known_omega0):
     how = (f"start: median eps = {eps:.4g}; zeta = {start['zeta']:.4g}, v0 = {start['v0']:.4g} "
            f"m/s and omega0 = {centre:.4g} rad/s from fits at fixed omega0 on two grids")
     return start, how
+
+
+def _captures(result, predictor, data):
+    """True if the fitted train ends in capture before the last observed impact."""
+    values = result.params.valuesdict()
+    if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
+        return True
+    train, *_ = predictor(values["zeta"], data.g / values["v_star"], values["v0"])
+    return train.speeds.size < data.count
 
 
 def _log_estimate(value, log_sd, unit, status, note=""):
@@ -522,9 +530,9 @@ def _fit(data, model, scene, notes, max_nfev):
                               + (", v0" if fixed_v0 is None else "")
                               + "); give more impacts or known quantities in the scene",
                        notes, data)
+    known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
-                               None if stiffness is None else math.sqrt(stiffness.value
-                                                                        / mass.value))
+                               known_omega0, fit_v0=fixed_v0 is None)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
@@ -585,6 +593,19 @@ def _fit(data, model, scene, notes, max_nfev):
 
     result = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
                             scale_covar=not data.sigma_known)
+    if model in GRAVITY_MODELS and fixed_omega0 is None and _captures(result, predictor, data):
+        # Ended where the model captures the ball before the data end: a local minimum, as
+        # every gravity model reaches the gravity-free one when ω0 grows. Start again from
+        # there (ṽ ≈ 1e4 at the slowest impact, ω0 held until the rest has settled).
+        notes.append("first fit ended in capture; restarted from the gravity-free limit")
+        params["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
+        limit = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
+                               scale_covar=not data.sigma_known)
+        limit.params["v_star"].set(vary=True)
+        retry = lmfit.minimize(residual, limit.params, method=METHOD, max_nfev=max_nfev,
+                               **OPTIONS, scale_covar=not data.sigma_known)
+        if retry.chisqr < result.chisqr or _captures(result, predictor, data):
+            result = retry
     values = result.params.valuesdict()
     if not np.all(np.isfinite(result.residual)):
         return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
@@ -604,6 +625,22 @@ def _fit(data, model, scene, notes, max_nfev):
         cov = np.full((len(varied), len(varied)), np.inf)
         notes.append("covariance not available (singular Jacobian): the data do not determine "
                      "every parameter; errors reported as infinite")
+    dof = max(int(result.nfree), 1)
+    if data.sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
+        # χ² far beyond its distribution (> 3σ): the model does not describe the data within
+        # their uncertainties. Errors are scaled by √(χ²/ν) (the Birge ratio) so that they
+        # at least reflect the actual scatter.
+        cov = cov * result.redchi
+        notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
+                     f"the model misses the data by more than their uncertainties; errors "
+                     f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
+    for name, centre, spread in priors:
+        value = result.params[name].value
+        if abs(value - centre) > 3.0 * spread:
+            label = "omega0" if name == "v_star" else name
+            shown = (g / value, g / centre) if name == "v_star" else (value, centre)
+            notes.append(f"fitted {label} = {shown[0]:.4g} disagrees with the scene's "
+                         f"{shown[1]:.4g} by more than 3 sigma of the prior")
     sd = {name: float(math.sqrt(cov[i, i])) if np.isfinite(cov[i, i]) and cov[i, i] >= 0
           else math.inf for i, name in enumerate(varied)}
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -739,6 +776,6 @@ def fit_scene(impacts, scene=None, models=None):
     models = tuple(models or scene.models)
     data = prepare_data(impacts, scene)
     results = {model: fit_model(data, model, scene) for model in models}
-    selection, verdict = selection_table(results)
+    selection, verdict = selection_table(results, sigma_known=data.sigma_known)
     return SceneFit(scene=scene, data=data, results=results, selection=selection,
                     verdict=verdict)

@@ -20,11 +20,22 @@ SELECTION_COLUMNS = ("model", "success", "nvarys", "ndata", "chisqr", "redchi", 
                      "delta_aic", "delta_bic", "akaike_weight", "rank")
 
 
-def _verdict(table):
+def _verdict(table, sigma_known):
     """Plain-words reading of a selection table (Burnham & Anderson's thresholds [1]_)."""
     usable = table[table["success"]].sort_values("aic")
     if usable.empty:
         return "no model could be fitted to these data"
+    verdict = _preference(usable)
+    best = usable.iloc[0]
+    dof = max(int(best["ndata"] - best["nvarys"]), 1)
+    if sigma_known and best["redchi"] * dof > dof + 3.0 * math.sqrt(2.0 * dof):
+        verdict += (f"; but none describes the data within their uncertainties (best reduced "
+                    f"chi-square {best['redchi']:.3g}): effects the models leave out dominate")
+    return verdict
+
+
+def _preference(usable):
+    """Which model the information criterion prefers, and how strongly."""
     best = usable.iloc[0]
     if len(usable) == 1:
         return f"only {best['model']} could be fitted; no comparison possible"
@@ -44,12 +55,15 @@ def _verdict(table):
             f"(ΔAIC = {gap:.1f})")
 
 
-def selection_table(results):
+def selection_table(results, *, sigma_known=True):
     """ΔAIC, ΔBIC and Akaike weights of the models fitted to one scene.
 
     Parameters
     ----------
     results : dict of str -> FitResult
+    sigma_known : bool, default True
+        Whether the timing uncertainties were known (then a reduced χ² far above 1 means no
+        model describes the data, and the verdict says so).
 
     Returns
     -------
@@ -78,7 +92,7 @@ def selection_table(results):
     order = table["aic"].rank(method="first").where(np.isfinite(table["aic"]), 0)
     table["rank"] = order.astype(int)
     table = table[list(SELECTION_COLUMNS)]
-    return table, _verdict(table)
+    return table, _verdict(table, sigma_known)
 
 
 def summary_table(scene_fits):

@@ -204,10 +204,12 @@ def _newton(model, zeta, speeds, rtol):
         tau = probe.contact_time
         with np.errstate(invalid="ignore"):  # inf − inf at a captured impact, not used
             tau_slope = (tau[:, 1] - tau[:, 2]) / (2.0 * spacing)
+        with np.errstate(invalid="ignore"):  # rows with a capture are not accepted below
+            accepted_tau = tau[:, 0] + tau_slope * step
         for mask, speed_rows, eps_rows, tau_rows, bound_rows in (
                 (converged, u, probe.eps[:, 0], tau[:, 0], defect_size),
                 (accepted, updated, (mapped[:, 0] + slope * step) / updated,
-                 tau[:, 0] + tau_slope * step, bound)):
+                 accepted_tau, bound)):
             rows = todo[mask]
             out_speeds[rows], out_eps[rows] = speed_rows[mask], eps_rows[mask]
             out_tau[rows], out_bound[rows] = tau_rows[mask], bound_rows[mask]
