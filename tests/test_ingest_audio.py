@@ -211,10 +211,11 @@ def test_uncertainties_are_of_the_size_of_the_errors(synthetic_results):
     assert np.mean(z < 3) >= 0.9
 
 
-@pytest.mark.xfail(strict=True, reason="measured 1σ/2σ coverage ≈ 0.62/0.88: too narrow for "
-                   "mid-SNR onsets (1σ ≈ 1 µs: 43 % within 1σ) and heavy tails for faint "
-                   "onsets captured by a ring or echo < 1 ms before them (86 % within 3σ)")
 def test_uncertainties_cover_at_their_stated_rate(synthetic_results):
+    # The 1σ model (posterior plus edge-model and sub-sample floors) was calibrated on other
+    # seeds (20-51, echoes at 50-149 ms: 0.69-0.71 within 1σ, 0.93 within 2σ); these 12
+    # trains check it. About 4 % of the errors are gross (a faint impact's onset captured by
+    # a ring or echo starting < 1.5 ms before it), which caps the 2σ coverage near 0.94.
     z = np.abs(synthetic_results["errors"]) / synthetic_results["sigmas"]
     assert np.mean(z < 1) == pytest.approx(0.683, abs=0.04)
     assert np.mean(z < 2) == pytest.approx(0.954, abs=0.03)
@@ -225,11 +226,18 @@ def test_no_false_impacts_and_recall_above_95_percent(synthetic_results):
     assert synthetic_results["recall"] >= 0.95
 
 
-@pytest.mark.xfail(strict=True, reason="measured recall ≈ 0.973 with 1 false impact: faint "
-                   "impacts without a trigger of their own, or whose onset a ring or echo "
-                   "< 2 ms before them captures, are still missed")
-def test_recall_is_99_percent_with_no_false_impact(synthetic_results):
-    assert synthetic_results["recall"] >= 0.99 and synthetic_results["extra"] == 0
+def test_recall_is_99_percent(synthetic_results):
+    # The last impacts, a few ms apart on the decaying sound of the earlier ones, are looked
+    # for where the interval trend predicts them (held-out seeds 20-51: recall 0.983-0.984).
+    assert synthetic_results["recall"] >= 0.99
+
+
+@pytest.mark.xfail(strict=True, reason="1 false impact in 556: a faint impact (6 % of the "
+                   "loudest) 20.3 ms after the one before, whose onset is taken 1.44 ms early "
+                   "at the start of an echo, with that impact's ring starting 0.34 ms before "
+                   "it; held-out seeds 20-35 and 36-51 give 3 and 2 in 16 trains each")
+def test_no_false_impact(synthetic_results):
+    assert synthetic_results["extra"] == 0
 
 
 def test_onset_pick_moves_past_a_sound_that_starts_before_the_transient():
@@ -251,6 +259,35 @@ def test_secondary_delays_are_found_from_the_transients_left_out():
     times = np.sort(np.concatenate([impacts, impacts + 0.0203]))
     chain = np.searchsorted(times, impacts)
     np.testing.assert_allclose(audio._secondary_delays(times, chain), [0.0203], atol=1e-6)
+
+
+def test_missed_impacts_are_probed_where_the_trend_predicts_them():
+    impacts = np.cumsum(0.3 * 0.9 ** np.arange(30))
+    kept = np.delete(impacts, [20, 29])  # one missed among the last impacts, one at the end
+
+    def probe(predicted, tolerance, not_before=None):
+        nearest = impacts[np.abs(impacts - predicted).argmin()]
+        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+
+    coefficients, scatter = audio._robust_trend(kept)
+    added, retimed = audio._fill_impacts(kept, np.ones(kept.size), coefficients, scatter,
+                                         np.zeros(0), probe, impacts[-1] + 1.0)
+    np.testing.assert_allclose([row[0] for row in added], impacts[[20, 29]])
+    assert not retimed
+    # After the last impact only rings remain, at a fixed delay after each impact; one lands
+    # exactly where the next impact would be. Counted as an impact unless its delay is known.
+    times = impacts[:25]
+    delay = impacts[25] - impacts[23]
+    rings = times + delay
+
+    def ringing(predicted, tolerance, not_before=None):
+        return (float(rings[np.abs(rings - predicted).argmin()]), 1e-5, 1.0, False)
+
+    coefficients, scatter = audio._robust_trend(times)
+    for delays, expected in ((np.zeros(0), 1), (np.array([delay]), 0)):
+        added, _ = audio._fill_impacts(times, np.ones(times.size), coefficients, scatter,
+                                       delays, ringing, times[-1] + 0.5)
+        assert len(added) == expected
 
 
 # ------------------------------------------------------------------------- real recordings
@@ -289,8 +326,14 @@ def test_pingpong_intervals_are_smoother_than_the_authors():
     assert np.std(ratio_ours) < 0.01 < np.std(ratio_picks)
 
 
-@pytest.mark.xfail(strict=True, reason="the picks lag the onsets by 0-4 ms (the 1 ms block of "
-                   "largest mean, not the onset): worst |pick - onset| ≈ 4.0 ms")
+@pytest.mark.xfail(strict=True, reason="the picks are not onsets: the 'sound' column is the "
+                   "mean of the 44-45 samples of the 1 ms bin starting at the pick (exactly, for "
+                   "25 of 30 picks), and the author picked a bin where that low-passed signal "
+                   "peaks (for 21 of 30 the largest |mean| within 6 ms). On bounces 11, 13, 14 "
+                   "and 15 (1693-2060 ms) the pick comes 3.3-4.0 ms after the "
+                   "sound starts, 3.2-3.9 ms after it first exceeds 25 % of its peak and "
+                   "2.4-3.1 ms after its loudest sample, so no onset definition is within 2 ms "
+                   "of them; 17/30 picks are within 2 ms of the onsets")
 def test_pingpong_every_pick_within_2_ms_of_an_onset():
     table = _real(PINGPONG)
     picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3

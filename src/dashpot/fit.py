@@ -42,12 +42,13 @@ from .scene import Scene
 __all__ = ["FitData", "FitResult", "Estimate", "prepare_data", "fit_model", "fit_scene",
            "SceneFit", "Z68", "Z95"]
 
-Z68 = 0.9944578832097535  # two-sided 68.27 % normal quantile
-Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+Z68, Z95 = 1.0, 2.0  # normal quantiles of the central 68.27 % and 95.45 % intervals
 OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
 ZETA_RANGE = (1e-9, 20.0)
 PROFILE_POINTS = 9
 REJECTED = 1e12  # residual of a step outside the physical range
+INTERVAL_DRAWS, INTERVAL_SEED = 20000, 20261122  # draws for the intervals of derived values
+QUANTILES = (0.158655, 0.841345, 0.0227501, 0.9772499)  # central 68.27 % and 95.45 %
 METHOD, OPTIONS = "leastsq", {"epsfcn": 1e-6}
 # Relative errors above which a parameter is reported as not determined by the data.
 WEAK_RELATIVE_ERROR = 0.5
@@ -104,7 +105,7 @@ class FitData:
 
 @dataclass(frozen=True)
 class Estimate:
-    """A fitted or derived quantity with its 1σ error and 68 % / 95 % intervals.
+    """A fitted or derived quantity with its 1σ error and central 68.27 % / 95.45 % intervals.
 
     ``status`` is "fitted", "fixed", "prior" or "derived"; ``note`` says why.
     """
@@ -152,7 +153,7 @@ def _flight_ratio_start(intervals, flags):
     ratios = intervals[1:][ok] / intervals[:-1][ok]
     if ratios.size == 0:
         ratios = intervals[1:] / intervals[:-1]
-    return float(np.clip(np.median(ratios), 0.05, 0.999))
+    return float(np.clip(np.median(ratios), 1e-3, 1.0 - 1e-9))
 
 
 def prepare_data(impacts, scene):
@@ -421,13 +422,18 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True):
                                            np.full(omega0.size, v0), ratios, fit_v0=fit_v0)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
-    if 0 < best < omega0.size - 1 and np.all(np.isfinite(chisqr[best - 1:best + 2])):
+    if (0 < best < omega0.size - 1 and np.all(np.isfinite(chisqr[best - 1:best + 2]))
+            and omega0[best - 1] < omega0[best] < omega0[best + 1]):
         # Vertex of the parabola through the best point and its neighbours, in ln ω0.
         x = np.log(omega0[best - 1:best + 2])
-        curvature, slope, _ = np.polyfit(x - x[1], chisqr[best - 1:best + 2], 2)
+        y = chisqr[best - 1:best + 2]
+        left, right = x[0] - x[1], x[2] - x[1]
+        # Parabola through the three points: y = a·d² + b·d + y1 with d = x − x1.
+        slope_left, slope_right = (y[0] - y[1]) / left, (y[2] - y[1]) / right
+        curvature = (slope_right - slope_left) / (right - left)
         if curvature > 0:
-            centre = float(np.exp(x[1] + np.clip(-slope / (2 * curvature), x[0] - x[1],
-                                                 x[2] - x[1])))
+            slope = slope_left - curvature * left
+            centre = float(np.exp(x[1] + np.clip(-slope / (2 * curvature), left, right)))
     start = {"zeta": float(zeta[best]), "omega0": centre, "v0": float(v0_fit[best]),
              "t0": float(t0[best])}
     how = (f"start: median eps = {eps:.4g}; zeta = {start['zeta']:.4g}, v0 = {start['v0']:.4g} "
@@ -444,13 +450,29 @@ def _captures(result, predictor, data):
     return train.speeds.size < data.count
 
 
-def _log_estimate(value, log_sd, unit, status, note=""):
-    """Estimate of a positive quantity whose logarithm has standard deviation `log_sd`."""
-    if not np.isfinite(log_sd):
+def _draws(values, varied, cov):
+    """Seeded draws of every parameter from the fit's Gaussian approximation (fixed ones
+    constant); all equal to the best fit where the covariance is not available."""
+    out = {name: np.full(INTERVAL_DRAWS, float(value)) for name, value in values.items()}
+    if varied and np.all(np.isfinite(cov)):
+        mean = np.array([values[name] for name in varied])
+        sample = np.random.default_rng(INTERVAL_SEED).multivariate_normal(
+            mean, cov, size=INTERVAL_DRAWS, method="eigh")
+        for i, name in enumerate(varied):
+            out[name] = sample[:, i]
+    return out
+
+
+def _sampled(value, stderr, draws, unit, status, note=""):
+    """Estimate with 68.27 % and 95.45 % intervals from the central quantiles of its draws."""
+    if status == "fixed":
+        return Estimate(value, 0.0, value, value, value, value, unit, status, note)
+    if not np.isfinite(stderr):
         return Estimate(value, math.inf, 0.0, math.inf, 0.0, math.inf, unit, status, note)
-    return Estimate(value, value * log_sd, value * math.exp(-Z68 * log_sd),
-                    value * math.exp(Z68 * log_sd), value * math.exp(-Z95 * log_sd),
-                    value * math.exp(Z95 * log_sd), unit, status, note)
+    draws = np.where(np.isnan(draws), np.inf, draws)
+    low68, high68, low95, high95 = np.quantile(draws, QUANTILES, method="inverted_cdf")
+    return Estimate(value, stderr, float(low68), float(high68), float(low95), float(high95),
+                    unit, status, note)
 
 
 def _linear_estimate(value, sd, unit, status, note=""):
@@ -475,9 +497,11 @@ def fit_model(data, model, scene=None, *, max_nfev=2000):
     -------
     FitResult
         ``estimates`` holds ``zeta`` (1), ``omega0`` (rad/s), ``beta`` (1/s), ``v0`` (m/s),
-        ``t0`` (s), and with a known mass ``k`` (N/m) and ``gamma`` (kg/s), each with its
-        1σ error and intervals (log-normal for the positive ones, from the covariance of the
-        log parameters [4]_). ``predicted`` holds the model's train (impact ``times`` in s,
+        ``t0`` (s), ``v_star`` (m/s), and with a known mass ``k`` (N/m) and ``gamma``
+        (kg/s), each with its 1σ error by linear propagation [4]_ and central 68.27 % and
+        95.45 % intervals: Gaussian for the fitted ζ, v*, v0 and t0, and for the derived ones
+        the quantiles of seeded draws from that Gaussian (ω0 = g/v* is unbounded above where
+        v* = 0 is inside). ``predicted`` holds the model's train (impact ``times`` in s,
         ``speeds`` m/s, ``restitution``, ``contact_durations`` s) and ``at_data`` (predicted
         times of the observed impacts); ``eps_curve`` ε against impact speed (m/s) over the
         predicted range. Information criteria follow [3]_: with known timing errors AIC =
@@ -669,27 +693,41 @@ def _fit(data, model, scene, notes, max_nfev):
         return "fixed", fixed.get({"v_star": "omega0"}.get(name, name), "")
 
     estimates = {}
-    # ω0 = g/v*, β = ζg/v*, k = mg²/v*²: derivatives of their logarithms.
+    # Standard errors by linear propagation; intervals of the derived quantities from draws
+    # of the Gaussian approximation in the fitted coordinates (ζ, v*, v0, t0), where the
+    # likelihood is closest to Gaussian. ω0 = g/v* is unbounded above when v* = 0 (the
+    # gravity-free limit) lies inside the interval, and the intervals say so.
     d_zeta, d_v_star = ("zeta", 1.0 / zeta), ("v_star", -1.0 / v_star)
+    draws = _draws(values, varied, cov)
+    mass_draws = (1.0 if mass is None else mass.value + (mass.uncertainty or 0.0)
+                  * np.random.default_rng(INTERVAL_SEED + 1).standard_normal(INTERVAL_DRAWS))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        omega_draws = np.where(draws["v_star"] > 0, g / draws["v_star"], np.inf)
+        beta_draws = np.where(draws["zeta"] > 0, np.maximum(draws["zeta"], 0) * omega_draws,
+                              0.0)
     st, why = status("zeta")
-    estimates["zeta"] = _log_estimate(zeta, log_sd(d_zeta), "1", st, why)
+    estimates["zeta"] = _sampled(zeta, log_sd(d_zeta) * zeta, draws["zeta"], "1", st, why)
     st, why = status("v_star")
-    estimates["omega0"] = _log_estimate(omega0, log_sd(d_v_star), "rad/s", st, why)
-    estimates["v_star"] = _log_estimate(v_star, log_sd(d_v_star), "m/s", st,
-                                        why or "characteristic speed g/omega0")
-    estimates["beta"] = _log_estimate(zeta * omega0, log_sd(d_zeta, d_v_star), "1/s",
-                                      "derived", "beta = zeta * omega0")
+    estimates["omega0"] = _sampled(omega0, log_sd(d_v_star) * omega0, omega_draws, "rad/s",
+                                   st, why)
+    estimates["v_star"] = _linear_estimate(v_star, sd.get("v_star", 0.0), "m/s", st,
+                                           why or "characteristic speed g/omega0")
+    estimates["beta"] = _sampled(zeta * omega0, log_sd(d_zeta, d_v_star) * zeta * omega0,
+                                 beta_draws, "1/s", "derived", "beta = zeta * omega0")
     st, why = status("v0")
     estimates["v0"] = _linear_estimate(values["v0"], sd.get("v0", 0.0), "m/s", st, why)
     estimates["t0"] = _linear_estimate(values["t0"], sd.get("t0", 0.0), "s", "fitted")
     if mass is not None:
         mass_sd = (mass.uncertainty or 0.0) / mass.value
-        k_sd = math.hypot(log_sd(("v_star", -2.0 / v_star)), mass_sd)
-        estimates["k"] = _log_estimate(mass.value * omega0 ** 2, k_sd, "N/m", "derived",
-                                       "k = m * omega0^2")
-        gamma_sd = math.hypot(log_sd(d_zeta, d_v_star), mass_sd)
-        estimates["gamma"] = _log_estimate(2.0 * mass.value * zeta * omega0, gamma_sd, "kg/s",
-                                           "derived", "gamma = 2 m beta")
+        k = mass.value * omega0 ** 2
+        k_sd = math.hypot(log_sd(("v_star", -2.0 / v_star)), mass_sd) * k
+        with np.errstate(over="ignore", invalid="ignore"):
+            estimates["k"] = _sampled(k, k_sd, mass_draws * omega_draws ** 2, "N/m", "derived",
+                                      "k = m * omega0^2")
+            gamma = 2.0 * mass.value * zeta * omega0
+            gamma_sd = math.hypot(log_sd(d_zeta, d_v_star), mass_sd) * gamma
+            estimates["gamma"] = _sampled(gamma, gamma_sd, 2.0 * mass_draws * beta_draws,
+                                          "kg/s", "derived", "gamma = 2 m beta")
     notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
 
     nvarys = len(varied)
@@ -728,6 +766,10 @@ def _identifiability_notes(estimates, varied, correlation, params):
         if any(np.isfinite(bound) and abs(param.value - bound) <= 1e-3 * abs(bound)
                for bound in (param.min, param.max)):
             notes.append(f"{labels[name]} ended at its bound: not determined by these data")
+    omega0 = estimates.get("omega0")
+    if omega0 is not None and omega0.status != "fixed" and math.isinf(omega0.high95):
+        notes.append("omega0 (and so k) is not bounded above at 95 %: the data are consistent "
+                     "with the gravity-free limit (v* = g/omega0 -> 0)")
     for key, label in (("omega0", "omega0 (and so k)"), ("zeta", "zeta"), ("beta", "beta")):
         estimate = estimates.get(key)
         if estimate is not None and estimate.status != "fixed":
