@@ -241,3 +241,26 @@ def test_real_recordings_fit_under_every_model(name, tmp_path, capsys):
             print(f"  {model:>6}: beta = {e['beta'].value:.4g} ± {e['beta'].stderr:.2g} 1/s, "
                   f"omega0 = {e['omega0'].value:.4g} ± {e['omega0'].stderr:.2g} rad/s, "
                   f"redchi = {fit.redchi:.3g}{'  <- selected' if model == best else ''}")
+
+
+def test_uncertainty_methods_agree_where_the_likelihood_is_gaussian():
+    impacts = noisy_impacts("Ia", beta=5.0, omega0=500.0, v0=1.0, count=20, sigma=2e-5, seed=7)
+    data = prepare_data(impacts, Scene())
+    methods = ("covariance", "profile", "posterior")
+    fit = fit_model(data, "Ia", Scene(), uncertainty=methods, seed=3)
+    assert set(fit.intervals) == set(methods)
+    beta = fit.estimates["beta"]
+    width = beta.high68 - beta.low68
+    for method in methods:
+        row = fit.intervals[method]
+        assert row["low95"] < row["low68"] < beta.value < row["high68"] < row["high95"]
+        # A nearly Gaussian problem: every method's 68 % interval within 15 % of the width.
+        assert abs(row["low68"] - beta.low68) < 0.15 * width, method
+        assert abs(row["high68"] - beta.high68) < 0.15 * width, method
+    assert fit.intervals["profile"]["cpu_seconds"] > 0
+    assert fit.intervals["posterior"]["samples"] > 1000
+    # Seeded: the sampler gives the same numbers again.
+    again = fit_model(data, "Ia", Scene(), uncertainty=("posterior",), seed=3)
+    assert again.intervals["posterior"]["low68"] == fit.intervals["posterior"]["low68"]
+    with pytest.raises(ValueError, match="unknown uncertainty method"):
+        fit_model(data, "Ia", Scene(), uncertainty=("bootstrap",))

@@ -115,6 +115,7 @@ def test_documented_groups_and_datasets(written):
     for model in MODELS:
         expected_groups |= {f"fits/{model}", f"fits/{model}/parameters",
                             f"fits/{model}/residuals", f"fits/{model}/predicted",
+                            f"fits/{model}/intervals",
                             f"fits/{model}/eps_curve"}
     assert set(groups) == expected_groups
     for table in ("impacts", "bounces", "selection") + tuple(
@@ -317,10 +318,10 @@ def _failing(monkeypatch, models):
     """Make the fits of `models` fail the way a numerical breakdown does."""
     real = dashpot.fit._fit
 
-    def fit(data, model, scene, notes, max_nfev):
+    def fit(data, model, scene, notes, *args):
         if model in models:
             raise ArithmeticError(f"{model} blew up")
-        return real(data, model, scene, notes, max_nfev)
+        return real(data, model, scene, notes, *args)
 
     monkeypatch.setattr(dashpot.fit, "_fit", fit)
 

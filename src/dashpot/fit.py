@@ -22,11 +22,17 @@ References
    Springer (2002), sec. 2.2 (AIC with known variance: χ² + 2K) and 2.9 (Akaike weights).
 .. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
    Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors, used here in log space).
+.. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
+   (confidence regions from Δχ² = 1 and 4 for one parameter).
+.. [6] D. Foreman-Mackey et al., "emcee: The MCMC Hammer", PASP 125, 306 (2013).
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
+import time
 from dataclasses import dataclass, field
 
 import lmfit
@@ -48,6 +54,7 @@ ZETA_RANGE = (1e-9, 20.0)
 PROFILE_POINTS = 9
 REJECTED = 1e12  # residual of a step outside the physical range
 INTERVAL_DRAWS, INTERVAL_SEED = 20000, 20261122  # draws for the intervals of derived values
+UNCERTAINTY_METHODS = ("covariance", "profile", "posterior")
 QUANTILES = (0.158655, 0.841345, 0.0227501, 0.9772499)  # central 68.27 % and 95.45 %
 METHOD, OPTIONS = "leastsq", {"epsfcn": 1e-6}
 # Relative errors above which a parameter is reported as not determined by the data.
@@ -145,6 +152,7 @@ class FitResult:
     notes: list
     numerical_tolerance: float
     error_bound: float
+    intervals: dict = field(default_factory=dict)
 
 
 def _flight_ratio_start(intervals, flags):
@@ -480,7 +488,8 @@ def _linear_estimate(value, sd, unit, status, note=""):
                     value + Z95 * sd, unit, status, note)
 
 
-def fit_model(data, model, scene=None, *, max_nfev=2000):
+def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
+              seed=0):
     """Fit one contact model to a scene's impacts.
 
     Parameters
@@ -492,6 +501,14 @@ def fit_model(data, model, scene=None, *, max_nfev=2000):
         What is known of the apparatus (default: nothing but standard gravity).
     max_nfev : int, default 2000
         Largest number of model evaluations.
+    uncertainty : sequence of {"covariance", "profile", "posterior"}
+        Methods for the intervals of β, at increasing cost: the Gaussian approximation from
+        the Jacobian (always computed; it fills ``estimates``), the profile likelihood (χ²
+        minimised over the other parameters at fixed β; intervals where it rises by 1 and 4
+        [5]_), and posterior sampling with emcee (flat priors, seeded by `seed`) [6]_. Each
+        method's intervals of β (1/s) and its CPU time go to ``intervals``.
+    seed : int, default 0
+        Seed of the posterior sampler.
 
     Returns
     -------
@@ -510,9 +527,13 @@ def fit_model(data, model, scene=None, *, max_nfev=2000):
     scene = scene or Scene()
     if model not in MODELS:
         raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+    unknown = set(uncertainty) - set(UNCERTAINTY_METHODS)
+    if unknown:
+        raise ValueError(f"unknown uncertainty method {sorted(unknown)[0]!r}; use "
+                         f"{', '.join(UNCERTAINTY_METHODS)}")
     notes = list(data.notes)
     try:
-        return _fit(data, model, scene, notes, max_nfev)
+        return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed)
     except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
         return _failed(model, f"fit failed: {error}", notes, data)
 
@@ -533,7 +554,7 @@ def _failed(model, message, notes, data):
                      error_bound=math.nan)
 
 
-def _fit(data, model, scene, notes, max_nfev):
+def _fit(data, model, scene, notes, max_nfev, uncertainty, seed):
     mass = scene.mass
     known_v0 = scene.known_impact_speed
     stiffness = scene.stiffness
@@ -738,6 +759,13 @@ def _fit(data, model, scene, notes, max_nfev):
     else:
         aic, bic = float(result.aic), float(result.bic)
     predicted_at_data = values["t0"] + times[data.index]
+    intervals = {"covariance": _interval_row(estimates["beta"])}
+    for method in uncertainty:
+        if method in ("profile", "posterior") and success:
+            started = time.process_time()
+            compute = _profile_beta if method == "profile" else _posterior_beta
+            intervals[method] = compute(residual, result, g, seed)
+            intervals[method]["cpu_seconds"] = time.process_time() - started
     v_star = data.g / omega0
     top = float(np.max(speeds))
     bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
@@ -754,7 +782,81 @@ def _fit(data, model, scene, notes, max_nfev):
                    "contact_durations": train.contact_times / omega0,
                    "at_data": predicted_at_data},
         eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.captured},
-        notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound)
+        notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
+        intervals=intervals)
+
+
+def _interval_row(estimate):
+    return {"low68": estimate.low68, "high68": estimate.high68, "low95": estimate.low95,
+            "high95": estimate.high95}
+
+
+def _profile_beta(residual, result, g, seed, points=17, span=4.0):
+    """Profile likelihood of β: the best χ² over the other parameters at each fixed β.
+
+    β is put in as a parameter (ζ = βv*/g) on a grid of ±`span` standard errors in ln β
+    around the fit, each point started from its neighbour; the 68.27 % and 95.45 % intervals
+    are where the profile rises by 1 and 4 above its minimum (linear interpolation in ln β),
+    unbounded where it does not within the grid [5]_.
+    """
+    del seed
+    params = result.params.copy()
+    beta_hat = params["zeta"].value * g / params["v_star"].value
+    params.add("beta", value=beta_hat, vary=False)
+    params["zeta"].set(expr=f"beta * v_star / {g!r}")
+    spread = math.hypot(*(result.params[name].stderr / result.params[name].value
+                          if result.params[name].stderr else 0.0
+                          for name in ("zeta", "v_star")))
+    spread = min(max(spread, 1e-6), 2.0)
+    offsets = np.linspace(-span, span, points) * spread
+    profile = np.full(points, np.inf)
+    centre = points // 2
+    for order in (range(centre, points), range(centre, -1, -1)):
+        trial = params.copy()
+        for i in order:
+            trial["beta"].set(value=beta_hat * math.exp(offsets[i]))
+            fitted = lmfit.minimize(residual, trial, method=METHOD, max_nfev=400, **OPTIONS)
+            profile[i] = fitted.chisqr
+            trial = fitted.params
+    rise = profile - min(profile.min(), result.chisqr)
+    row = {}
+    for level, label in ((1.0, "68"), (4.0, "95")):
+        for side, key in ((-1, "low"), (1, "high")):
+            row[key + label] = _crossing(offsets, rise, level, side, centre, beta_hat)
+    return row
+
+
+def _crossing(offsets, rise, level, side, centre, beta_hat):
+    """β where the profile first rises past `level` going from the centre towards `side`."""
+    index = range(centre, len(offsets)) if side > 0 else range(centre, -1, -1)
+    previous = None
+    for i in index:
+        if rise[i] >= level and previous is not None:
+            fraction = (level - rise[previous]) / (rise[i] - rise[previous])
+            return beta_hat * math.exp(offsets[previous]
+                                       + fraction * (offsets[i] - offsets[previous]))
+        previous = i
+    return 0.0 if side < 0 else math.inf
+
+
+def _posterior_beta(residual, result, g, seed, walkers=16, steps=400, burn=150):
+    """Posterior quantiles of β from emcee (flat priors on the fitted parameters) [6]_."""
+    sampler = lmfit.Minimizer(residual, result.params.copy())
+    # lmfit prints emcee's autocorrelation warning; the time is recorded instead.
+    with contextlib.redirect_stdout(io.StringIO()):
+        sampled = sampler.emcee(steps=steps, nwalkers=walkers, burn=burn, thin=2, seed=seed,
+                                is_weighted=True, progress=False)
+    chain = sampled.flatchain
+    autocorrelation = (float(np.max(sampled.acor)) if getattr(sampled, "acor", None) is not None
+                       else math.nan)
+    zeta = chain["zeta"].to_numpy() if "zeta" in chain else result.params["zeta"].value
+    v_star = chain["v_star"].to_numpy() if "v_star" in chain else result.params["v_star"].value
+    with np.errstate(divide="ignore"):
+        beta = np.where(v_star > 0, zeta * g / v_star, np.inf)
+    low68, high68, low95, high95 = np.quantile(beta, QUANTILES, method="inverted_cdf")
+    return {"low68": float(low68), "high68": float(high68), "low95": float(low95),
+            "high95": float(high95), "samples": int(beta.size),
+            "autocorrelation_steps": autocorrelation}
 
 
 def _identifiability_notes(estimates, varied, correlation, params):

@@ -39,6 +39,7 @@ SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "c
                    "akaike_weight": "1", "rank": "1"}
 SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
+INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds")
 PREDICTED_UNITS = {"times": "s", "speeds": "m/s", "restitution": "1",
                    "contact_durations": "s", "at_data": "s"}
 
@@ -128,6 +129,10 @@ def _write_fit(group, fit):
     predicted = group.create_group("predicted")
     for name, values in fit.predicted.items():
         _dataset(predicted, name, values, PREDICTED_UNITS[name])
+    rows = [{"method": method, **{key: row.get(key, np.nan) for key in INTERVAL_COLUMNS}}
+            for method, row in fit.intervals.items()]
+    _table(group, "intervals", pd.DataFrame(rows, columns=["method", *INTERVAL_COLUMNS]),
+           {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s"})
     curve = group.create_group("eps_curve")
     for name, unit in (("speed", "m/s"), ("eps", "1"), ("captured", "1")):
         if name in fit.eps_curve:
@@ -195,6 +200,7 @@ def read_fit(path):
             out["fits"][model] = {
                 "attrs": dict(group.attrs),
                 "parameters": read_table(group["parameters"]).set_index("name"),
+                "intervals": read_table(group["intervals"]).set_index("method"),
                 "correlation": group["correlation"][()],
                 **{name: {key: group[name][key][()] for key in group[name]}
                    for name in ("residuals", "predicted", "eps_curve")},
