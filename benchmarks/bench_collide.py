@@ -189,6 +189,75 @@ def main():
                   f"{errors[2]:10.1e} {errors[3]:8d} {errors[4]:7d} {rate:10.3g} "
                   f"{base_ode:10.3g} {rate / base_ode:7.1f}")
     print("target: >= 1e6 exact evaluations per second on one core for Ib, IIb and hybrid")
+    surrogate_table(reference)
+
+
+# --- surrogate (dashpot.physics.surrogate) -----------------------------------------------------
+
+def surrogate_errors(model, rows, level):
+    """max_errors for surrogate_collide (all reference rows; off-table rows use the exact path)."""
+    from dashpot.physics.surrogate import surrogate_collide
+
+    zeta = np.array([float(r["zeta"]) for r in rows])
+    vtilde = np.array([float(r["vtilde"]) for r in rows])
+    captured = np.array([r["captured"] == "1" for r in rows])
+    refs = [np.array([float(r[k]) for r in rows]) for k in ("eps", "one_minus_eps",
+                                                             "contact_time")]
+    result = surrogate_collide(model, zeta, vtilde, level=level)
+    both = ~captured & ~result.captured & (refs[0] > 1e-300)
+    rel = [float(np.max(np.abs(got[both] / ref[both] - 1.0))) if both.any() else 0.0
+           for got, ref in zip((result.eps, result.one_minus_eps, result.contact_time), refs)]
+    return (*rel, int(np.sum(captured != result.captured)), int(both.sum()))
+
+
+def per_call_us(func, n, repeats=200):
+    """CPU µs per call of func() on n points (best of 3 runs of `repeats` calls)."""
+    return 1e6 / cpu_rate(lambda: [func() for _ in range(repeats)], repeats)
+
+
+def surrogate_table(reference):
+    """Pareto rows: exact vs surrogate levels — error, throughput, per-call cost, build cost."""
+    from dashpot.physics.surrogate import (LEVELS, SURROGATE_MODELS, load_surrogate,
+                                           surrogate_collide)
+
+    zeta, vtilde = workload(N_POINTS)
+    rng = np.random.default_rng(2)
+    header = (f"{'model':7s} {'method':18s} {'bound':>8s} {'max|Δε/ε|':>10s} {'max|Δ(1-ε)|':>12s} "
+              f"{'max|Δτ/τ|':>10s} {'capture≠':>8s} {'eval/s':>9s} {'µs@10':>7s} {'µs@100':>7s} "
+              f"{'µs@1000':>8s} {'build s':>7s} {'bytes':>9s}")
+    print()
+    print("surrogate: errors over all reference rows (off-table rows take the exact path); "
+          "eval/s on the workload above (off-table points are exact); µs per call at n "
+          "points with ζ log-uniform in [1e-3, 2], ṽ log-uniform in [1, 1e5]")
+    print(header)
+    print("-" * len(header))
+    calls = {n: (10 ** rng.uniform(-3, np.log10(2), n), 10 ** rng.uniform(0, 5, n))
+             for n in (10, 100, 1000)}
+    for model in dashpot.MODELS:
+        methods = [("exact", None)] + [(f"surrogate {level}", level) for level in LEVELS]
+        for name, level in methods:
+            if level is None:
+                def run(z, v):
+                    return dashpot.collide(model, z, v)
+                bound, build, size = exact_models.EXACT_RTOL, math.nan, 0
+                errors = (max_errors(model, reference[model], "exact") if model in reference
+                          else (math.nan,) * 3 + (0, 0))
+            else:
+                def run(z, v, level=level):
+                    return surrogate_collide(model, z, v, level=level)
+                if model in SURROGATE_MODELS:
+                    table = load_surrogate(model, level)
+                    bound, build, size = table.bound, table.build_seconds, table.nbytes
+                else:
+                    bound, build, size = exact_models.EXACT_RTOL, 0.0, 0
+                errors = (surrogate_errors(model, reference[model], level)
+                          if model in reference else (math.nan,) * 3 + (0, 0))
+            rate = cpu_rate(lambda: run(zeta, vtilde), N_POINTS)
+            timings = [per_call_us(lambda z=z, v=v: run(z, v), n, 50 if n < 1000 else 10)
+                       for n, (z, v) in calls.items()]
+            print(f"{model:7s} {name:18s} {bound:8.1e} {errors[0]:10.1e} {errors[1]:12.1e} "
+                  f"{errors[2]:10.1e} {errors[3]:8d} {rate:9.3g} {timings[0]:7.0f} "
+                  f"{timings[1]:7.0f} {timings[2]:8.0f} {build:7.2f} {size:9d}")
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ References
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import math
 import time
@@ -40,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from .bounces import bounce_table
-from .physics.models import GRAVITY_MODELS, MODELS, collide
+from .physics.models import EXACT_RTOL, GRAVITY_MODELS, MODELS, collide
 from .physics.train import impact_train, impact_trains
 from .physics.units import _zeta_for_restitution
 from .scene import Scene
@@ -55,6 +56,7 @@ PROFILE_POINTS = 9
 REJECTED = 1e12  # residual of a step outside the physical range
 INTERVAL_DRAWS, INTERVAL_SEED = 20000, 20261122  # draws for the intervals of derived values
 UNCERTAINTY_METHODS = ("covariance", "profile", "posterior")
+ACCURACY_LEVELS = ("fast", "standard", "exact")  # cheapest first
 QUANTILES = (0.158655, 0.841345, 0.0227501, 0.9772499)  # central 68.27 % and 95.45 %
 METHOD, OPTIONS = "leastsq", {"epsfcn": 1e-6}
 # Relative errors above which a parameter is reported as not determined by the data.
@@ -153,6 +155,7 @@ class FitResult:
     numerical_tolerance: float
     error_bound: float
     intervals: dict = field(default_factory=dict)
+    accuracy: str = ""
 
 
 def _flight_ratio_start(intervals, flags):
@@ -246,15 +249,16 @@ def prepare_data(impacts, scene):
 class _TrainPredictor:
     """Predicted train of one model, reusing the previous evaluation as Newton's start."""
 
-    def __init__(self, model, g, count, rtol):
+    def __init__(self, model, g, count, rtol, solver=collide):
         self.model, self.g, self.count, self.rtol = model, g, count, rtol
+        self.solver = solver
         self.start = None
         self.error_bound = 0.0
 
     def __call__(self, zeta, omega0, v0):
         v_star = self.g / omega0
         train = impact_train(self.model, zeta, v0 / v_star, self.count, start=self.start,
-                             rtol=self.rtol)
+                             rtol=self.rtol, solver=self.solver)
         self.error_bound = max(self.error_bound, train.error_bound)
         n = train.speeds.size
         ratios = train.speeds / train.speeds[0]
@@ -276,19 +280,65 @@ class _TrainPredictor:
         return train, times, speeds, rebound
 
 
-def _numerical_tolerance(data):
-    """Relative accuracy the predicted train gets.
+def _needed_accuracy(data):
+    """Relative accuracy of ε and τ that keeps the model's timing error at 1 % of the noise.
 
-    The timing noise alone would allow far less (1 % of it over the train), but lmfit's
-    finite-difference Jacobian differences trains whose parameters differ by ~1e-8: the train
-    must be smooth to well below that, so it is solved to machine precision whenever the noise
-    does not demand more.
+    A relative error δ in ε and τ moves impact n by about n·δ of its time since the first,
+    so over a train of N impacts spanning T the worst timing error is about N·δ·T [1]_.
     """
     span = data.times[-1] - data.times[0]
-    return float(min(1e-13, 0.01 * np.min(data.sigma) / span))
+    return float(0.01 * np.min(data.sigma) / (span * data.count))
 
 
-def _train_times(model, data, zeta, omega0, v0, start=None):
+def choose_accuracy(data, requested="auto", model="hybrid"):
+    """Accuracy level, solver and the bound it guarantees, for one scene and model.
+
+    Parameters
+    ----------
+    data : FitData
+    requested : {"auto", "fast", "standard", "exact"}
+        "auto" takes the cheapest level whose certified relative error in ε and τ is at most
+        :func:`_needed_accuracy` of the data (the model's timing error stays below 1 % of the
+        timing noise); the others are taken as asked.
+    model : str
+
+    Returns
+    -------
+    level : str
+    solver : callable
+        ``solver(model, zeta, vtilde)`` -> :class:`~dashpot.physics.models.Collision`.
+    bound : float
+        Certified maximum relative error of ε and τ (EXACT_RTOL for the exact solver).
+    reason : str
+    """
+    if requested not in ("auto", *ACCURACY_LEVELS):
+        raise ValueError(f"accuracy must be auto, {', '.join(ACCURACY_LEVELS)}; got "
+                         f"{requested!r}")
+    needed = _needed_accuracy(data)
+    levels = ACCURACY_LEVELS if requested == "auto" else (requested,)
+    for level in levels:
+        solver, bound = _solver(level, model)
+        if requested != "auto" or bound <= needed or level == "exact":
+            reason = (f"{level} (asked)" if requested != "auto" else
+                      f"{level}: certified error {bound:.1e} <= {needed:.1e} needed by the "
+                      f"timing noise" if bound <= needed else
+                      f"exact: no faster level meets the {needed:.1e} the timing noise needs")
+            return level, solver, bound, reason
+    raise AssertionError("unreachable: the exact level is always acceptable")
+
+
+def _solver(level, model):
+    """The collide function of an accuracy level and its certified relative error."""
+    if level == "exact" or model not in GRAVITY_MODELS:
+        # Ia and IIa are closed forms: exact is also the fastest.
+        return collide, EXACT_RTOL
+    from .physics.surrogate import load_surrogate, surrogate_collide
+
+    return (functools.partial(surrogate_collide, level=level),
+            load_surrogate(model, level).bound)
+
+
+def _train_times(model, data, zeta, omega0, v0, start=None, solver=collide):
     """Predicted times (s, from the first impact) of the observed impacts, many trains at once.
 
     A train captured before the last observed impact rests at its last one.
@@ -298,13 +348,15 @@ def _train_times(model, data, zeta, omega0, v0, start=None):
     times : ndarray, shape (trains, observed impacts)
     trains : ImpactTrains
     """
-    trains = impact_trains(model, zeta, v0 * omega0 / data.g, data.count, start=start)
+    trains = impact_trains(model, zeta, v0 * omega0 / data.g, data.count, start=start,
+                           solver=solver)
     times = np.concatenate([np.zeros((zeta.size, 1)), np.cumsum(trains.intervals, axis=1)],
                            axis=1) / omega0[:, None]
     return times[:, data.index], trains
 
 
-def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6):
+def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
+             solver=collide):
     """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
 
     Every iteration evaluates the trains at the current values and at a small step in each
@@ -340,7 +392,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
             trial[k + 1, :, k] *= 1.0 + step
         trial = trial.reshape(-1, 2)
         times, trains = _train_times(model, data, trial[:, 0], np.tile(omega0, names + 1),
-                                     trial[:, 1], start=start)
+                                     trial[:, 1], start=start, solver=solver)
         misfit = data.times[None, :] - times
         t0 = np.sum(misfit * weights, axis=1) / weights.sum()
         residual = ((misfit - t0[:, None]) / data.sigma).reshape(names + 1, count, -1)
@@ -374,7 +426,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     return best_chisqr, best[:, 0], best[:, 1], best_t0, start[winner]
 
 
-def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True):
+def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=collide):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -427,7 +479,8 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True):
         return None, "no damping ratio reproduces the interval ratios at any stiffness tried"
     omega0 = omega0[usable]
     chisqr, zeta, v0_fit, t0, _ = _profile(model, data, zeta[usable], omega0,
-                                           np.full(omega0.size, v0), ratios, fit_v0=fit_v0)
+                                           np.full(omega0.size, v0), ratios, fit_v0=fit_v0,
+                                           solver=solver)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
     if (0 < best < omega0.size - 1 and np.all(np.isfinite(chisqr[best - 1:best + 2]))
@@ -489,7 +542,7 @@ def _linear_estimate(value, sd, unit, status, note=""):
 
 
 def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
-              seed=0):
+              seed=0, accuracy=None):
     """Fit one contact model to a scene's impacts.
 
     Parameters
@@ -509,6 +562,10 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
         method's intervals of β (1/s) and its CPU time go to ``intervals``.
     seed : int, default 0
         Seed of the posterior sampler.
+    accuracy : {"auto", "fast", "standard", "exact"}, optional
+        Numerical accuracy of the predicted trains (default: the scene's); see
+        :func:`choose_accuracy`. The level, its solver and the error it guarantees are
+        recorded in ``accuracy``, ``notes`` and ``numerical_tolerance``.
 
     Returns
     -------
@@ -533,7 +590,7 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
                          f"{', '.join(UNCERTAINTY_METHODS)}")
     notes = list(data.notes)
     try:
-        return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed)
+        return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed, accuracy)
     except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
         return _failed(model, f"fit failed: {error}", notes, data)
 
@@ -554,7 +611,7 @@ def _failed(model, message, notes, data):
                      error_bound=math.nan)
 
 
-def _fit(data, model, scene, notes, max_nfev, uncertainty, seed):
+def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     mass = scene.mass
     known_v0 = scene.known_impact_speed
     stiffness = scene.stiffness
@@ -575,9 +632,11 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed):
                               + (", v0" if fixed_v0 is None else "")
                               + "); give more impacts or known quantities in the scene",
                        notes, data)
+    level, solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
+    notes.append(f"accuracy {reason}")
     known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
-                               known_omega0, fit_v0=fixed_v0 is None)
+                               known_omega0, fit_v0=fixed_v0 is None, solver=solver)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
@@ -611,8 +670,11 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed):
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
         notes.append("prior on v0 from the scene")
 
-    tolerance = _numerical_tolerance(data)
-    predictor = _TrainPredictor(model, data.g, data.count, tolerance)
+    # Newton solves each train of the chosen map to machine precision: lmfit's finite-
+    # difference Jacobian differences trains whose parameters differ by ~1e-8.
+    predictor = _TrainPredictor(model, data.g, data.count, EXACT_RTOL, solver)
+    # What the fitted times can be off by, relative to the span of the train.
+    tolerance = bound * data.count
     impact_rows = np.isfinite(data.impact_speed)
     rebound_rows = np.isfinite(data.rebound_speed)
 
@@ -783,7 +845,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed):
                    "at_data": predicted_at_data},
         eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.captured},
         notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
-        intervals=intervals)
+        intervals=intervals, accuracy=level)
 
 
 def _interval_row(estimate):

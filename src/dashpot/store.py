@@ -103,7 +103,7 @@ def _write_fit(group, fit):
                         "redchi": fit.redchi, "aic": fit.aic, "bic": fit.bic,
                         "ndata": fit.ndata, "nvarys": fit.nvarys, "nfev": fit.nfev,
                         "numerical_tolerance": fit.numerical_tolerance,
-                        "error_bound": fit.error_bound,
+                        "error_bound": fit.error_bound, "accuracy": fit.accuracy,
                         "varied": json.dumps(list(fit.varied)),
                         "notes": json.dumps(fit.notes)})
     rows = [{"name": name, "value": e.value, "stderr": e.stderr, "low68": e.low68,

@@ -113,7 +113,7 @@ def _cut_at_capture(speeds, restitution, contact_times, captured):
             np.where(past, 0.0, contact_times), impacts)
 
 
-def _sequential(model, zeta, vtilde0, count):
+def _sequential(model, zeta, vtilde0, count, solver=collide):
     """The bounce map applied one impact at a time, vectorized over the trains (exact)."""
     trains = zeta.size
     speeds = np.zeros((trains, count))
@@ -126,7 +126,7 @@ def _sequential(model, zeta, vtilde0, count):
     for k in range(count):
         if not alive.any():
             break
-        outcome = collide(model, zeta[alive], speed[alive])
+        outcome = solver(model, zeta[alive], speed[alive])
         evaluations += 1
         speeds[alive, k] = speed[alive]
         restitution[alive, k] = outcome.eps
@@ -142,7 +142,7 @@ def _sequential(model, zeta, vtilde0, count):
                         evaluations)
 
 
-def _newton(model, zeta, speeds, rtol):
+def _newton(model, zeta, speeds, rtol, solver=collide):
     """Newton iterations on every train at once from the start `speeds` (trains × count).
 
     Returns the trains and a mask of those that converged (the others are left to the
@@ -164,7 +164,7 @@ def _newton(model, zeta, speeds, rtol):
         u = speeds[todo]
         # ε·u and τ at u and u(1 ± h), in one call: central slopes and the curvature that
         # bounds what a Newton step leaves.
-        probe = collide(model, zeta[todo, None, None], u[:, None, :] * factors[None, :, None])
+        probe = solver(model, zeta[todo, None, None], u[:, None, :] * factors[None, :, None])
         mapped = probe.eps * u[:, None, :] * factors[None, :, None]
         spacing = SLOPE_STEP * u
         slope = (mapped[:, 1] - mapped[:, 2]) / (2.0 * spacing)  # d(εu)/du
@@ -232,7 +232,7 @@ def _newton(model, zeta, speeds, rtol):
     return ImpactTrains(speeds_out, eps_out, tau_out, impacts, out_bound, evaluations), done
 
 
-def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
+def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide):
     """Speeds, contact times and intervals of the first `count` impacts of many trains.
 
     Parameters
@@ -249,6 +249,9 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
         Without it the trains are built impact by impact.
     rtol : float, default 1e-13
         Largest accepted relative defect of the speeds in the bounce map.
+    solver : callable, default :func:`collide`
+        ``solver(model, zeta, vtilde)`` returning a :class:`Collision` (e.g. a surrogate of
+        chosen accuracy); the trains are exact for that map.
 
     Returns
     -------
@@ -266,7 +269,7 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
     zeta, vtilde0 = (np.atleast_1d(np.asarray(value, dtype=float)) for value in (zeta, vtilde0))
     zeta, vtilde0 = np.broadcast_arrays(zeta, vtilde0)
     if model not in GRAVITY_MODELS:
-        outcome = collide(model, zeta, vtilde0)
+        outcome = solver(model, zeta, vtilde0)
         eps = outcome.eps[:, None]
         with np.errstate(under="ignore"):
             speeds = vtilde0[:, None] * eps ** np.arange(count, dtype=float)[None, :]
@@ -278,16 +281,17 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
             np.broadcast_to(outcome.contact_time[:, None], speeds.shape), ends)
         return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(zeta.size), 1)
     if start is None:
-        return _sequential(model, zeta, vtilde0, count)
+        return _sequential(model, zeta, vtilde0, count, solver)
     guess = vtilde0[:, None] * np.asarray(start, dtype=float).reshape(zeta.size, count)
     guess[:, 0] = vtilde0
     usable = np.all(np.isfinite(guess) & (guess > 0.0), axis=1)
-    trains, converged = _newton(model, zeta, np.where(usable[:, None], guess, 1.0), rtol)
+    trains, converged = _newton(model, zeta, np.where(usable[:, None], guess, 1.0), rtol,
+                                solver)
     converged &= usable
     if converged.all():
         return trains
     rest = np.flatnonzero(~converged)
-    fallback = _sequential(model, zeta[rest], vtilde0[rest], count)
+    fallback = _sequential(model, zeta[rest], vtilde0[rest], count, solver)
     fields = {name: getattr(trains, name).copy() for name in
               ("speeds", "restitution", "contact_times", "impacts", "error_bound")}
     for name in fields:
@@ -295,7 +299,7 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
     return ImpactTrains(**fields, evaluations=trains.evaluations + fallback.evaluations)
 
 
-def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
+def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide):
     """One train: :func:`impact_trains` for a single (ζ, ṽ0), cut at its last impact.
 
     Parameters are those of :func:`impact_trains` as scalars (`start` of length `count`).
@@ -306,7 +310,7 @@ def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13):
     """
     trains = impact_trains(model, [zeta], [vtilde0], count,
                            start=None if start is None else np.asarray(start)[None, :],
-                           rtol=rtol)
+                           rtol=rtol, solver=solver)
     impacts = int(trains.impacts[0])
     return ImpactTrain(trains.speeds[0, :impacts], trains.restitution[0, :impacts],
                        trains.contact_times[0, :impacts], trains.intervals[0, :impacts - 1],
