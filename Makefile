@@ -28,3 +28,8 @@ cluster-test: $(STAMP)
 
 clean:
 	rm -rf $(VENV) results .snakemake
+
+# The whole workflow on 200 small synthetic scenes at 1 and 2 cores (also part of `make bench`).
+.PHONY: bench-batch
+bench-batch: $(STAMP)
+	$(BIN)/python benchmarks/bench_batch.py

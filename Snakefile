@@ -10,9 +10,17 @@ configfile: "config/config.yaml"
 validate(config, "workflow/schemas/config.schema.yaml")
 
 
+report: "workflow/report/workflow.rst"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/fit.smk"
+include: "workflow/rules/plots.smk"
+include: "workflow/rules/summary.smk"
 include: "workflow/rules/theory.smk"
 
 
 rule all:
     input:
-        rules.theory.output,
+        all_outputs(),

@@ -88,6 +88,86 @@ def _fit(args):
         print(f"  {model:>6}: {state}")
 
 
+def _analyze(args):
+    import shutil
+    import tempfile
+    from dataclasses import replace
+
+    from tqdm import tqdm
+
+    from .figures import load_record, save_scene_figures
+    from .pipeline import analyze_scene, is_audio
+    from .scene import Scene, load_scene
+    from .store import write_scene_fit
+
+    recording = Path(args.recording)
+    if not recording.is_file():
+        raise InputError(recording, "no such file")
+    scene = load_scene(args.scene) if args.scene else Scene(name=recording.stem or "scene")
+    name = scene.name
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "is a file; give the folder to write into")
+    # Everything is written in a private folder first and moved into `out` at the end, so a
+    # failure leaves no partial output.
+    with tempfile.TemporaryDirectory(prefix=".dashpot-analyze-") as staging:
+        staging = Path(staging)
+        models = tuple(args.models or scene.models)
+        with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
+                  disable=None) as bar:
+            def progress(step, total, text):
+                bar.set_postfix_str(text)
+                bar.update(step - bar.n)
+
+            bar.set_postfix_str("finding impacts")
+            impacts, scene_fit = analyze_scene(recording, scene, models=models,
+                                               progress=progress)
+            bar.set_postfix_str("writing")
+            h5 = staging / f"{name}.h5"
+            write_scene_fit(h5, scene_fit, impacts, input_path=recording,
+                            config={"models": list(scene_fit.results)})
+            bar.update(1)
+            bar.set_postfix_str("figures")
+            audio = impacts.attrs.get("sensor") == "audio" or is_audio(
+                replace(scene, recording=recording))
+            save_scene_figures(load_record(h5), staging / name,
+                               recording=recording if audio else None)
+            bar.update(1)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            (out / name).mkdir(exist_ok=True)
+            for source in sorted(staging.rglob("*")):
+                if source.is_file():
+                    shutil.move(source, out / source.relative_to(staging))
+        except OSError as error:
+            raise InputError(out, f"cannot write the output ({error.strerror or error})") \
+                from None
+    _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
+
+
+def _print_summary(recording, impacts, scene_fit, h5, figures):
+    """β, k and the ε range per model, and the preferred model, in a few lines."""
+    import numpy as np
+
+    print(f"{recording}: {len(impacts)} impacts -> {h5}, figures in {figures}/")
+    for model, fit in scene_fit.results.items():
+        if not fit.success:
+            print(f"  {model:>6}: failed: {fit.message}")
+            continue
+        parts = []
+        for key, unit in (("beta", "1/s"), ("k", "N/m")):
+            estimate = fit.estimates.get(key)
+            if estimate is not None:
+                parts.append(f"{'β' if key == 'beta' else 'k'} = {estimate.value:.4g} "
+                             f"± {estimate.stderr:.2g} {unit}")
+        eps = np.asarray(fit.predicted.get("restitution", []), dtype=float)
+        eps = eps[np.isfinite(eps) & (eps > 0)]
+        if eps.size:
+            parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
+        print(f"  {model:>6}: " + ", ".join(parts))
+    print(f"  preferred: {scene_fit.verdict}")
+
+
 def build_parser():
     parser = argparse.ArgumentParser(prog="dashpot", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -118,6 +198,16 @@ def build_parser():
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
     fit.set_defaults(run=_fit)
+    analyze = commands.add_parser(
+        "analyze", help="one recording to an HDF5 file, figures and a summary (no Snakemake)")
+    analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
+    analyze.add_argument("-o", "--output", required=True,
+                         help="folder to write <name>.h5 and the figures <name>/*.png|pdf into")
+    analyze.add_argument("--scene", help="scene.yaml: what is known of the apparatus "
+                                         "(its name names the outputs)")
+    analyze.add_argument("--models", nargs="+", choices=list(MODELS),
+                         help="models to fit (default: the scene's, else all five)")
+    analyze.set_defaults(run=_analyze)
     return parser
 
 

@@ -420,7 +420,8 @@ def _minmax_decimate(x, y, columns):
     n = x.size
     if n <= 2 * columns:
         return x, y
-    per = n // columns
+    per = -(-n // columns)  # ceil: the leftover after the full runs is shorter than one run
+    columns = n // per
     used = per * columns
     runs = y[:used].reshape(columns, per)
     low, high = np.argmin(runs, axis=1), np.argmax(runs, axis=1)

@@ -1,0 +1,169 @@
+"""One scene's figures from its stored fit: the data each figure of :mod:`dashpot.plots` needs.
+
+The command line (``dashpot analyze``) and the workflow draw the same figures from the same
+scene file (``results/<scene>.h5``, read with :func:`load_record`):
+
+- ``intervals``: observed bounce intervals T_n with every fitted model's predicted intervals
+  (differences of its predicted impact times at the fitted impacts) and the residuals;
+- ``restitution``: measured ε against impact speed with every fitted model's ε(v) curve;
+- ``selection``: the Akaike weights and ΔAIC of the models;
+- ``detection`` (audio recordings only): the recording's envelope with the detected impacts.
+
+Measured ε and impact speed (:func:`restitution_points`): where the sensor measured speeds
+(motion sensor, photogate), ε = rebound/impact speed of each impact; otherwise from the flight
+times, ε of the impact ending interval n is T_{n+1}/T_n and its impact speed the landing speed
+of flight n, g_eff·T_n/2 (the ``rebound_speed`` of row n of the bounce table, the flight being
+symmetric).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import plots
+from .store import read_fit
+
+__all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
+           "scene_figures", "detection_figure", "save_scene_figures"]
+
+SCENE_FIGURES = ("intervals", "restitution", "selection")
+"""Figures of every scene (``detection`` is added for audio recordings)."""
+
+
+def load_record(path):
+    """:func:`dashpot.store.read_fit` of a scene file, plus ``used_in_fit`` in ``impacts``."""
+    import h5py
+
+    record = read_fit(path)
+    with h5py.File(path, "r") as source:
+        record["impacts"]["used_in_fit"] = source["impacts"]["used_in_fit"][()].astype(bool)
+    return record
+
+
+def _fitted_impacts(record):
+    impacts = record["impacts"]
+    return impacts[impacts["used_in_fit"]] if "used_in_fit" in impacts else impacts
+
+
+def interval_series(record):
+    """Observed and predicted bounce intervals of a scene.
+
+    Returns
+    -------
+    index : ndarray
+        Bounce number of each interval.
+    observed, uncertainty : ndarray
+        Observed intervals between the fitted impacts in s and their 1σ (uncertainty None if
+        unknown).
+    predictions : dict of str -> ndarray
+        Each successful model's predicted intervals in s (np.diff of ``predicted/at_data``).
+    failed : list of str
+        Models whose fit failed.
+    """
+    bounces = record["bounces"]
+    used = _fitted_impacts(record)
+    times = used["time"].to_numpy(float)
+    if len(bounces) == times.size - 1:  # nothing left out: the bounce table is the data
+        index = bounces["bounce"].to_numpy(float)
+        observed = bounces["interval"].to_numpy(float)
+        uncertainty = bounces["interval_uncertainty"].to_numpy(float)
+    else:
+        index = np.arange(times.size - 1, dtype=float)
+        observed = np.diff(times)
+        sigma = used["time_uncertainty"].to_numpy(float)
+        uncertainty = np.hypot(sigma[:-1], sigma[1:])
+    if not np.all(np.isfinite(uncertainty) & (uncertainty > 0)):
+        uncertainty = None
+    predictions, failed = {}, []
+    for model, fit in record["fits"].items():
+        at_data = np.asarray(fit["predicted"].get("at_data", []), dtype=float)
+        if not fit["attrs"].get("success", False) or at_data.size < 2:
+            failed.append(model)
+            continue
+        predictions[model] = np.diff(at_data)
+    return index, observed, uncertainty, predictions, failed
+
+
+def restitution_points(record):
+    """Measured ε against impact speed, with 1σ uncertainties (see the module notes).
+
+    Returns
+    -------
+    speed, eps, speed_uncertainty, eps_uncertainty : ndarray
+        Impact speeds in m/s, restitution, and their 1σ (NaN where unknown).
+    """
+    impacts = _fitted_impacts(record)
+    measured = impacts["impact_speed"].to_numpy(float), impacts["rebound_speed"].to_numpy(float)
+    good = np.isfinite(measured[0]) & np.isfinite(measured[1]) & (measured[0] > 0)
+    if good.sum() >= 2:
+        speed, rebound = measured[0][good], measured[1][good]
+        sigma = impacts["speed_uncertainty"].to_numpy(float)[good]
+        eps = rebound / speed
+        eps_sigma = eps * np.hypot(sigma / speed, sigma / np.where(rebound > 0, rebound, np.nan))
+        return speed, eps, sigma, eps_sigma
+    bounces = record["bounces"]
+    keep = np.isfinite(bounces["restitution"].to_numpy(float))
+    if "flag" in bounces:
+        flags = bounces["flag"].to_numpy(str)
+        ok = flags == "ok"
+        keep &= ok & np.append(ok[1:], True)  # both intervals of the ratio are sound
+    return (bounces["rebound_speed"].to_numpy(float)[keep],
+            bounces["restitution"].to_numpy(float)[keep],
+            bounces["rebound_speed_uncertainty"].to_numpy(float)[keep],
+            bounces["restitution_uncertainty"].to_numpy(float)[keep])
+
+
+def _eps_curves(record):
+    curves = {}
+    for model, fit in record["fits"].items():
+        curve = fit["eps_curve"]
+        if fit["attrs"].get("success", False) and len(curve.get("speed", [])):
+            curves[model] = (np.asarray(curve["speed"], float), np.asarray(curve["eps"], float))
+    return curves
+
+
+def _finite_or_none(values):
+    values = np.asarray(values, dtype=float)
+    return values if values.size and np.all(np.isfinite(values)) else None
+
+
+def scene_figures(record):
+    """The figures :data:`SCENE_FIGURES` of one scene, as a dict of name -> Figure."""
+    index, observed, uncertainty, predictions, failed = interval_series(record)
+    speed, eps, speed_sigma, eps_sigma = restitution_points(record)
+    selection = record["selection"]
+    weights = np.where(selection["success"].to_numpy(bool),
+                       selection["akaike_weight"].to_numpy(float), np.nan)
+    return {
+        "intervals": plots.intervals_figure(index, observed, uncertainty, predictions,
+                                            failed=failed),
+        "restitution": plots.restitution_speed_figure(speed, eps, _finite_or_none(speed_sigma),
+                                                      _finite_or_none(eps_sigma),
+                                                      _eps_curves(record)),
+        "selection": plots.selection_figure(selection["model"].tolist(), weights,
+                                            selection["delta_aic"].to_numpy(float)),
+    }
+
+
+def detection_figure(record, recording):
+    """Envelope of an audio recording with the impacts stored in its scene file."""
+    from .envelope import recording_envelope
+
+    time, envelope, sample_time, samples = recording_envelope(recording)
+    impacts = record["impacts"]
+    return plots.detection_figure(time, envelope, impacts["time"].to_numpy(float),
+                                  sample_time=sample_time, samples=samples)
+
+
+def save_scene_figures(record, folder, *, recording=None):
+    """Write each scene figure as ``folder/<name>.png`` and ``.pdf``; returns the PNG paths.
+
+    ``recording`` (an audio file) adds the ``detection`` figure.
+    """
+    folder = Path(folder)
+    figures = scene_figures(record)
+    if recording is not None:
+        figures["detection"] = detection_figure(record, recording)
+    return [plots.save_figure(figure, folder / name)[0] for name, figure in figures.items()]

@@ -1,0 +1,94 @@
+"""`dashpot analyze`: one recording to an HDF5 file, the scene figures and a printed summary;
+on bad input one stderr line naming the file, exit status 2 and no output at all."""
+
+import contextlib
+import io
+
+import numpy as np
+import pytest
+
+from dashpot.cli import main
+from dashpot.store import read_fit
+from dashpot.synth.scene import write_scene
+
+BALL = dict(model="hybrid", beta=30.0, omega0=3000.0, g=9.80665, v0=1.5, n_max=10)
+
+
+def _run(argv):
+    """main(argv) with its exit status, standard output and standard error."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
+            np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
+        status = main(argv)
+    return status, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def table_scene(tmp_path_factory):
+    """A timestamp table with a scene.yaml naming the scene."""
+    folder = tmp_path_factory.mktemp("analyze") / "ball"
+    recording = write_scene(folder, "timestamps", seed=3, uncertainty=2e-5, **BALL)
+    scene = folder / "scene.yaml"
+    scene.write_text("name: my-ball\nsensor: timestamps\nmodels: [IIb, hybrid]\n"
+                     "apparatus: {mass: {value: 0.0027, uncertainty: 0.0001}}\n")
+    return recording, scene
+
+
+def test_writes_the_scene_file_figures_and_a_summary(table_scene, tmp_path):
+    recording, scene = table_scene
+    out = tmp_path / "out"
+    status, printed, err = _run(["analyze", str(recording), "--scene", str(scene), "-o",
+                                 str(out)])
+    assert status == 0, err
+    record = read_fit(out / "my-ball.h5")
+    assert set(record["fits"]) == {"IIb", "hybrid"}
+    assert record["attrs"]["input_file"] == recording.name
+    for name in ("intervals", "restitution", "selection"):
+        for ext in ("png", "pdf"):
+            assert (out / "my-ball" / f"{name}.{ext}").stat().st_size > 0
+    assert not (out / "my-ball" / "detection.png").exists()  # not a sound recording
+    assert "β = " in printed and "k = " in printed and "ε " in printed
+    assert "preferred:" in printed
+    assert not list(out.rglob("*.partial")) and not list(out.rglob(".*"))
+
+
+def test_audio_gets_the_detection_figure_and_is_named_after_the_file(tmp_path):
+    recording = write_scene(tmp_path / "rec", "audio", seed=2, **BALL)
+    out = tmp_path / "out"
+    status, printed, err = _run(["analyze", str(recording), "-o", str(out), "--models",
+                                 "hybrid"])
+    assert status == 0, err
+    assert (out / "recording.h5").is_file()
+    assert (out / "recording" / "detection.png").is_file()
+    truth = BALL["beta"]
+    beta = read_fit(out / "recording.h5")["fits"]["hybrid"]["parameters"].loc["beta"]
+    assert beta["low95"] <= truth <= beta["high95"] or \
+        abs(beta["value"] - truth) <= 3 * beta["stderr"]
+
+
+@pytest.mark.parametrize("case", ["missing", "unreadable", "bad-scene", "output-is-file"])
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, table_scene, case):
+    recording, scene = table_scene
+    out = tmp_path / "out"
+    argv = ["analyze", str(recording), "-o", str(out)]
+    named = recording
+    if case == "missing":
+        named = tmp_path / "nothing.wav"
+        argv[1] = str(named)
+    elif case == "unreadable":
+        named = tmp_path / "noise.wav"
+        named.write_bytes(b"RIFF but not really a wave file")
+        argv[1] = str(named)
+    elif case == "bad-scene":
+        named = tmp_path / "scene.yaml"
+        named.write_text("sensor: banana\n")
+        argv += ["--scene", str(named)]
+    else:
+        named = out
+        out.write_text("a file, not a folder")
+    status, printed, err = _run(argv)
+    assert status == 2
+    assert len(err.strip().splitlines()) == 1
+    assert err.startswith("dashpot analyze: error: ") and str(named) in err
+    if case != "output-is-file":
+        assert not out.exists()

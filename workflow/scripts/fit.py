@@ -1,0 +1,24 @@
+"""Snakemake adapter: one scene's recording -> impacts and fits -> results/<scene>.h5."""
+
+from dashpot.analysis import analyze
+from dashpot.joblog import job_log
+from dashpot.pipeline import workflow_scene
+from dashpot.store import write_scene_fit
+
+snakemake = globals()["snakemake"]  # injected by Snakemake's script directive
+name = snakemake.wildcards.scene
+
+with job_log(snakemake.log[0], f"fit scene {name}") as log:
+    scene = workflow_scene(name, scene_file=snakemake.input.get("scene"),
+                           mapping=snakemake.params.mapping)
+    log.info("recording %s, sensor %s, models %s", scene.recording, scene.sensor,
+             ", ".join(scene.models))
+    impacts, scene_fit = analyze(scene.recording, scene)
+    for note in impacts.attrs.get("notes", []):
+        log.info("reader: %s", note)
+    for model, fit in scene_fit.results.items():
+        log.info("%s: %s", model, fit.message)
+    log.info("verdict: %s", scene_fit.verdict)
+    write_scene_fit(snakemake.output[0], scene_fit, impacts, input_path=scene.recording,
+                    config={"models": list(scene_fit.results),
+                            "scene_source": snakemake.input.get("scene") or "config.yaml"})
