@@ -79,7 +79,7 @@ def scene_impacts(path, scene=None):
     return read_impacts(path, kind=scene.sensor, **scene.reader)
 
 
-def analyze(path, scene=None, *, models=None):
+def analyze(path, scene=None, *, models=None, progress=None):
     """Impacts and every requested model fitted, for one recording.
 
     Parameters
@@ -88,6 +88,9 @@ def analyze(path, scene=None, *, models=None):
         Recording or impact table.
     scene : Scene, optional
     models : sequence of str, optional
+    progress : callable, optional
+        Called as ``progress(step, total, text)`` after reading the impacts and after each
+        model's fit (``total`` = 1 + number of models).
 
     Returns
     -------
@@ -104,8 +107,16 @@ def analyze(path, scene=None, *, models=None):
     impacts = scene_impacts(path, scene)
     if len(impacts) < 3:
         raise InputError(path, f"only {len(impacts)} impact(s) found; fitting needs three")
+    models = tuple(models or (scene or Scene()).models)
+    report = None
+    if progress is not None:
+        done = iter(range(2, 2 + len(models)))
+        progress(1, 1 + len(models), f"{len(impacts)} impacts")
+
+        def report(model):
+            progress(next(done), 1 + len(models), f"fitted {model}")
     try:
-        scene_fit = fit_scene(impacts, scene, models)
+        scene_fit = fit_scene(impacts, scene, models, progress=report)
     except ValueError as error:
         raise InputError(path, str(error)) from None
     return impacts, scene_fit

@@ -96,7 +96,8 @@ def _analyze(args):
     from tqdm import tqdm
 
     from .figures import load_record, save_scene_figures
-    from .pipeline import analyze_scene, is_audio
+    from .analysis import analyze
+    from .pipeline import is_audio
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -120,8 +121,7 @@ def _analyze(args):
                 bar.update(step - bar.n)
 
             bar.set_postfix_str("finding impacts")
-            impacts, scene_fit = analyze_scene(recording, scene, models=models,
-                                               progress=progress)
+            impacts, scene_fit = analyze(recording, scene, models=models, progress=progress)
             bar.set_postfix_str("writing")
             h5 = staging / f"{name}.h5"
             write_scene_fit(h5, scene_fit, impacts, input_path=recording,

@@ -961,7 +961,7 @@ class SceneFit:
     verdict: str
 
 
-def fit_scene(impacts, scene=None, models=None):
+def fit_scene(impacts, scene=None, models=None, *, progress=None):
     """Fit every requested model to a scene's impacts and compare them.
 
     Parameters
@@ -971,6 +971,8 @@ def fit_scene(impacts, scene=None, models=None):
     scene : Scene, optional
     models : sequence of str, optional
         Default: the scene's models (all five unless it says otherwise).
+    progress : callable, optional
+        Called with each model's name once it is fitted.
 
     Returns
     -------
@@ -981,7 +983,11 @@ def fit_scene(impacts, scene=None, models=None):
     scene = scene or Scene()
     models = tuple(models or scene.models)
     data = prepare_data(impacts, scene)
-    results = {model: fit_model(data, model, scene) for model in models}
+    results = {}
+    for model in models:
+        results[model] = fit_model(data, model, scene)
+        if progress is not None:
+            progress(model)
     selection, verdict = selection_table(results, sigma_known=data.sigma_known)
     return SceneFit(scene=scene, data=data, results=results, selection=selection,
                     verdict=verdict)

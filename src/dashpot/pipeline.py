@@ -6,8 +6,6 @@ out; what happens to a scene is here:
 - :func:`write_synthetic_scene`: a synthetic recording, its ``truth.json`` and the
   ``scene.yaml`` saying what the experimenter knows;
 - :func:`workflow_scene`: the scene of a ``scene.yaml`` (or of a config entry), checked;
-- :func:`analyze_scene`: impacts and every model fitted, with an optional progress callback,
-  the same result as :func:`dashpot.analysis.analyze`;
 - :func:`is_audio`: whether a scene's recording is sound (it then gets a detection figure).
 """
 
@@ -21,7 +19,7 @@ from .errors import InputError
 from .ingest import AUDIO_SUFFIXES
 from .scene import load_scene, scene_from_mapping
 
-__all__ = ["write_synthetic_scene", "workflow_scene", "analyze_scene", "is_audio"]
+__all__ = ["write_synthetic_scene", "workflow_scene", "is_audio"]
 
 
 def write_synthetic_scene(directory, spec, *, name):
@@ -99,55 +97,6 @@ def workflow_scene(name, *, scene_file=None, mapping=None):
     if scene.recording is None:
         raise InputError(source, "no recording given (key 'recording')")
     return scene
-
-
-def analyze_scene(path, scene, *, models=None, progress=None):
-    """Impacts and every requested model fitted: :func:`dashpot.analysis.analyze` in steps.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The recording.
-    scene : Scene
-    models : sequence of str, optional
-    progress : callable, optional
-        Called as ``progress(step, total, text)`` after reading the impacts and after each
-        model's fit (``total`` = 1 + number of models).
-
-    Returns
-    -------
-    impacts : pandas.DataFrame
-    scene_fit : dashpot.fit.SceneFit
-
-    Raises
-    ------
-    InputError
-        As :func:`dashpot.analysis.analyze`.
-    """
-    from .analysis import analyze, scene_impacts
-    from .fit import SceneFit, fit_model, prepare_data
-    from .select import selection_table
-
-    if progress is None:
-        return analyze(path, scene, models=models)
-    # The steps of analyze() and fit_scene(), one model at a time so that progress shows.
-    impacts = scene_impacts(path, scene)
-    if len(impacts) < 3:
-        raise InputError(path, f"only {len(impacts)} impact(s) found; fitting needs three")
-    models = tuple(models or scene.models)
-    total = 1 + len(models)
-    progress(1, total, f"{len(impacts)} impacts")
-    try:
-        data = prepare_data(impacts, scene)
-        results = {}
-        for step, model in enumerate(models, start=2):
-            results[model] = fit_model(data, model, scene)
-            progress(step, total, f"fitted {model}")
-    except ValueError as error:
-        raise InputError(path, str(error)) from None
-    selection, verdict = selection_table(results)
-    return impacts, SceneFit(scene=scene, data=data, results=results, selection=selection,
-                             verdict=verdict)
 
 
 def is_audio(scene):
