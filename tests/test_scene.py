@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dashpot.ingest import read_impacts
-from dashpot.synth.scene import SCENE_KINDS, write_scene
+from dashpot.synth.scene import write_scene
 
 CART = dict(beta=1.87, omega0=(255 / 0.506) ** 0.5, g=2.90, v0=1.0)
 BALL = dict(beta=20.0, omega0=2 * np.pi * 500, g=9.81, v0=2.0, n_max=30)

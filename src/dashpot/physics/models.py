@@ -302,7 +302,6 @@ def _ib_bracket(zeta, vtilde):
 
 
 def _model_ib(zeta, vtilde):
-    d = Damping(zeta)
     t_min, t_max, xi_max = _ib_bracket(zeta, vtilde)
     rebound = xi_max > 0.0
     tau = np.full(zeta.shape, np.inf)
