@@ -1,16 +1,18 @@
 """Fit the damping β and stiffness k of a linear spring-dashpot contact to a bounce train.
 
 For each contact model the impact times of a scene are fitted with lmfit (Levenberg–Marquardt,
-MINPACK) by the predicted train: parameters ln ζ and ln ω0 (positive by construction, and their
-errors are relative errors), the first impact speed v0 and the time t0 of the first impact.
-Quantities the scene knows are fixed, or enter as a Gaussian prior when the scene gives their
-uncertainty. Residuals are the impact-time misfits divided by their 1σ uncertainties, plus the
-measured impact and rebound speeds where the sensor gives them (motion sensors, photogates).
+MINPACK) by the predicted train: parameters ζ and the characteristic speed v* = g/ω0 (in which
+the misfit valley is nearly straight), the first impact speed v0 and the time t0 of the first
+impact. Quantities the scene knows are fixed, or enter as a Gaussian prior when the scene gives
+their uncertainty. Residuals are the impact-time misfits divided by their 1σ uncertainties,
+plus the measured impact and rebound speeds where the sensor gives them (motion sensors,
+photogates). The numerical accuracy of the predicted trains is a level (fast and standard
+certified surrogates, or exact) chosen per scene or derived from its timing noise.
 
 Start values come from the data (the interval ratios give ε and so ζ; the first interval or the
-drop height gives v0; a coarse scan over ω0, vectorized over the scan, picks the stiffness), so
-fits need no hand tuning. A fit that fails is returned with ``success=False`` and the reason;
-it never raises for bad data and never returns NaN parameters as if they were results.
+drop height gives v0; fits at fixed ω0 over a grid, batched, pick the stiffness), so fits need
+no hand tuning. A fit that fails is returned with ``success=False`` and the reason; it never
+raises for bad data and never returns NaN parameters as if they were results.
 
 References
 ----------
@@ -21,7 +23,7 @@ References
 .. [3] K. P. Burnham and D. R. Anderson, *Model Selection and Multimodel Inference*, 2nd ed.,
    Springer (2002), sec. 2.2 (AIC with known variance: χ² + 2K) and 2.9 (Akaike weights).
 .. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
-   Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors, used here in log space).
+   Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors).
 .. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
    (confidence regions from Δχ² = 1 and 4 for one parameter).
 .. [6] D. Foreman-Mackey et al., "emcee: The MCMC Hammer", PASP 125, 306 (2013).
@@ -47,11 +49,10 @@ from .physics.units import _zeta_for_restitution
 from .scene import Scene
 
 __all__ = ["FitData", "FitResult", "Estimate", "prepare_data", "fit_model", "fit_scene",
-           "SceneFit", "Z68", "Z95"]
+           "SceneFit", "choose_accuracy", "ACCURACY_LEVELS", "UNCERTAINTY_METHODS"]
 
 Z68, Z95 = 1.0, 2.0  # normal quantiles of the central 68.27 % and 95.45 % intervals
 OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
-ZETA_RANGE = (1e-9, 20.0)
 PROFILE_POINTS = 9
 REJECTED = 1e12  # residual of a step outside the physical range
 INTERVAL_DRAWS, INTERVAL_SEED = 20000, 20261122  # draws for the intervals of derived values
