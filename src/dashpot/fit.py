@@ -285,7 +285,7 @@ def _needed_accuracy(data):
     """Relative accuracy of ε and τ that keeps the model's timing error at 1 % of the noise.
 
     A relative error δ in ε and τ moves impact n by about n·δ of its time since the first,
-    so over a train of N impacts spanning T the worst timing error is about N·δ·T [1]_.
+    so over a train of N impacts spanning T the worst timing error is about N·δ·T.
     """
     span = data.times[-1] - data.times[0]
     return float(0.01 * np.min(data.sigma) / (span * data.count))
