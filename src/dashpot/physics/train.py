@@ -142,6 +142,52 @@ def _sequential(model, zeta, vtilde0, count, solver=collide):
                         evaluations)
 
 
+def _linear_recurrence(factor, forcing):
+    """x_0 = 0, x_{k+1} = factor_k·x_k + forcing_k along axis 1, in closed form.
+
+    x_{k+1} = P_{k+1}·Σ_{j<=k} forcing_j/P_{j+1} with P_{k+1} = Π_{i<=k} factor_i: cumulative
+    products instead of a loop over the train. None where that is not finite (a vanishing or
+    extreme factor), for the caller to fall back to the loop.
+    """
+    with np.errstate(all="ignore"):
+        products = np.cumprod(factor, axis=1)
+        values = products * np.cumsum(forcing / products, axis=1)
+    if not np.all(np.isfinite(values)):
+        return None
+    return np.concatenate([np.zeros((factor.shape[0], 1)), values], axis=1)
+
+
+def _newton_step(slope, defect, curvature, spacing, active):
+    """Newton's correction of every speed, and a bound on what the step leaves.
+
+    δ_{k+1} = slope_k·δ_k − defect_k with δ_0 = 0, and alongside it the Taylor remainder
+    ½|f''|δ² plus the central slope's error (~|f''|h·u, generously) times |δ|, carried through
+    the same recurrence with |slope|. Closed form where it is well conditioned, else the loop
+    along the train (vectorized over the trains).
+    """
+    factor = np.where(active, slope[:, :-1], 0.0)
+    step = _linear_recurrence(np.where(active, factor, 1.0), -defect)
+    if step is not None:
+        step = np.where(np.concatenate([np.zeros((active.shape[0], 1), bool), active], axis=1),
+                        step, 0.0)
+        previous = np.abs(step[:, :-1])
+        local = curvature[:, :-1] * previous * (0.5 * previous + spacing[:, :-1])
+        left = _linear_recurrence(np.abs(slope[:, :-1]), local)
+        if left is not None:
+            return step, left
+    step = np.zeros_like(slope)
+    left = np.zeros_like(slope)
+    correction = np.zeros(slope.shape[0])
+    remainder = np.zeros(slope.shape[0])
+    for k in range(slope.shape[1] - 1):
+        local = curvature[:, k] * np.abs(correction) * (0.5 * np.abs(correction)
+                                                        + spacing[:, k])
+        correction = np.where(active[:, k], slope[:, k] * correction - defect[:, k], 0.0)
+        remainder = np.abs(slope[:, k]) * remainder + local
+        step[:, k + 1], left[:, k + 1] = correction, remainder
+    return step, left
+
+
 def _newton(model, zeta, speeds, rtol, solver=collide):
     """Newton iterations on every train at once from the start `speeds` (trains × count).
 
@@ -176,20 +222,7 @@ def _newton(model, zeta, speeds, rtol, solver=collide):
         active = np.arange(n - 1)[None, :] < last[:, None]
         defect = np.where(active, u[:, 1:] - mapped[:, 0, :-1], 0.0)
         defect_size = np.max(np.abs(defect) / u[:, 1:], axis=1, initial=0.0)
-        # δ_{k+1} = slope_k·δ_k − defect_k with δ_0 = 0, and alongside it a bound on what the
-        # step leaves: the Taylor remainder ½|f''|δ² plus the central slope's error
-        # (~|f''|h·u, generously) times |δ|, carried through the same recurrence. Sequential
-        # along the train (its length), vectorized over the trains.
-        step = np.zeros_like(u)
-        left = np.zeros_like(u)
-        correction = np.zeros(todo.size)
-        remainder = np.zeros(todo.size)
-        for k in range(n - 1):
-            local = curvature[:, k] * np.abs(correction) * (0.5 * np.abs(correction)
-                                                            + spacing[:, k])
-            correction = np.where(active[:, k], slope[:, k] * correction - defect[:, k], 0.0)
-            remainder = np.abs(slope[:, k]) * remainder + local
-            step[:, k + 1], left[:, k + 1] = correction, remainder
+        step, left = _newton_step(slope, defect, curvature, spacing, active)
         updated = u + step
         positive = np.all((updated > 0.0) | ~np.concatenate(
             [np.ones((todo.size, 1), bool), active], axis=1), axis=1)
