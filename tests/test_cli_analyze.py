@@ -1,26 +1,13 @@
 """`dashpot analyze`: one recording to an HDF5 file, the scene figures and a printed summary;
 on bad input one stderr line naming the file, exit status 2 and no output at all."""
 
-import contextlib
-import io
-
-import numpy as np
 import pytest
+from cli_run import run_cli
 
-from dashpot.cli import main
 from dashpot.store import read_fit
 from dashpot.synth.scene import write_scene
 
 BALL = dict(model="hybrid", beta=30.0, omega0=3000.0, g=9.80665, v0=1.5, n_max=10)
-
-
-def _run(argv):
-    """main(argv) with its exit status, standard output and standard error."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
-            np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
-        status = main(argv)
-    return status, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +24,7 @@ def table_scene(tmp_path_factory):
 def test_writes_the_scene_file_figures_and_a_summary(table_scene, tmp_path):
     recording, scene = table_scene
     out = tmp_path / "out"
-    status, printed, err = _run(["analyze", str(recording), "--scene", str(scene), "-o",
+    status, printed, err = run_cli(["analyze", str(recording), "--scene", str(scene), "-o",
                                  str(out)])
     assert status == 0, err
     record = read_fit(out / "my-ball.h5")
@@ -55,7 +42,7 @@ def test_writes_the_scene_file_figures_and_a_summary(table_scene, tmp_path):
 def test_audio_gets_the_detection_figure_and_is_named_after_the_file(tmp_path):
     recording = write_scene(tmp_path / "rec", "audio", seed=2, **BALL)
     out = tmp_path / "out"
-    status, printed, err = _run(["analyze", str(recording), "-o", str(out), "--models",
+    status, printed, err = run_cli(["analyze", str(recording), "-o", str(out), "--models",
                                  "hybrid"])
     assert status == 0, err
     assert (out / "recording.h5").is_file()
@@ -86,7 +73,7 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, table_scene, case):
     else:
         named = out
         out.write_text("a file, not a folder")
-    status, printed, err = _run(argv)
+    status, printed, err = run_cli(argv)
     assert status == 2
     assert len(err.strip().splitlines()) == 1
     assert err.startswith("dashpot analyze: error: ") and str(named) in err

@@ -1,29 +1,17 @@
 """`dashpot fit`: an HDF5 file and the verdict on success; one stderr line, exit 2 and no
 output file on bad input."""
 
-import contextlib
 import hashlib
-import io
 import subprocess
 import sys
 
-import numpy as np
 import pytest
+from cli_run import run_cli
 
-from dashpot.cli import main
 from dashpot.store import read_fit
 from dashpot.synth.scene import write_scene
 
 BALL = dict(model="IIb", beta=30.0, omega0=3000.0, g=9.81, v0=1.5, n_max=15)
-
-
-def _run(argv):
-    """main(argv) with its exit status, standard output and standard error."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
-            np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
-        status = main(argv)
-    return status, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="module")
@@ -32,11 +20,11 @@ def fitted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("cli_fit")
     recording = write_scene(folder / "ball", "timestamps", seed=1, **BALL)
     table = folder / "impacts.csv"
-    assert _run(["impacts", str(recording), "-o", str(table)])[0] == 0
+    assert run_cli(["impacts", str(recording), "-o", str(table)])[0] == 0
     scene = folder / "ball" / "scene.yaml"
     scene.write_text("apparatus:\n  gravity: 9.81\n  mass: {value: 0.05, uncertainty: 0.001}\n")
     output = folder / "results" / "ball.h5"
-    status, out, err = _run(["fit", str(table), "-o", str(output), "--scene", str(scene),
+    status, out, err = run_cli(["fit", str(table), "-o", str(output), "--scene", str(scene),
                              "--models", "Ia", "IIb"])
     return {"folder": folder, "recording": recording, "table": table, "scene": scene,
             "output": output, "status": status, "out": out, "err": err}
@@ -73,7 +61,7 @@ def test_fit_a_recording_with_the_scene_models(fitted, tmp_path):
     scene = tmp_path / "scene.yaml"
     scene.write_text("sensor: timestamps\nmodels: [Ia]\napparatus: {gravity: 9.81}\n")
     output = tmp_path / "fit.h5"
-    status, out, err = _run(["fit", str(fitted["recording"]), "-o", str(output),
+    status, out, err = run_cli(["fit", str(fitted["recording"]), "-o", str(output),
                              "--scene", str(scene)])
     assert status == 0 and err == ""
     stored = read_fit(output)
@@ -109,7 +97,7 @@ def test_bad_input_fails_cleanly(tmp_path, label):
     elif content is not None:
         source.write_text(content)
     output = tmp_path / "out" / "fit.h5"
-    status, out, err = _run(["fit", str(source), "-o", str(output)])
+    status, out, err = run_cli(["fit", str(source), "-o", str(output)])
     assert status == 2 and out == ""
     assert len(err.splitlines()) == 1
     assert err.startswith(f"dashpot fit: error: {source}")
@@ -123,14 +111,14 @@ def test_invalid_scene_fails_cleanly_and_keeps_an_old_output(fitted, tmp_path):
     scene.write_text("apparatus:\n  mass: -0.05\n")
     output = tmp_path / "fit.h5"
     output.write_bytes(b"an earlier result")
-    status, out, err = _run(["fit", str(fitted["table"]), "-o", str(output),
+    status, out, err = run_cli(["fit", str(fitted["table"]), "-o", str(output),
                              "--scene", str(scene)])
     assert status == 2 and out == ""
     assert err == f"dashpot fit: error: {scene}: invalid scene (apparatus/mass: -0.05 is less " \
                   "than or equal to the minimum of 0)\n"
     assert output.read_bytes() == b"an earlier result"
     missing = tmp_path / "no_scene.yaml"
-    status, _, err = _run(["fit", str(fitted["table"]), "-o", str(tmp_path / "new.h5"),
+    status, _, err = run_cli(["fit", str(fitted["table"]), "-o", str(tmp_path / "new.h5"),
                            "--scene", str(missing)])
     assert status == 2 and err.startswith(f"dashpot fit: error: {missing}: cannot read")
     assert not (tmp_path / "new.h5").exists()
@@ -139,7 +127,7 @@ def test_invalid_scene_fails_cleanly_and_keeps_an_old_output(fitted, tmp_path):
 def test_output_over_an_input_is_refused(fitted, tmp_path):
     for victim in (fitted["table"], fitted["scene"]):
         before = victim.read_bytes()
-        status, out, err = _run(["fit", str(fitted["table"]), "-o", str(victim),
+        status, out, err = run_cli(["fit", str(fitted["table"]), "-o", str(victim),
                                  "--scene", str(fitted["scene"])])
         assert status == 2 and out == ""
         assert err == f"dashpot fit: error: {victim}: refusing to overwrite the input with " \
@@ -148,12 +136,12 @@ def test_output_over_an_input_is_refused(fitted, tmp_path):
     # The same file under another spelling is still the input.
     before = fitted["table"].read_bytes()
     alias = fitted["table"].parent / "." / fitted["table"].name
-    assert _run(["fit", str(fitted["table"]), "-o", str(alias)])[0] == 2
+    assert run_cli(["fit", str(fitted["table"]), "-o", str(alias)])[0] == 2
     assert fitted["table"].read_bytes() == before
 
 
 def test_output_that_is_a_folder_is_refused(fitted, tmp_path):
-    status, out, err = _run(["fit", str(fitted["table"]), "-o", str(tmp_path)])
+    status, out, err = run_cli(["fit", str(fitted["table"]), "-o", str(tmp_path)])
     assert status == 2 and len(err.splitlines()) == 1 and str(tmp_path) in err
     assert list(tmp_path.iterdir()) == []
 
