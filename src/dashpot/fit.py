@@ -902,13 +902,23 @@ def _crossing(offsets, rise, level, side, centre, beta_hat):
     return 0.0 if side < 0 else math.inf
 
 
-def _posterior_beta(residual, result, g, seed, walkers=16, steps=400, burn=150):
-    """Posterior quantiles of β from emcee (flat priors on the fitted parameters) [6]_."""
+def _posterior_beta(residual, result, g, seed, walkers=16, steps=400, burn=50):
+    """Posterior quantiles of β from emcee (flat priors on the fitted parameters) [6]_.
+
+    The walkers start from seeded draws of the fit's Gaussian approximation rather than a
+    tight ball around the best fit, so the chain starts spread like the posterior and a short
+    burn-in suffices.
+    """
     sampler = lmfit.Minimizer(residual, result.params.copy())
+    start = None
+    if result.covar is not None and np.all(np.isfinite(result.covar)):
+        mean = np.array([result.params[name].value for name in result.var_names])
+        start = np.random.default_rng(seed).multivariate_normal(mean, result.covar,
+                                                                size=walkers, method="eigh")
     # lmfit prints emcee's autocorrelation warning; the time is recorded instead.
     with contextlib.redirect_stdout(io.StringIO()):
         sampled = sampler.emcee(steps=steps, nwalkers=walkers, burn=burn, thin=2, seed=seed,
-                                is_weighted=True, progress=False)
+                                is_weighted=True, progress=False, pos=start)
     chain = sampled.flatchain
     autocorrelation = (float(np.max(sampled.acor)) if getattr(sampled, "acor", None) is not None
                        else math.nan)
