@@ -1228,6 +1228,23 @@ def _motion_run(run, bumper_position, notes):
             cross["v_out"][found], speed_sd[found])
 
 
+def _table_of_kind(path, kind, missing, expected):
+    """The first table (sheet) of `path` that reads as `kind`, else a one-line InputError.
+
+    The error says whether the time column or the `missing` data column is absent, for
+    `expected` (what such an export looks like), and lists the headers found.
+    """
+    tables = _load_tables(path)
+    table = next((t for t in tables if _kind_of(t) == kind), None)
+    if table is None:
+        first = tables[0]
+        described = ", ".join(c.header for c in first.columns) if first.columns else "no header"
+        has_time = first.columns is not None and any(c.name in _TIME_NAMES for c in first.columns)
+        problem = missing if has_time else "no time column"
+        raise InputError(path, f"{first.where}{problem} for {expected}; found: {described})")
+    return table
+
+
 def read_motion_sensor(path, *, bumper_position=None):
     """Impacts of a cart on a bumper from a PASCO Capstone or Vernier motion-sensor export.
 
@@ -1305,15 +1322,9 @@ def read_motion_sensor(path, *, bumper_position=None):
     impact whose outgoing flight is too short keeps its time and impact speed with a NaN
     rebound speed.
     """
-    tables = _load_tables(path)
-    table = next((t for t in tables if _kind_of(t) == "motion_sensor"), None)
-    if table is None:
-        first = tables[0]
-        described = ", ".join(c.header for c in first.columns) if first.columns else "no header"
-        has_time = first.columns is not None and any(c.name in _TIME_NAMES for c in first.columns)
-        problem = ("no position or velocity column" if has_time else "no time column")
-        raise InputError(path, f"{first.where}{problem} for a motion sensor (expected e.g. 'Time "
-                               f"(s) Run #1' and 'Position (m) Run #1'; found: {described})")
+    table = _table_of_kind(path, "motion_sensor", "no position or velocity column",
+                           "a motion sensor (expected e.g. 'Time (s) Run #1' and "
+                           "'Position (m) Run #1'")
     _check_duplicates(path, table)
     runs = _runs(path, table, {"position": (_POSITION_NAMES, "length"),
                                "velocity": (_VELOCITY_NAMES, "speed")})
@@ -1539,15 +1550,9 @@ def read_photogate(path, *, flag_length, gate_distance=None):
         if not np.isfinite(gate_distance) or gate_distance <= 0:
             raise ValueError(f"gate_distance must be a positive length in m; got "
                              f"{gate_distance!r}")
-    tables = _load_tables(path)
-    table = next((t for t in tables if _kind_of(t) == "photogate"), None)
-    if table is None:
-        first = tables[0]
-        described = ", ".join(c.header for c in first.columns) if first.columns else "no header"
-        has_time = first.columns is not None and any(c.name in _TIME_NAMES for c in first.columns)
-        problem = "no gate-state column" if has_time else "no time column"
-        raise InputError(path, f"{first.where}{problem} for a photogate log (expected e.g. "
-                               f"'Latest: Time (s)' and 'Latest: GateState'; found: {described})")
+    table = _table_of_kind(path, "photogate", "no gate-state column",
+                           "a photogate log (expected e.g. 'Latest: Time (s)' and "
+                           "'Latest: GateState'")
     _check_duplicates(path, table)
     runs = _runs(path, table, {"state": (None, None)})
     notes = [f"file variant: {table.variant}; {len(runs)} run(s): "

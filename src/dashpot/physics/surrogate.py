@@ -64,8 +64,10 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
+import math
 import os
 import tempfile
 import time
@@ -413,14 +415,8 @@ def build_surrogate(model, level="fast", *, overrides=None):
                       x_min=x_min, x_max=x_max, y_min=y_min, y_max=y_max)
     errors = certify(table, params["n_certify"], params["seed"])
     bound = SAFETY * max(errors.values())
-    return _replace(table, bound=float(bound), errors=errors,
+    return dataclasses.replace(table, bound=float(bound), errors=errors,
                     build_seconds=time.perf_counter() - started)
-
-
-def _replace(table, **changes):
-    from dataclasses import replace
-
-    return replace(table, **changes)
 
 
 def certification_points(table, n, seed):
@@ -442,7 +438,9 @@ def certification_points(table, n, seed):
 def certify(table, n=200_000, seed=1):
     """Largest relative errors of `table` against the exact solver on n random domain points."""
     zeta, vtilde = certification_points(table, n, seed)
-    got = _evaluate_surrogate(table, None, zeta, vtilde, use_table_only=True)
+    got = _as_collision(table.model, _evaluate_surrogate(table, None, zeta, vtilde,
+                                                         use_table_only=True), math.nan,
+                        zeta.shape)
     exact = collide(table.model, zeta, vtilde)
     return _relative_errors(table.model, got, exact)
 
@@ -547,7 +545,7 @@ def load_surrogate(model, level="fast", *, directory=None, overrides=None):
     if table is None:
         table = build_surrogate(model, level, overrides=overrides)
         _write(table, path)
-        table = _replace(table, path=str(path))
+        table = dataclasses.replace(table, path=str(path))
     _LOADED[quick] = table
     return table
 
@@ -603,19 +601,19 @@ def _classify(table, zeta, vtilde):
 
 
 def _evaluate_surrogate(table, release_table, zeta, vtilde, use_table_only=False):
-    """Collision-like fields of flat arrays (ζ, ṽ): table where possible, exact elsewhere."""
+    """Collision fields (dict of flat arrays) at (ζ, ṽ): table where possible, exact elsewhere."""
     n = zeta.size
     if use_table_only:
         x = _x_of_zeta(table.model, zeta)
         s = np.log(vtilde) - table.log_critical(x)
-        return _Fields(**_from_table(table, zeta, vtilde, x, s))
+        return _from_table(table, zeta, vtilde, x, s)
     status, x, s = _classify(table, zeta, vtilde)
     out = {name: np.empty(n) for name in ("eps", "one_minus_eps", "contact_time",
                                           "release_depth", "release_speed")}
     out["captured"] = np.empty(n, bool)
     groups = [np.flatnonzero(status == code) for code in (0, 1, 2)]
     if groups[0].size == n:  # the common case: everything on the table
-        return _Fields(**_from_table(table, zeta, vtilde, x, s))
+        return _from_table(table, zeta, vtilde, x, s)
     for code, index in enumerate(groups):
         if index.size == 0:
             continue
@@ -631,7 +629,7 @@ def _evaluate_surrogate(table, release_table, zeta, vtilde, use_table_only=False
             part = {name: getattr(result, name) for name in out}
         for name, value in part.items():
             out[name][index] = value
-    return _Fields(**out)
+    return out
 
 
 def _hybrid_captured(iib, zeta, vtilde):
@@ -656,14 +654,10 @@ def _hybrid_captured(iib, zeta, vtilde):
     return part
 
 
-@dataclass
-class _Fields:
-    eps: np.ndarray
-    one_minus_eps: np.ndarray
-    contact_time: np.ndarray
-    captured: np.ndarray
-    release_depth: np.ndarray
-    release_speed: np.ndarray
+def _as_collision(model, fields, rtol, shape):
+    """A :class:`Collision` of the surrogate's flat field arrays, in the inputs' shape."""
+    return Collision(model=model, method="surrogate", rtol=rtol,
+                     **{name: value.reshape(shape) for name, value in fields.items()})
 
 
 def surrogate_collide(model, zeta, vtilde, *, level="fast", directory=None):
@@ -703,20 +697,11 @@ def surrogate_collide(model, zeta, vtilde, *, level="fast", directory=None):
     zeta = check_nonnegative("zeta", zeta)
     vtilde = check_positive("vtilde", vtilde)
     if model not in SURROGATE_MODELS:
-        exact = collide(model, zeta, vtilde)
-        return Collision(model=model, eps=exact.eps, one_minus_eps=exact.one_minus_eps,
-                         contact_time=exact.contact_time, captured=exact.captured,
-                         release_depth=exact.release_depth, release_speed=exact.release_speed,
-                         method="surrogate", rtol=EXACT_RTOL)
+        return dataclasses.replace(collide(model, zeta, vtilde), method="surrogate",
+                                   rtol=EXACT_RTOL)
     table = load_surrogate(model, level, directory=directory)
     release_table = load_surrogate("IIb", level, directory=directory) if model == "hybrid" else None
     zeta, vtilde = np.broadcast_arrays(zeta, vtilde)
     shape = zeta.shape
     fields = _evaluate_surrogate(table, release_table, zeta.ravel(), vtilde.ravel())
-    return Collision(model=model, eps=fields.eps.reshape(shape),
-                     one_minus_eps=fields.one_minus_eps.reshape(shape),
-                     contact_time=fields.contact_time.reshape(shape),
-                     captured=fields.captured.reshape(shape),
-                     release_depth=fields.release_depth.reshape(shape),
-                     release_speed=fields.release_speed.reshape(shape),
-                     method="surrogate", rtol=table.bound)
+    return _as_collision(model, fields, table.bound, shape)
