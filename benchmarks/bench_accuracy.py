@@ -22,7 +22,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +32,7 @@ from dashpot.fit import ACCURACY_LEVELS, fit_model, fit_scene, prepare_data
 from dashpot.ingest import read_impacts
 from dashpot.scene import Known, Scene
 from dashpot.synth.scene import write_scene
+from timing import best_cpu
 
 G = 9.80665
 BALL = dict(model="hybrid", beta=8.0, omega0=800.0, v0=1.2)  # ṽ0 ≈ 98, 30 impacts
@@ -59,11 +59,9 @@ def level_table(name, impacts, scene, beta_true, k_true):
     rows, exact = [], None
     for level in ("exact", "standard", "fast", "auto"):
         # Best of two: the first call of a level also loads its tables and warms caches.
-        seconds = math.inf
-        for _ in range(2):
-            start = time.process_time()
-            result = fit_scene(impacts, dataclasses.replace(scene, accuracy=level))
-            seconds = min(seconds, time.process_time() - start)
+        seconds, result = best_cpu(
+            lambda level=level: fit_scene(impacts, dataclasses.replace(scene, accuracy=level)),
+            repeats=2)
         if level == "exact":
             exact = result
         hybrid = result.results["hybrid"]

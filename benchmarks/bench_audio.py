@@ -26,7 +26,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import math  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -36,21 +35,12 @@ from scipy import signal  # noqa: E402
 import dashpot  # noqa: E402
 from dashpot.ingest.audio import detect_impacts  # noqa: E402
 from dashpot.synth.audio import impact_sound, write_audio  # noqa: E402
+from timing import best_cpu  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BOUNCY = ROOT / ".." / "shared" / "data" / "bouncy-ball-pfe" / "drop_0.9m.wav"
 RATE = 48000
 TARGET = 200.0
-
-
-def cpu_seconds(func, repeats=3):
-    """Best CPU time of `func()` over `repeats` runs, and its last result."""
-    best, result = math.inf, None
-    for _ in range(repeats):
-        start = time.process_time()
-        result = func()
-        best = min(best, time.process_time() - start)
-    return max(best, 1e-9), result
 
 
 def phyphox_like(path, dead_time=0.1, max_impacts=6):
@@ -109,12 +99,12 @@ def main():
                               .to_numpy()),
                              ("phyphox-like (0.1 s dead time)", lambda: phyphox_like(path)),
                              ("frame onsets (1024/512)", lambda: frame_onsets(path))):
-            seconds, found = cpu_seconds(method)
+            seconds, found = best_cpu(method)
             recall, median = scores(found, onsets)
             rows.append(("synthetic 60 s mono", name, duration / seconds, recall, median))
     if BOUNCY.exists():
         duration = sf.info(str(BOUNCY)).duration
-        seconds, table = cpu_seconds(lambda: detect_impacts(BOUNCY))
+        seconds, table = best_cpu(lambda: detect_impacts(BOUNCY))
         rows.append(("bouncy ball 12.8 s stereo", "dashpot detect_impacts", duration / seconds,
                      math.nan, math.nan))
     print(f"Real-time factor on one core (target >= {TARGET:.0f}x at 48 kHz); accuracy against "

@@ -14,8 +14,6 @@ Timings are CPU time (time.process_time), best of three. Run with ``make bench``
 
 from __future__ import annotations
 
-import math
-import time
 
 import numpy as np
 import pandas as pd
@@ -24,6 +22,7 @@ import dashpot
 from dashpot.fit import fit_model, fit_scene, prepare_data
 from dashpot.physics import train as train_module
 from dashpot.scene import Scene
+from timing import best_cpu
 
 G = 9.80665
 TRUTH = dict(model="hybrid", beta=5.0, omega0=500.0, v0=1.0)
@@ -38,15 +37,6 @@ def scene_impacts(seed=1):
     noise = np.random.default_rng(seed).normal(0.0, SIGMA, IMPACTS)
     return pd.DataFrame({"time": 0.5 + sequence.impact_times + noise,
                          "time_uncertainty": SIGMA})
-
-
-def best_cpu(func, repeats=3):
-    best, value = math.inf, None
-    for _ in range(repeats):
-        start = time.process_time()
-        value = func()
-        best = min(best, time.process_time() - start)
-    return best, value
 
 
 def _impact_by_impact(model, zeta, vtilde0, count, *, start=None, **options):
