@@ -32,7 +32,9 @@ Method, in four steps (each explained where it is implemented):
    that no transient marks (the last bounces, a few ms apart, barely rise over the decaying
    sound of the earlier ones) or an impact was timed at the start of a ring or echo
    beginning just before it, the file is read again around the predicted time and probed
-   with a trigger measured against the quietest 0.5 ms before it (:func:`_fill_impacts`).
+   with a trigger measured against the quietest 0.5 ms before it, or against the ring or
+   echo since its start (:func:`_fill_impacts`); an impact whose onset does not rise out of
+   that ring or echo takes the time the trend predicts.
    There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
@@ -1099,8 +1101,9 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     timing : int
         Channel on which the onset is fitted.
     not_before : float, optional
-        Earliest time (s) the onset may have: past the start of a ring or an echo that
-        captured it before.
+        Onset (s) of a ring or an echo that captured the impact's onset before: the onset is
+        looked for after it, as a sound of its own, whose power jumps 3 dB over the mean
+        power since `not_before`.
 
     Returns
     -------
@@ -1143,8 +1146,16 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     quietest = np.min([cumulative[triggers - k * settings.sta]
                        - cumulative[triggers - (k + 1) * settings.sta] for k in range(parts)],
                       axis=0) / settings.sta
+    min_jump = settings.min_jump / _WEAK_JUMP_FACTOR
+    if not_before is not None:
+        # Past the start of a ring or an echo, the level to jump over is that sound's, the
+        # mean power since it started, and by the 3 dB that tell a sound of its own.
+        since = max(int(np.ceil(not_before * sample_rate)) - offset, 0)
+        quietest = np.maximum(quietest, (cumulative[triggers] - cumulative[since])
+                              / (triggers - since))
+        min_jump = _RING_JUMP
     jump = sta / np.maximum(quietest, 1.0)
-    usable = (sta >= settings.min_power) & (jump >= settings.min_jump / _WEAK_JUMP_FACTOR)
+    usable = (sta >= settings.min_power) & (jump >= min_jump)
     if not usable.any():
         return None
     trigger = int(triggers[usable][np.argmax(jump[usable])])
@@ -1154,6 +1165,12 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * sample_rate)))
     rough = search + int(_onset_picks(power[search:trigger + settings.sta][None, :],
                                       np.zeros(1, dtype=np.int64), gap, settings.sta)[0])
+    if not_before is not None:
+        # A sound of its own: its power jumps 3 dB over that of the sound since `not_before`.
+        after = (cumulative[rough + settings.sta] - cumulative[rough]) / settings.sta
+        if rough - since < _AIC_MARGIN or after < _RING_JUMP * (
+                cumulative[rough] - cumulative[since]) / (rough - since):
+            return None
     # As in the stream, the fit window sits on the timing channel's own rough onset (the
     # channels of a stereo pair hear an impact at different delays).
     own = detector[search:trigger + settings.sta, timing] ** 2
@@ -1220,7 +1237,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
         (time, sigma, amplitude, clipped) of each impact found between or after `times`.
     retimed : dict
         Index into `times` -> (time, sigma, amplitude, clipped): impacts whose onset was the
-        start of a ring or an echo just before them, timed again.
+        start of a ring or an echo just before them, timed again; clipped is None where the
+        time is the trend's prediction (amplitude unchanged).
 
     Notes
     -----
@@ -1231,10 +1249,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     window: the file is probed at the predicted time. An impact off its prediction by more
     than the tolerance whose onset lies within 0.3 ms of a ring or an echo of an earlier
     impact (a fixed delay after it) was timed at the start of that secondary sound, which
-    began just before it: it is probed again at the predicted time, past that start. A probed
-    onset must lie within the tolerance of the prediction, be at most 6 dB fainter than the
-    impacts before it, and not itself come at a secondary's delay after an earlier impact
-    (an impact that a ring lands on exactly is then lost: it cannot be told from the ring).
+    began just before it: it is probed again at the predicted time, past that start, and past
+    each further secondary the probe finds (an echo may be followed by a ring before the
+    impact rises out of them); where no onset of its own rises out of them, the impact takes
+    the predicted time, with the trend's scatter as its 1σ. A probed onset must lie within
+    the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
+    not itself come at a secondary's delay after an earlier impact (an onset there is probed
+    past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
+    told from the ring).
     An impact that is not found stays in the sequence as a predicted anchor, so that the
     predictions after it step over it; past the last impact two in a row end the search.
     """
@@ -1254,6 +1276,18 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
                 and not secondary(result[0], i))
 
+    def peel(predicted, tolerance, onset):
+        # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
+        # sound of its own starting after it, possibly after further secondaries.
+        for _ in range(delays.size + 1):
+            result = probe(predicted, tolerance, onset)
+            if result is None or result[0] <= onset:
+                return None
+            if not secondary(result[0], i):
+                return result if accept(result, predicted, tolerance) else None
+            onset = result[0]
+        return None
+
     for _ in range(20 * len(anchors) + 10):  # a bound on the probes, whatever the trend does
         predicted, interval = _predict_next(anchors[max(0, i - 3):i + 1], step)
         if interval < _MERGE_SECONDS or predicted > end:
@@ -1265,13 +1299,18 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             following = anchors[i + 1]
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
                     and following < predicted and secondary(following, i)):
-                result = probe(predicted, tolerance, following + _RING_GAP_SECONDS)
-                if accept(result, predicted, tolerance):
-                    retimed[origin[i + 1]] = result
-                    anchors[i + 1] = result[0]
+                result = peel(predicted, tolerance, following)
+                if result is None:
+                    # No onset of its own rises out of the ring or echo: the impact is there
+                    # (its sound follows), its time is the trend's, with the trend's scatter.
+                    result = (predicted, interval * scatter, loudness[i + 1], None)
+                retimed[origin[i + 1]] = result
+                anchors[i + 1] = result[0]
             i += 1
             continue
         result = probe(predicted, tolerance)
+        if result is not None and secondary(result[0], i):
+            result = peel(predicted, tolerance, result[0])
         if accept(result, predicted, tolerance):
             added.append(result)
             anchors.insert(i + 1, result[0])
@@ -1484,8 +1523,9 @@ def _impact_table(path, stream, sample_rate, duration):
                                         duration)
         for position, (moment, spread, loudness, flat) in retimed.items():
             times[order[position]], sigmas[order[position]] = moment, spread
-            amplitudes[order[position]] = loudness
-            clipped_flags[order[position]] = flat
+            if flat is not None:  # timed on an onset of its own, not from the trend
+                amplitudes[order[position]] = loudness
+                clipped_flags[order[position]] = flat
     if filled:
         extra = np.array([row[:3] for row in filled])
         times = np.concatenate([times, extra[:, 0]])
@@ -1526,8 +1566,12 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"their own (lost under ringing or echo, or too faint); the intervals "
                      f"around them span two or more bounces")
     if retimed:
+        from_trend = sum(row[3] is None for row in retimed.values())
         notes.append(f"{len(retimed)} impacts timed again: their first onset was that of a ring "
-                     f"or echo of an earlier impact starting just before them")
+                     f"or echo of an earlier impact starting just before them"
+                     + (f"; {from_trend} of them have no onset of their own above it and take "
+                        f"the time the interval trend predicts, with its scatter as uncertainty"
+                        if from_trend else ""))
     if filled:
         notes.append(f"{len(filled)} faint impacts found where the interval trend predicts them "
                      f"(their sound jumps over the decaying sound before it less than a "
