@@ -53,9 +53,10 @@ CASES = {
 }
 
 
+@pytest.mark.parametrize("accuracy", ["auto", "fast", "standard", "exact"])
 @pytest.mark.parametrize("name", sorted(CASES))
-def test_edge_scenes_fit_sanely(name):
-    result = fit_scene(impacts_of(**CASES[name]), Scene())
+def test_edge_scenes_fit_sanely(name, accuracy):
+    result = fit_scene(impacts_of(**CASES[name]), Scene(accuracy=accuracy))
     assert_sane(result)
     generator = CASES[name]["model"]
     assert result.results[generator].success
@@ -72,7 +73,8 @@ def test_nearly_elastic_ball_gives_zeta_but_not_stiffness():
     assert fit.estimates["omega0"].stderr > 0.5 * fit.estimates["omega0"].value
 
 
-def test_impacts_just_above_the_critical_speed():
+@pytest.mark.parametrize("accuracy", ["fast", "exact"])
+def test_impacts_just_above_the_critical_speed(accuracy):
     zeta, omega0 = 0.05, 200.0
     critical = float(dashpot.critical_velocity("Ib", zeta))
     # First impact at 20 ṽc: 14 impacts, the last rebound at 1.5 ṽc, then capture at 0.9 ṽc.
@@ -83,7 +85,7 @@ def test_impacts_just_above_the_critical_speed():
     assert sequence.impact_speeds[-2] * omega0 / G < 2.0 * critical
     impacts = impacts_of("Ib", beta=zeta * omega0, omega0=omega0, v0=v0,
                          count=sequence.impact_times.size, sigma=2e-6)
-    result = fit_scene(impacts, Scene())
+    result = fit_scene(impacts, Scene(accuracy=accuracy))
     assert_sane(result)
     fit = result.results["Ib"]
     assert fit.success

@@ -27,6 +27,10 @@ References
 .. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
    (confidence regions from Δχ² = 1 and 4 for one parameter).
 .. [6] D. Foreman-Mackey et al., "emcee: The MCMC Hammer", PASP 125, 306 (2013).
+.. [7] D. W. Marquardt, "An algorithm for least-squares estimation of nonlinear parameters",
+   J. SIAM 11, 431 (1963).
+.. [8] H. B. Nielsen, "Damping parameter in Marquardt's method", IMM-REP-1999-05, Technical
+   University of Denmark (1999).
 """
 
 from __future__ import annotations
@@ -55,11 +59,23 @@ Z68, Z95 = 1.0, 2.0  # normal quantiles of the central 68.27 % and 95.45 % inter
 OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
 PROFILE_POINTS = 9
 REJECTED = 1e12  # residual of a step outside the physical range
-INTERVAL_DRAWS, INTERVAL_SEED = 20000, 20261122  # draws for the intervals of derived values
+INTERVAL_SEED = 20261122
+# Draws for the intervals of derived values, per level: the Monte Carlo error of a 95.45 %
+# bound is about 0.02 (20 000 draws) or 0.05 (4 000) standard errors.
+INTERVAL_DRAWS = {"fast": 4000, "standard": 20000, "exact": 20000}
 UNCERTAINTY_METHODS = ("covariance", "profile", "posterior")
 ACCURACY_LEVELS = ("fast", "standard", "exact")  # cheapest first
 QUANTILES = (0.158655, 0.841345, 0.0227501, 0.9772499)  # central 68.27 % and 95.45 %
 METHOD, OPTIONS = "leastsq", {"epsfcn": 1e-6}
+PARAMETERS = ("zeta", "v_star", "v0", "t0")  # the fitted coordinates, in this order
+# The fast level's optimizer stops once the Gauss–Newton step left is below this many standard
+# errors (in the metric of the fit's own covariance), and differentiates with this step.
+FAST_STEP_SE, FAST_JACOBIAN_STEP = 0.01, 1e-5
+# Start values of the fast level: steps of the fits at fixed ω0, and the grid of ζ searched
+# for the interval ratio (inside the surrogate tables' domain).
+FAST_PROFILE_ITERATIONS = 3
+ZETA_START_GRID = np.geomspace(1e-4, 0.9, 41)
+ZETA_ELASTIC_GRID = np.geomspace(1e-12, 1e-4, 33)
 # Relative errors above which a parameter is reported as not determined by the data.
 WEAK_RELATIVE_ERROR = 0.5
 STRONG_CORRELATION = 0.98
@@ -248,37 +264,47 @@ def prepare_data(impacts, scene):
 
 
 class _TrainPredictor:
-    """Predicted train of one model, reusing the previous evaluation as Newton's start."""
+    """Predicted trains of one model for many parameter sets at once, each evaluation started
+    from the previous one's train (Newton's start; see :func:`impact_trains`)."""
 
-    def __init__(self, model, g, count, rtol, solver=collide):
-        self.model, self.g, self.count, self.rtol = model, g, count, rtol
+    def __init__(self, model, g, count, solver=collide):
+        self.model, self.g, self.count = model, g, count
         self.solver = solver
         self.start = None
         self.error_bound = 0.0
 
     def __call__(self, zeta, omega0, v0):
+        """Trains at arrays (or scalars) ζ, ω0 (rad/s), v0 (m/s), one row per parameter set.
+
+        Returns
+        -------
+        trains : ImpactTrains
+        times : ndarray, shape (sets, count)
+            Impact times in s from the first; after a capture the ball rests on the surface,
+            so later impacts keep the last time.
+        speeds, rebound : ndarray, shape (sets, count)
+            Impact and rebound speeds in m/s (0 after a capture).
+        """
+        zeta, omega0, v0 = np.broadcast_arrays(*(np.atleast_1d(np.asarray(value, float))
+                                                 for value in (zeta, omega0, v0)))
         v_star = self.g / omega0
-        train = impact_train(self.model, zeta, v0 / v_star, self.count, start=self.start,
-                             rtol=self.rtol, solver=self.solver)
-        self.error_bound = max(self.error_bound, train.error_bound)
-        n = train.speeds.size
-        ratios = train.speeds / train.speeds[0]
-        if n < self.count:
+        start = (None if self.start is None
+                 else np.broadcast_to(self.start, (zeta.size, self.count)))
+        trains = impact_trains(self.model, zeta, v0 / v_star, self.count, start=start,
+                               rtol=EXACT_RTOL, solver=self.solver)
+        self.error_bound = max(self.error_bound, float(np.max(trains.error_bound)))
+        first = int(trains.impacts[0])
+        ratios = trains.speeds[0, :first] / trains.speeds[0, 0]
+        if first < self.count:
             # Captured early: keep a usable start by continuing the last ratio geometrically.
-            last = ratios[-1] * (ratios[-1] / ratios[-2] if n > 1 else 0.5) ** np.arange(
-                1, self.count - n + 1)
+            last = ratios[-1] * (ratios[-1] / ratios[-2] if first > 1 else 0.5) ** np.arange(
+                1, self.count - first + 1)
             ratios = np.concatenate([ratios, np.maximum(last, 1e-300)])
         self.start = ratios
-        times = np.concatenate([[0.0], np.cumsum(train.intervals)]) / omega0
-        speeds = train.speeds * v_star
-        rebound = train.restitution * speeds
-        if n < self.count:
-            # After capture the ball rests on the surface: no further impact moves in time.
-            pad = self.count - n
-            times = np.concatenate([times, np.full(pad, times[-1])])
-            speeds = np.concatenate([speeds, np.zeros(pad)])
-            rebound = np.concatenate([rebound, np.zeros(pad)])
-        return train, times, speeds, rebound
+        times = np.concatenate([np.zeros((zeta.size, 1)), np.cumsum(trains.intervals, axis=1)],
+                               axis=1) / omega0[:, None]
+        speeds = trains.speeds * v_star[:, None]
+        return trains, times, speeds, trains.restitution * speeds
 
 
 def _needed_accuracy(data):
@@ -427,15 +453,51 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     return best_chisqr, best[:, 0], best[:, 1], best_t0, start[winner]
 
 
-def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=collide):
+def _zeta_on_grid(model, eps, vtilde, solver, grid=None):
+    """ζ at which `model` gives restitution `eps` at impact speeds ṽ, to about 1 % (a start).
+
+    ε falls monotonically with ζ: it is evaluated on a logarithmic grid of ζ for every target
+    in one call of `solver`, and ln ζ interpolated linearly in logit ε between the grid points
+    that bracket the target. Targets above the grid's first ε are looked for again on a grid of
+    smaller ζ (nearly elastic balls). NaN where no grid point reaches it.
+    """
+    grid = ZETA_START_GRID if grid is None else grid
+    restitution = solver(model, grid[None, :], vtilde[:, None]).eps
+    below = restitution < eps[:, None]
+    found = below.any(axis=1) & (restitution[:, 0] >= eps)
+    upper = np.clip(np.argmax(below, axis=1), 1, grid.size - 1)
+    rows = np.arange(eps.size)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logit = np.log(restitution) - np.log1p(-restitution)
+        left, right = logit[rows, upper - 1], logit[rows, upper]
+        fraction = np.clip((np.log(eps) - np.log1p(-eps) - left) / (right - left), 0.0, 1.0)
+    log_zeta = np.log(grid)
+    zeta = np.exp(log_zeta[upper - 1] + np.nan_to_num(fraction) * (log_zeta[upper]
+                                                                   - log_zeta[upper - 1]))
+    zeta = np.where(found, zeta, np.nan)
+    elastic = restitution[:, 0] < eps
+    if grid is ZETA_START_GRID and elastic.any():
+        zeta[elastic] = _zeta_on_grid(model, eps[elastic], vtilde[elastic], solver,
+                                      ZETA_ELASTIC_GRID)
+    return zeta
+
+
+def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=collide,
+                  level="exact"):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
     at a typical speed of the train; then the best ζ and v0 at each ω0 of a broad and a fine
     grid (:func:`_profile`) pick ω0. Without gravity ω0 enters only through the contact time:
     T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n give T_n = εT_{n−1} + τ(1 − ε), a straight line
-    whose intercept gives τ and so the grid's centre.
+    whose intercept gives τ and so the grid's centre. The fast level finds ζ on a grid
+    (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     """
+    if level == "fast":
+        zeta_for = functools.partial(_zeta_on_grid, solver=solver)
+        iterations = FAST_PROFILE_ITERATIONS
+    else:
+        zeta_for, iterations = _zeta_for_restitution, 10
     g = data.g
     intervals = np.diff(data.times) / np.diff(data.index)
     flags = data.bounces["flag"].to_numpy()[: intervals.size]
@@ -465,7 +527,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
         else:
             contact = 0.0
         contact = max(contact, 0.1 * float(np.median(data.sigma)))
-        zeta = _zeta_for_restitution(model, np.array([eps]), np.array([1.0]))
+        zeta = zeta_for(model, np.array([eps]), np.array([1.0]))
         centre = float(collide(model, np.nan_to_num(zeta, nan=0.1), 1.0).contact_time[0]
                        / contact)
         spread = 3.0
@@ -474,17 +536,18 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
     ratios = eps ** np.arange(data.count, dtype=float)
     omega0 = np.clip(centre * spread ** np.linspace(-1.0, 1.0, points), *OMEGA0_RANGE)
     typical = np.maximum(v0 * omega0 / g * eps ** (0.5 * data.count), 1e-3)
-    zeta = _zeta_for_restitution(model, np.full(omega0.size, eps), typical)
+    zeta = zeta_for(model, np.full(omega0.size, eps), typical)
     usable = np.isfinite(zeta)
     if not usable.any():
         return None, "no damping ratio reproduces the interval ratios at any stiffness tried"
     omega0 = omega0[usable]
-    chisqr, zeta, v0_fit, t0, _ = _profile(model, data, zeta[usable], omega0,
+    chisqr, zeta, v0_fit, t0, ratios = _profile(model, data, zeta[usable], omega0,
                                            np.full(omega0.size, v0), ratios, fit_v0=fit_v0,
-                                           solver=solver)
+                                           iterations=iterations, solver=solver)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
-    if (0 < best < omega0.size - 1 and np.all(np.isfinite(chisqr[best - 1:best + 2]))
+    if (level != "fast" and 0 < best < omega0.size - 1
+            and np.all(np.isfinite(chisqr[best - 1:best + 2]))
             and omega0[best - 1] < omega0[best] < omega0[best + 1]):
         # Vertex of the parabola through the best point and its neighbours, in ln ω0.
         x = np.log(omega0[best - 1:best + 2])
@@ -496,30 +559,22 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
         if curvature > 0:
             slope = slope_left - curvature * left
             centre = float(np.exp(x[1] + np.clip(-slope / (2 * curvature), left, right)))
+    # ratios: relative speeds of the best train found, Newton's start for the fit's trains.
     start = {"zeta": float(zeta[best]), "omega0": centre, "v0": float(v0_fit[best]),
-             "t0": float(t0[best])}
+             "t0": float(t0[best]), "ratios": ratios}
     how = (f"start: median eps = {eps:.4g}; zeta = {start['zeta']:.4g}, v0 = {start['v0']:.4g} "
            f"m/s and omega0 = {centre:.4g} rad/s from fits at fixed omega0 on two grids")
     return start, how
 
 
-def _captures(result, predictor, data):
-    """True if the fitted train ends in capture before the last observed impact."""
-    values = result.params.valuesdict()
-    if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
-        return True
-    train, *_ = predictor(values["zeta"], data.g / values["v_star"], values["v0"])
-    return train.speeds.size < data.count
-
-
-def _draws(values, varied, cov):
+def _draws(values, varied, cov, count):
     """Seeded draws of every parameter from the fit's Gaussian approximation (fixed ones
     constant); all equal to the best fit where the covariance is not available."""
-    out = {name: np.full(INTERVAL_DRAWS, float(value)) for name, value in values.items()}
+    out = {name: np.full(count, float(value)) for name, value in values.items()}
     if varied and np.all(np.isfinite(cov)):
         mean = np.array([values[name] for name in varied])
         sample = np.random.default_rng(INTERVAL_SEED).multivariate_normal(
-            mean, cov, size=INTERVAL_DRAWS, method="eigh")
+            mean, cov, size=count, method="eigh")
         for i, name in enumerate(varied):
             out[name] = sample[:, i]
     return out
@@ -637,7 +692,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     notes.append(f"accuracy {reason}")
     known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
-                               known_omega0, fit_v0=fixed_v0 is None, solver=solver)
+                               known_omega0, fit_v0=fixed_v0 is None, solver=solver,
+                               level=level)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
@@ -671,60 +727,85 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
         notes.append("prior on v0 from the scene")
 
-    # Newton solves each train of the chosen map to machine precision: lmfit's finite-
-    # difference Jacobian differences trains whose parameters differ by ~1e-8.
-    predictor = _TrainPredictor(model, data.g, data.count, EXACT_RTOL, solver)
+    # Newton solves each train of the chosen map to machine precision: the Jacobians by
+    # finite differences difference trains whose parameters differ by ~1e-8.
+    predictor = _TrainPredictor(model, data.g, data.count, solver)
+    predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
     tolerance = bound * data.count
     impact_rows = np.isfinite(data.impact_speed)
     rebound_rows = np.isfinite(data.rebound_speed)
-
     size = data.times.size + int(impact_rows.sum()) + int(rebound_rows.sum()) + len(priors)
 
-    def residual(p):
-        values = p.valuesdict()
-        if not (values["zeta"] >= 0.0 and values["v_star"] > g / OMEGA0_RANGE[1]
-                and values["v0"] > 0.0):
-            return np.full(size, REJECTED)
-        _, times, speeds, rebound = predictor(values["zeta"], g / values["v_star"],
-                                              values["v0"])
-        parts = [(data.times - values["t0"] - times[data.index]) / data.sigma]
+    def residual_rows(values):
+        """Normalized residuals, one row per parameter set (columns as in PARAMETERS)."""
+        zeta, v_star, v0, t0 = values.T
+        valid = (zeta >= 0.0) & (v_star > g / OMEGA0_RANGE[1]) & (v0 > 0.0)
+        out = np.full((values.shape[0], size), REJECTED)
+        if not valid.any():
+            return out
+        _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid])
+        parts = [(data.times - t0[valid, None] - times[:, data.index]) / data.sigma]
         if impact_rows.any():
-            parts.append((data.impact_speed[impact_rows] - speeds[data.index[impact_rows]])
+            parts.append((data.impact_speed[impact_rows] - speeds[:, data.index[impact_rows]])
                          / data.speed_sigma[impact_rows])
         if rebound_rows.any():
-            parts.append((data.rebound_speed[rebound_rows] - rebound[data.index[rebound_rows]])
-                         / data.speed_sigma[rebound_rows])
+            parts.append((data.rebound_speed[rebound_rows]
+                          - rebound[:, data.index[rebound_rows]]) / data.speed_sigma[rebound_rows])
         for name, centre, sd in priors:
-            parts.append(np.array([(values[name] - centre) / sd]))
-        return np.concatenate(parts)
+            parts.append((values[valid, PARAMETERS.index(name), None] - centre) / sd)
+        out[valid] = np.concatenate(parts, axis=1)
+        return out
 
-    result = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
-                            scale_covar=not data.sigma_known)
-    if model in GRAVITY_MODELS and fixed_omega0 is None and _captures(result, predictor, data):
+    def residual(p):
+        """lmfit's residual function: one parameter set."""
+        values = p.valuesdict()
+        return residual_rows(np.array([[values[name] for name in PARAMETERS]]))[0]
+
+    # ∂r/∂t0: the time offset enters linearly, only the impact-time rows.
+    t0_column = np.zeros(size)
+    t0_column[: data.times.size] = -1.0 / data.sigma
+
+    def minimize(start):
+        if level == "fast":
+            return _levenberg_marquardt(residual_rows, start, {"t0": t0_column},
+                                        max_nfev=max_nfev, sigma_known=data.sigma_known)
+        return lmfit.minimize(residual, start, method=METHOD, max_nfev=max_nfev, **OPTIONS,
+                              scale_covar=not data.sigma_known)
+
+    def captures(fitted):
+        """True if the fitted train ends in capture before the last observed impact."""
+        values = fitted.params.valuesdict()
+        if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
+            return True
+        trains, *_ = predictor(values["zeta"], g / values["v_star"], values["v0"])
+        return int(trains.impacts[0]) < data.count
+
+    result = minimize(params)
+    if model in GRAVITY_MODELS and fixed_omega0 is None and captures(result):
         # Ended where the model captures the ball before the data end: a local minimum, as
         # every gravity model reaches the gravity-free one when ω0 grows. Start again from
         # there (ṽ ≈ 1e4 at the slowest impact, ω0 held until the rest has settled).
         notes.append("first fit ended in capture; restarted from the gravity-free limit")
         params["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
-        limit = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
-                               scale_covar=not data.sigma_known)
+        limit = minimize(params)
         limit.params["v_star"].set(vary=True)
-        retry = lmfit.minimize(residual, limit.params, method=METHOD, max_nfev=max_nfev,
-                               **OPTIONS, scale_covar=not data.sigma_known)
-        if retry.chisqr < result.chisqr or _captures(result, predictor, data):
+        retry = minimize(limit.params)
+        if retry.chisqr < result.chisqr or captures(result):
             result = retry
     values = result.params.valuesdict()
     if not np.all(np.isfinite(result.residual)):
         return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
     zeta, v_star = values["zeta"], values["v_star"]
     omega0 = g / v_star
-    train, times, speeds, rebound = predictor(zeta, omega0, values["v0"])
+    trains, times, speeds, _ = predictor(zeta, omega0, values["v0"])
+    impacts = int(trains.impacts[0])
+    times, speeds = times[0], speeds[0]
     message = result.message
     success = bool(result.success)
-    if train.speeds.size < data.count:
+    if impacts < data.count:
         success = False
-        message = (f"the model captures the ball after {train.speeds.size} impacts but the "
+        message = (f"the model captures the ball after {impacts} impacts but the "
                    f"data have {data.count}")
 
     varied = tuple(name for name in result.var_names)
@@ -782,9 +863,10 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     # likelihood is closest to Gaussian. ω0 = g/v* is unbounded above when v* = 0 (the
     # gravity-free limit) lies inside the interval, and the intervals say so.
     d_zeta, d_v_star = ("zeta", 1.0 / zeta), ("v_star", -1.0 / v_star)
-    draws = _draws(values, varied, cov)
+    draws = _draws(values, varied, cov, INTERVAL_DRAWS[level])
     mass_draws = (1.0 if mass is None else mass.value + (mass.uncertainty or 0.0)
-                  * np.random.default_rng(INTERVAL_SEED + 1).standard_normal(INTERVAL_DRAWS))
+                  * np.random.default_rng(INTERVAL_SEED + 1).standard_normal(
+                      INTERVAL_DRAWS[level]))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         omega_draws = np.where(draws["v_star"] > 0, g / draws["v_star"], np.inf)
         beta_draws = np.where(draws["zeta"] > 0, np.maximum(draws["zeta"], 0) * omega_draws,
@@ -833,20 +915,144 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     top = float(np.max(speeds))
     bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
     curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
-    curve = collide(model, zeta, curve_speed / v_star)
+    curve = solver(model, zeta, curve_speed / v_star)
     return FitResult(
         model=model, success=success, message=message, estimates=estimates, varied=varied,
         correlation=correlation, chisqr=chisqr, redchi=float(result.redchi), aic=aic, bic=bic,
         ndata=ndata, nvarys=nvarys, nfev=int(result.nfev),
         time_residuals=data.times - predicted_at_data,
         normalized_residuals=np.asarray(result.residual, float),
-        predicted={"times": values["t0"] + times[: train.speeds.size],
-                   "speeds": train.speeds * v_star, "restitution": train.restitution,
-                   "contact_durations": train.contact_times / omega0,
+        predicted={"times": values["t0"] + times[:impacts], "speeds": speeds[:impacts],
+                   "restitution": trains.restitution[0, :impacts],
+                   "contact_durations": trains.contact_times[0, :impacts] / omega0,
                    "at_data": predicted_at_data},
         eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.captured},
         notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
         intervals=intervals, accuracy=level)
+
+
+def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sigma_known):
+    """Levenberg–Marquardt of the fast level: batched differences, stopped at a fraction of
+    a standard error.
+
+    Each iteration evaluates the trial point and the forward-difference steps of its Jacobian
+    in ONE call of `residual_rows` (one batched train solve), and a parameter that enters
+    linearly takes its exact column from `linear_columns`. The iteration stops once the
+    Gauss–Newton step still to go, δ = −(JᵀJ)⁻¹Jᵀr, is shorter than FAST_STEP_SE standard
+    errors in the fit's own metric: δᵀJᵀJδ <= FAST_STEP_SE² · s², with s² = max(1, χ²/ν)
+    (χ²/ν where σ is unknown), the factor by which the covariance is scaled. Damping by the
+    diagonal of JᵀJ as in Marquardt [7]_, updated by the gain ratio as in Nielsen [8]_;
+    lmfit's leastsq (MINPACK) is the other levels' optimizer.
+
+    Parameters
+    ----------
+    residual_rows : callable
+        ``residual_rows(values)`` with values of shape (sets, len(PARAMETERS)) returns the
+        normalized residuals, shape (sets, n).
+    params : lmfit.Parameters
+        Start values; which are varied.
+    linear_columns : dict
+        Parameter name -> its exact Jacobian column (for parameters entering linearly).
+    max_nfev : int
+        Largest number of parameter sets evaluated.
+    sigma_known : bool
+        Whether the residuals are normalized by known uncertainties (else the covariance is
+        scaled by χ²/ν, as lmfit's ``scale_covar``).
+
+    Returns
+    -------
+    lmfit.minimizer.MinimizerResult
+        With the fields the fit reads: params (values and stderr), var_names, covar, chisqr,
+        redchi, nfree, ndata, nfev, residual, success, message, aic, bic.
+    """
+    values = np.array([params[name].value for name in PARAMETERS], float)
+    varied = [i for i, name in enumerate(PARAMETERS) if params[name].vary]
+    differenced = [i for i in varied if PARAMETERS[i] not in linear_columns]
+
+    def evaluate(point):
+        """Residuals and Jacobian at `point` (one batched call)."""
+        steps = FAST_JACOBIAN_STEP * np.maximum(np.abs(point[differenced]), 1e-12)
+        sets = np.repeat(point[None], 1 + len(differenced), axis=0)
+        sets[np.arange(1, sets.shape[0]), differenced] += steps
+        rows = residual_rows(sets)
+        jacobian = np.empty((rows.shape[1], len(varied)))
+        for column, i in enumerate(varied):
+            if i in differenced:
+                k = differenced.index(i)
+                jacobian[:, column] = (rows[1 + k] - rows[0]) / steps[k]
+            else:
+                jacobian[:, column] = linear_columns[PARAMETERS[i]]
+        return rows[0], jacobian, sets.shape[0]
+
+    residual, jacobian, nfev = evaluate(values)
+    chisqr = float(residual @ residual)
+    dof = max(residual.size - len(varied), 1)
+    damping, growth = 1e-6, 2.0  # close to Gauss–Newton: the start is near the minimum
+    success, message = False, "largest number of evaluations reached"
+    while nfev < max_nfev:
+        normal, gradient = jacobian.T @ jacobian, jacobian.T @ residual
+        with np.errstate(all="ignore"):
+            newton = -np.linalg.pinv(normal) @ gradient
+        spread = chisqr / dof if not sigma_known else max(1.0, chisqr / dof)
+        if not np.all(np.isfinite(newton)):
+            message = "the Jacobian is not finite"
+            break
+        if newton @ normal @ newton <= FAST_STEP_SE ** 2 * spread:
+            success = True
+            message = (f"converged: the step left is below {FAST_STEP_SE} standard error")
+            break
+        scale = np.maximum(np.diag(normal), 1e-300)
+        try:
+            step = np.linalg.solve(normal + damping * np.diag(scale), -gradient)
+        except np.linalg.LinAlgError:
+            step = newton
+        trial = values.copy()
+        trial[varied] += step
+        trial_residual, trial_jacobian, cost = evaluate(trial)
+        nfev += cost
+        trial_chisqr = float(trial_residual @ trial_residual)
+        # Gain ratio: actual against predicted decrease of χ² (Nielsen's damping update [8]_).
+        predicted = -(2.0 * step @ gradient + step @ normal @ step)
+        gain = (chisqr - trial_chisqr) / predicted if predicted > 0 else -1.0
+        if trial_chisqr < chisqr:
+            settled = chisqr - trial_chisqr <= FAST_STEP_SE ** 2 * spread
+            values, residual, jacobian, chisqr = trial, trial_residual, trial_jacobian, trial_chisqr
+            if settled and predicted <= FAST_STEP_SE ** 2 * spread:
+                # A flat valley (a parameter the data barely determine): χ² no longer moves
+                # by what 0.01 standard error would change it.
+                success, message = True, "converged: chi-square no longer changes"
+                break
+            damping *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
+            growth = 2.0
+        else:
+            damping *= growth
+            growth *= 2.0
+            if damping > 1e12:
+                # No step lowers χ² any more: at the minimum to rounding.
+                success, message = True, "converged: no step lowers chi-square"
+                break
+    normal = jacobian.T @ jacobian
+    covar = None
+    if np.linalg.matrix_rank(normal) == len(varied):
+        covar = np.linalg.inv(normal) * (1.0 if sigma_known else chisqr / dof)
+    result = lmfit.minimizer.MinimizerResult()
+    result.params = params.copy()
+    for column, i in enumerate(varied):
+        name = PARAMETERS[i]
+        result.params[name].value = float(values[i])
+        result.params[name].stderr = (float(math.sqrt(covar[column, column]))
+                                      if covar is not None else None)
+    ndata, nvarys = residual.size, len(varied)
+    result.var_names = [PARAMETERS[i] for i in varied]
+    result.covar, result.residual, result.nfev = covar, residual, int(nfev)
+    result.chisqr, result.ndata, result.nvarys, result.nfree = chisqr, ndata, nvarys, dof
+    result.redchi = chisqr / dof
+    result.success, result.message = success, message
+    with np.errstate(divide="ignore"):
+        neg2_log_likelihood = ndata * np.log(chisqr / ndata)
+    result.aic = float(neg2_log_likelihood + 2 * nvarys)
+    result.bic = float(neg2_log_likelihood + np.log(ndata) * nvarys)
+    return result
 
 
 def _interval_row(estimate):
