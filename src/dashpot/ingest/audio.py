@@ -616,7 +616,11 @@ def _process(stream, block, final):
             limit = int(starts[unfinished][0])
             own &= starts < limit
     if own.any():
-        peaks = [i + int(np.argmax(jump[i:j + 1])) for i, j in zip(run_first[own], run_last[own])]
+        # First sample of the largest jump of each run (np.argmax's choice on a tie).
+        run_of = np.repeat(np.arange(run_first.size), run_last - run_first + 1)
+        largest = np.maximum.reduceat(jump, run_first)
+        at_peak = np.flatnonzero(jump == largest[run_of])
+        peaks = at_peak[np.r_[True, run_of[at_peak][1:] != run_of[at_peak][:-1]]][own]
         detections = triggers[peaks]
         strong = jump[peaks] >= settings.min_jump
         search_start = detections - settings.back_search
@@ -717,9 +721,14 @@ def _best_chain(times, weights, trend=None):
     jitter = 2 * _ONSET_JITTER**2 / np.where(upper, gaps, 1.0) ** 2
     score = np.where(upper, weights[:, None] + weights[None, :], -np.inf)
     pointer = np.full((n, n), -1, dtype=np.int64)
+    # Per gap (j, k), the next gap's log that the trend expects (centre of the Cauchy cost)
+    # and the bounds of the allowed ones; per column k, read as contiguous rows below.
     if trend is not None:
         coefficients, scatter = trend
-        expected = np.polyval(coefficients, log_gap)  # trend of ln(ratio) after each gap
+        centre_t = (log_gap + np.polyval(coefficients, log_gap)).T.copy()
+        spread_t = (scatter**2 + jitter).T.copy()
+    log_gap_t = log_gap.T.copy()
+    columns = np.arange(n)
     # Every pair (j, k), j < k, starts a chain, so every state ending at k is reachable from
     # all j < k (slices, not index lists, in the loop below). States ending at k are final
     # once every j < k has been seen: sweep k in time order.
@@ -729,20 +738,22 @@ def _best_chain(times, weights, trend=None):
         stop = last[k - 1]
         if stop <= k + 1:
             continue
-        log_ratio = log_gap[k, k + 1:stop][None, :] - log_gap[:k, k][:, None]
-        total = score[:k, k][:, None] + weights[k + 1:stop][None, :]
+        following = log_gap[k, k + 1:stop]
+        log_ratio = following - log_gap_t[k, :k, None]
+        total = score[:k, k, None] + weights[k + 1:stop]
         if trend is not None:
-            deviation = log_ratio - expected[:k, k][:, None]
+            deviation = following - centre_t[k, :k, None]
+            deviation *= deviation
+            deviation /= spread_t[k, :k, None] + jitter[k, k + 1:stop]
             # Cauchy (Lorentzian) cost: quadratic for small deviations, logarithmic for large
             # ones, so that one odd bounce (a spin, a tilted floor) does not cut the chain.
-            total -= np.log1p(0.5 * deviation**2 / (scatter**2 + jitter[:k, k][:, None]
-                                                    + jitter[k, k + 1:stop][None, :]))
+            total -= np.log1p(0.5 * deviation)
         total[(log_ratio < log_lo) | (log_ratio > log_hi)] = -np.inf
         best = np.argmax(total, axis=0)
-        value = total[best, np.arange(stop - k - 1)]
-        better = np.flatnonzero(value > score[k, k + 1:stop])
-        score[k, k + 1 + better] = value[better]
-        pointer[k, k + 1 + better] = best[better]
+        value = total[best, columns[:stop - k - 1]]
+        better = value > score[k, k + 1:stop]
+        score[k, k + 1:stop] = np.where(better, value, score[k, k + 1:stop])
+        pointer[k, k + 1:stop] = np.where(better, best, pointer[k, k + 1:stop])
     j, k = np.unravel_index(np.argmax(score), score.shape)
     chain = [int(k), int(j)]
     while pointer[chain[-1], chain[-2]] >= 0:
