@@ -48,7 +48,7 @@ import pandas as pd
 
 from .bounces import bounce_table
 from .physics.models import EXACT_RTOL, GRAVITY_MODELS, MODELS, collide
-from .physics.train import impact_train, impact_trains
+from .physics.train import impact_trains
 from .physics.units import _zeta_for_restitution
 from .scene import Scene
 
@@ -487,10 +487,11 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
-    at a typical speed of the train; then the best ζ and v0 at each ω0 of a broad and a fine
-    grid (:func:`_profile`) pick ω0. Without gravity ω0 enters only through the contact time:
-    T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n give T_n = εT_{n−1} + τ(1 − ε), a straight line
-    whose intercept gives τ and so the grid's centre. The fast level finds ζ on a grid
+    at a typical speed of the train; then the best ζ and v0 at each ω0 of a broad grid
+    (:func:`_profile`) pick ω0, refined by the parabola through the best three. Without
+    gravity ω0 enters only through the contact time: T_n = τ + 2v_{n+1}/g and v_{n+1} = εv_n
+    give T_n = εT_{n−1} + τ(1 − ε), a straight line whose intercept gives τ and so the grid's
+    centre. The fast level finds ζ on a grid
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     """
     if level == "fast":
@@ -542,8 +543,9 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
         return None, "no damping ratio reproduces the interval ratios at any stiffness tried"
     omega0 = omega0[usable]
     chisqr, zeta, v0_fit, t0, ratios = _profile(model, data, zeta[usable], omega0,
-                                           np.full(omega0.size, v0), ratios, fit_v0=fit_v0,
-                                           iterations=iterations, solver=solver)
+                                                np.full(omega0.size, v0), ratios,
+                                                fit_v0=fit_v0, iterations=iterations,
+                                                solver=solver)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
     if (level != "fast" and 0 < best < omega0.size - 1
@@ -563,7 +565,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
     start = {"zeta": float(zeta[best]), "omega0": centre, "v0": float(v0_fit[best]),
              "t0": float(t0[best]), "ratios": ratios}
     how = (f"start: median eps = {eps:.4g}; zeta = {start['zeta']:.4g}, v0 = {start['v0']:.4g} "
-           f"m/s and omega0 = {centre:.4g} rad/s from fits at fixed omega0 on two grids")
+           f"m/s and omega0 = {centre:.4g} rad/s from fits at fixed omega0 on a grid")
     return start, how
 
 
@@ -999,7 +1001,7 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
             break
         if newton @ normal @ newton <= FAST_STEP_SE ** 2 * spread:
             success = True
-            message = (f"converged: the step left is below {FAST_STEP_SE} standard error")
+            message = f"converged: the step left is below {FAST_STEP_SE} standard error"
             break
         scale = np.maximum(np.diag(normal), 1e-300)
         try:
@@ -1016,7 +1018,8 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
         gain = (chisqr - trial_chisqr) / predicted if predicted > 0 else -1.0
         if trial_chisqr < chisqr:
             settled = chisqr - trial_chisqr <= FAST_STEP_SE ** 2 * spread
-            values, residual, jacobian, chisqr = trial, trial_residual, trial_jacobian, trial_chisqr
+            values, residual, jacobian = trial, trial_residual, trial_jacobian
+            chisqr = trial_chisqr
             if settled and predicted <= FAST_STEP_SE ** 2 * spread:
                 # A flat valley (a parameter the data barely determine): χ² no longer moves
                 # by what 0.01 standard error would change it.
