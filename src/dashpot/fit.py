@@ -41,6 +41,7 @@ import io
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Callable, NamedTuple
 
 import lmfit
 import numpy as np
@@ -263,13 +264,32 @@ def prepare_data(impacts, scene):
                    notes=notes)
 
 
+class Physics(NamedTuple):
+    """The physics of one accuracy level: collisions and whole trains.
+
+    Attributes
+    ----------
+    collide : callable
+        ``collide(model, zeta, vtilde)`` -> :class:`~dashpot.physics.models.Collision`.
+    trains : callable
+        ``trains(model, zeta, vtilde0, count, start=, rtol=)`` ->
+        :class:`~dashpot.physics.train.ImpactTrains`, the trains of that map.
+    """
+
+    collide: Callable
+    trains: Callable
+
+
+EXACT_PHYSICS = Physics(collide, impact_trains)
+
+
 class _TrainPredictor:
     """Predicted trains of one model for many parameter sets at once, each evaluation started
     from the previous one's train (Newton's start; see :func:`impact_trains`)."""
 
-    def __init__(self, model, g, count, solver=collide):
+    def __init__(self, model, g, count, physics=EXACT_PHYSICS):
         self.model, self.g, self.count = model, g, count
-        self.solver = solver
+        self.physics = physics
         self.start = None
         self.error_bound = 0.0
 
@@ -290,8 +310,8 @@ class _TrainPredictor:
         v_star = self.g / omega0
         start = (None if self.start is None
                  else np.broadcast_to(self.start, (zeta.size, self.count)))
-        trains = impact_trains(self.model, zeta, v0 / v_star, self.count, start=start,
-                               rtol=EXACT_RTOL, solver=self.solver)
+        trains = self.physics.trains(self.model, zeta, v0 / v_star, self.count, start=start,
+                                     rtol=EXACT_RTOL)
         self.error_bound = max(self.error_bound, float(np.max(trains.error_bound)))
         first = int(trains.impacts[0])
         ratios = trains.speeds[0, :first] / trains.speeds[0, 0]
@@ -318,7 +338,7 @@ def _needed_accuracy(data):
 
 
 def choose_accuracy(data, requested="auto", model="hybrid"):
-    """Accuracy level, solver and the bound it guarantees, for one scene and model.
+    """Accuracy level, its physics and the bound it guarantees, for one scene and model.
 
     Parameters
     ----------
@@ -332,8 +352,8 @@ def choose_accuracy(data, requested="auto", model="hybrid"):
     Returns
     -------
     level : str
-    solver : callable
-        ``solver(model, zeta, vtilde)`` -> :class:`~dashpot.physics.models.Collision`.
+    physics : Physics
+        The level's collision map and train solver.
     bound : float
         Certified maximum relative error of ε and τ (EXACT_RTOL for the exact solver).
     reason : str
@@ -344,28 +364,31 @@ def choose_accuracy(data, requested="auto", model="hybrid"):
     needed = _needed_accuracy(data)
     levels = ACCURACY_LEVELS if requested == "auto" else (requested,)
     for level in levels:
-        solver, bound = _solver(level, model)
+        physics, bound = _physics(level, model)
         if requested != "auto" or bound <= needed or level == "exact":
             reason = (f"{level} (asked)" if requested != "auto" else
                       f"{level}: certified error {bound:.1e} <= {needed:.1e} needed by the "
                       f"timing noise" if bound <= needed else
                       f"exact: no faster level meets the {needed:.1e} the timing noise needs")
-            return level, solver, bound, reason
+            return level, physics, bound, reason
     raise AssertionError("unreachable: the exact level is always acceptable")
 
 
-def _solver(level, model):
-    """The collide function of an accuracy level and its certified relative error."""
+def _physics(level, model):
+    """The physics of an accuracy level and its certified relative error."""
     if level == "exact" or model not in GRAVITY_MODELS:
         # Ia and IIa are closed forms: exact is also the fastest.
-        return collide, EXACT_RTOL
+        return EXACT_PHYSICS, EXACT_RTOL
+    # Imported here: the compiled train solver loads numba, which only these levels need.
     from .physics.surrogate import load_surrogate, surrogate_collide
+    from .physics.surrogate_train import surrogate_trains
 
-    return (functools.partial(surrogate_collide, level=level),
+    return (Physics(functools.partial(surrogate_collide, level=level),
+                    functools.partial(surrogate_trains, level=level)),
             load_surrogate(model, level).bound)
 
 
-def _train_times(model, data, zeta, omega0, v0, start=None, solver=collide):
+def _train_times(model, data, zeta, omega0, v0, start=None, physics=EXACT_PHYSICS):
     """Predicted times (s, from the first impact) of the observed impacts, many trains at once.
 
     A train captured before the last observed impact rests at its last one.
@@ -375,15 +398,14 @@ def _train_times(model, data, zeta, omega0, v0, start=None, solver=collide):
     times : ndarray, shape (trains, observed impacts)
     trains : ImpactTrains
     """
-    trains = impact_trains(model, zeta, v0 * omega0 / data.g, data.count, start=start,
-                           solver=solver)
+    trains = physics.trains(model, zeta, v0 * omega0 / data.g, data.count, start=start)
     times = np.concatenate([np.zeros((zeta.size, 1)), np.cumsum(trains.intervals, axis=1)],
                            axis=1) / omega0[:, None]
     return times[:, data.index], trains
 
 
 def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
-             solver=collide):
+             physics=EXACT_PHYSICS):
     """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
 
     Every iteration evaluates the trains at the current values and at a small step in each
@@ -419,7 +441,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
             trial[k + 1, :, k] *= 1.0 + step
         trial = trial.reshape(-1, 2)
         times, trains = _train_times(model, data, trial[:, 0], np.tile(omega0, names + 1),
-                                     trial[:, 1], start=start, solver=solver)
+                                     trial[:, 1], start=start, physics=physics)
         misfit = data.times[None, :] - times
         t0 = np.sum(misfit * weights, axis=1) / weights.sum()
         residual = ((misfit - t0[:, None]) / data.sigma).reshape(names + 1, count, -1)
@@ -482,8 +504,8 @@ def _zeta_on_grid(model, eps, vtilde, solver, grid=None):
     return zeta
 
 
-def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=collide,
-                  level="exact"):
+def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
+                  physics=EXACT_PHYSICS, level="exact"):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -495,7 +517,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     """
     if level == "fast":
-        zeta_for = functools.partial(_zeta_on_grid, solver=solver)
+        zeta_for = functools.partial(_zeta_on_grid, solver=physics.collide)
         iterations = FAST_PROFILE_ITERATIONS
     else:
         zeta_for, iterations = _zeta_for_restitution, 10
@@ -545,7 +567,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True, solver=co
     chisqr, zeta, v0_fit, t0, ratios = _profile(model, data, zeta[usable], omega0,
                                                 np.full(omega0.size, v0), ratios,
                                                 fit_v0=fit_v0, iterations=iterations,
-                                                solver=solver)
+                                                physics=physics)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
     if (level != "fast" and 0 < best < omega0.size - 1
@@ -690,11 +712,11 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                               + (", v0" if fixed_v0 is None else "")
                               + "); give more impacts or known quantities in the scene",
                        notes, data)
-    level, solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
+    level, physics, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
     notes.append(f"accuracy {reason}")
     known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
-                               known_omega0, fit_v0=fixed_v0 is None, solver=solver,
+                               known_omega0, fit_v0=fixed_v0 is None, physics=physics,
                                level=level)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
@@ -731,7 +753,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
 
     # Newton solves each train of the chosen map to machine precision: the Jacobians by
     # finite differences difference trains whose parameters differ by ~1e-8.
-    predictor = _TrainPredictor(model, data.g, data.count, solver)
+    predictor = _TrainPredictor(model, data.g, data.count, physics)
     predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
     tolerance = bound * data.count
@@ -917,7 +939,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     top = float(np.max(speeds))
     bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
     curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
-    curve = solver(model, zeta, curve_speed / v_star)
+    curve = physics.collide(model, zeta, curve_speed / v_star)
     return FitResult(
         model=model, success=success, message=message, estimates=estimates, varied=varied,
         correlation=correlation, chisqr=chisqr, redchi=float(result.redchi), aic=aic, bic=bic,
