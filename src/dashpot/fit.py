@@ -461,9 +461,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
         normal = normal + (damping[:, None] * np.einsum("gii->gi", normal))[:, :, None] * np.eye(
             names)[None]
         gradient = np.einsum("gmi,gm->gi", best_jacobian, best_residual)
-        # Pseudo-inverse: a singular system (a parameter without effect) must not stop the rest.
-        with np.errstate(all="ignore"):
-            delta = -np.einsum("gij,gj->gi", np.linalg.pinv(normal), gradient)
+        delta = -_solve_normal(normal, gradient)
         current = best.copy()
         current[:, :names] += np.where(np.isfinite(delta), delta, 0.0)
         current = np.where(current > 0.0, current, 0.5 * best)
@@ -811,8 +809,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         # every gravity model reaches the gravity-free one when ω0 grows. Start again from
         # there (ṽ ≈ 1e4 at the slowest impact, ω0 held until the rest has settled).
         notes.append("first fit ended in capture; restarted from the gravity-free limit")
-        params["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
-        limit = minimize(params)
+        restart = params.copy()  # the fast optimizer updates its start in place
+        restart["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
+        limit = minimize(restart)
         limit.params["v_star"].set(vary=True)
         retry = minimize(limit.params)
         if retry.chisqr < result.chisqr or captures(result):
@@ -955,6 +954,24 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         intervals=intervals, accuracy=level)
 
 
+def _solve_normal(normal, gradient):
+    """x with normal·x = gradient, for one system or a stack of them (last axes).
+
+    By LU where every system is regular; by the pseudo-inverse where one is singular, which
+    must not stop the rest. A parameter without any effect (a zero row and column, e.g. a
+    train captured at every nearby value) gets no step, as from the pseudo-inverse, without it.
+    """
+    inert = np.einsum("...ii->...i", normal) <= 0.0
+    if inert.any():
+        normal = normal + inert[..., None] * np.eye(normal.shape[-1])
+        gradient = np.where(inert, 0.0, gradient)
+    try:
+        return np.linalg.solve(normal, gradient[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        with np.errstate(all="ignore"):
+            return np.einsum("...ij,...j->...i", np.linalg.pinv(normal), gradient)
+
+
 def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sigma_known):
     """Levenberg–Marquardt of the fast level: batched differences, stopped at a fraction of
     a standard error.
@@ -974,7 +991,9 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
         ``residual_rows(values)`` with values of shape (sets, len(PARAMETERS)) returns the
         normalized residuals, shape (sets, n).
     params : lmfit.Parameters
-        Start values; which are varied.
+        Start values; which are varied. Updated in place to the fitted values and errors (and
+        returned as the result's ``params``): copying lmfit parameters costs more than an
+        iteration here.
     linear_columns : dict
         Parameter name -> its exact Jacobian column (for parameters entering linearly).
     max_nfev : int
@@ -1015,8 +1034,7 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
     success, message = False, "largest number of evaluations reached"
     while nfev < max_nfev:
         normal, gradient = jacobian.T @ jacobian, jacobian.T @ residual
-        with np.errstate(all="ignore"):
-            newton = -np.linalg.pinv(normal) @ gradient
+        newton = -_solve_normal(normal, gradient)
         spread = chisqr / dof if not sigma_known else max(1.0, chisqr / dof)
         if not np.all(np.isfinite(newton)):
             message = "the Jacobian is not finite"
@@ -1061,7 +1079,7 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
     if np.linalg.matrix_rank(normal) == len(varied):
         covar = np.linalg.inv(normal) * (1.0 if sigma_known else chisqr / dof)
     result = lmfit.minimizer.MinimizerResult()
-    result.params = params.copy()
+    result.params = params
     for column, i in enumerate(varied):
         name = PARAMETERS[i]
         result.params[name].value = float(values[i])

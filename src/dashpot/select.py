@@ -20,38 +20,45 @@ SELECTION_COLUMNS = ("model", "success", "nvarys", "ndata", "chisqr", "redchi", 
                      "delta_aic", "delta_bic", "akaike_weight", "rank")
 
 
-def _verdict(table, sigma_known):
-    """Plain-words reading of a selection table (Burnham & Anderson's thresholds [1]_)."""
-    usable = table[table["success"]].sort_values("aic")
-    if usable.empty:
+def _verdict(rows, sigma_known):
+    """Plain-words reading of a selection table (Burnham & Anderson's thresholds [1]_).
+
+    `rows` are the table's columns as arrays (dict), in the table's order.
+    """
+    usable = np.flatnonzero(rows["success"])
+    if usable.size == 0:
         return "no model could be fitted to these data"
-    verdict = _preference(usable)
-    best = usable.iloc[0]
-    dof = max(int(best["ndata"] - best["nvarys"]), 1)
-    if sigma_known and best["redchi"] * dof > dof + 3.0 * math.sqrt(2.0 * dof):
+    usable = usable[np.argsort(rows["aic"][usable], kind="stable")]
+    verdict = _preference(rows, usable)
+    best = usable[0]
+    dof = max(int(rows["ndata"][best] - rows["nvarys"][best]), 1)
+    redchi = rows["redchi"][best]
+    if sigma_known and redchi * dof > dof + 3.0 * math.sqrt(2.0 * dof):
         verdict += (f"; but none describes the data within their uncertainties (best reduced "
-                    f"chi-square {best['redchi']:.3g}): effects the models leave out dominate")
+                    f"chi-square {redchi:.3g}): effects the models leave out dominate")
     return verdict
 
 
-def _preference(usable):
-    """Which model the information criterion prefers, and how strongly."""
-    best = usable.iloc[0]
-    if len(usable) == 1:
-        return f"only {best['model']} could be fitted; no comparison possible"
-    runner = usable.iloc[1]
-    gap = runner["delta_aic"]
+def _preference(rows, usable):
+    """Which model the information criterion prefers, and how strongly (`usable`: row
+    indices of the fitted models, best first)."""
+    model, delta, weight = rows["model"], rows["delta_aic"], rows["akaike_weight"]
+    best = usable[0]
+    if usable.size == 1:
+        return f"only {model[best]} could be fitted; no comparison possible"
+    runner = usable[1]
+    gap = delta[runner]
     if gap > 10:
-        return (f"{best['model']} is clearly preferred (Akaike weight {best['akaike_weight']:.2f}; "
-                f"next best {runner['model']} has ΔAIC = {gap:.1f})")
+        return (f"{model[best]} is clearly preferred (Akaike weight {weight[best]:.2f}; "
+                f"next best {model[runner]} has ΔAIC = {gap:.1f})")
     if gap > 4:
-        return (f"{best['model']} is preferred (weight {best['akaike_weight']:.2f}); "
-                f"{runner['model']} has considerably less support (ΔAIC = {gap:.1f})")
-    close = usable[usable["delta_aic"] < 2]["model"].tolist()
+        return (f"{model[best]} is preferred (weight {weight[best]:.2f}); "
+                f"{model[runner]} has considerably less support (ΔAIC = {gap:.1f})")
+    close = [model[i] for i in usable if delta[i] < 2]
     if len(close) > 1:
         return (f"the data do not distinguish {', '.join(close)} (ΔAIC < 2); "
-                f"{best['model']} fits marginally best")
-    return (f"{best['model']} fits best but {runner['model']} is not excluded "
+                f"{model[best]} fits marginally best")
+    return (f"{model[best]} fits best but {model[runner]} is not excluded "
             f"(ΔAIC = {gap:.1f})")
 
 
@@ -73,26 +80,31 @@ def selection_table(results, *, sigma_known=True):
     verdict : str
         Plain-words reading of the table.
     """
-    rows = [{"model": model, "success": bool(fit.success), "nvarys": fit.nvarys,
-             "ndata": fit.ndata, "chisqr": fit.chisqr, "redchi": fit.redchi,
-             "aic": fit.aic if fit.success else math.inf,
-             "bic": fit.bic if fit.success else math.inf}
-            for model, fit in results.items()]
-    table = pd.DataFrame(rows, columns=SELECTION_COLUMNS[:8])
+    fits = list(results.values())
+    success = np.array([bool(fit.success) for fit in fits], dtype=bool)
+    rows = {"model": np.array(list(results), dtype=object), "success": success,
+            "nvarys": np.array([fit.nvarys for fit in fits], dtype=int),
+            "ndata": np.array([fit.ndata for fit in fits], dtype=int),
+            "chisqr": np.array([fit.chisqr for fit in fits], dtype=float),
+            "redchi": np.array([fit.redchi for fit in fits], dtype=float)}
     for criterion in ("aic", "bic"):
-        finite = np.isfinite(table[criterion])
-        best = table.loc[finite, criterion].min() if finite.any() else math.inf
-        table[f"delta_{criterion}"] = np.where(finite, table[criterion] - best, math.inf)
-    relative = np.where(np.isfinite(table["delta_aic"]), np.exp(-0.5 * table["delta_aic"]
-                                                                .where(np.isfinite(
-                                                                    table["delta_aic"]), 0.0)),
-                        0.0)
+        values = np.array([getattr(fit, criterion) for fit in fits], dtype=float)
+        values = np.where(success, values, math.inf)
+        finite = np.isfinite(values)
+        best = values[finite].min() if finite.any() else math.inf
+        rows[criterion] = values
+        rows[f"delta_{criterion}"] = np.where(finite, values - best, math.inf)
+    finite = np.isfinite(rows["delta_aic"])
+    relative = np.where(finite, np.exp(-0.5 * np.where(finite, rows["delta_aic"], 0.0)), 0.0)
     total = relative.sum()
-    table["akaike_weight"] = relative / total if total > 0 else 0.0
-    order = table["aic"].rank(method="first").where(np.isfinite(table["aic"]), 0)
-    table["rank"] = order.astype(int)
-    table = table[list(SELECTION_COLUMNS)]
-    return table, _verdict(table, sigma_known)
+    rows["akaike_weight"] = relative / total if total > 0 else np.zeros(len(fits))
+    # Rank 1 = lowest AIC (ties in the table's order); failed fits 0.
+    order = np.argsort(np.where(np.isfinite(rows["aic"]), rows["aic"], math.inf), kind="stable")
+    rank = np.empty(len(fits), dtype=int)
+    rank[order] = np.arange(1, len(fits) + 1)
+    rows["rank"] = np.where(np.isfinite(rows["aic"]), rank, 0)
+    table = pd.DataFrame({name: rows[name] for name in SELECTION_COLUMNS})
+    return table, _verdict(rows, sigma_known)
 
 
 def summary_table(scene_fits):

@@ -30,28 +30,14 @@ import math
 import numba
 import numpy as np
 
-from .surrogate import (_QUINTIC_T, CAPTURE_BAND, S_MIN, ZETA_MAX, ZETA_MIN, load_surrogate,
-                        surrogate_collide)
+from .surrogate import (CAPTURE_BAND, S_MIN, ZETA_MAX, ZETA_MIN, _quintic_weights,
+                        load_surrogate, surrogate_collide)
 from .train import ImpactTrains, impact_trains
 
 __all__ = ["surrogate_trains"]
 
 # Row outcomes of the compiled loop.
 _DONE, _OFF_TABLE = 0, 1
-
-
-@numba.njit(cache=True)
-def _quintic_weights(t, n_nodes, weights):
-    """Knot interval of grid coordinate t (node units) and its six B-spline weights [2]_
-    (as :func:`dashpot.physics.surrogate._segment_weights`, by Horner's rule)."""
-    cell = min(math.floor(t), n_nodes - 2.0)
-    offset = t - cell
-    for j in range(6):
-        value = _QUINTIC_T[5, j]
-        for power in range(4, -1, -1):
-            value = value * offset + _QUINTIC_T[power, j]
-        weights[j] = value
-    return int(cell)
 
 
 @numba.njit(cache=True)
