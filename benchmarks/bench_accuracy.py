@@ -94,7 +94,7 @@ def level_table(name, impacts, scene, beta_true, k_true):
     return rows
 
 
-def coverage_table(trials=20):
+def coverage_table(trials=40):
     scenes = {
         "well determined (hybrid, ṽ0 ≈ 51)": dict(model="hybrid", beta=5.0, omega0=500.0,
                                                    v0=1.0, count=20),

@@ -263,6 +263,10 @@ def test_uncertainty_methods_agree_where_the_likelihood_is_gaussian():
         assert abs(row["high68"] - beta.high68) < 0.15 * width, method
     assert fit.intervals["profile"]["cpu_seconds"] > 0
     assert fit.intervals["posterior"]["samples"] > 1000
+    # The chain ran 50 autocorrelation times (emcee's guidance), not a fixed length.
+    posterior = fit.intervals["posterior"]
+    assert posterior["converged"]
+    assert posterior["samples"] >= 32 * 45 * posterior["autocorrelation_steps"]
     # Seeded: the sampler gives the same numbers again.
     again = fit_model(data, "Ia", Scene(), uncertainty=("posterior",), seed=3)
     assert again.intervals["posterior"]["low68"] == fit.intervals["posterior"]["low68"]

@@ -35,9 +35,7 @@ References
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import io
 import math
 import time
 from dataclasses import dataclass, field
@@ -325,6 +323,41 @@ class _TrainPredictor:
                                axis=1) / omega0[:, None]
         speeds = trains.speeds * v_star[:, None]
         return trains, times, speeds, trains.restitution * speeds
+
+
+def _residual_rows(values, *, data, predictor, priors):
+    """Normalized residuals, one row per parameter set (columns as in PARAMETERS).
+
+    Impact-time misfits over their σ, then the measured impact and rebound speeds' misfits
+    over theirs, then one row per Gaussian prior (name, centre, sd). A set outside the
+    physical range (ζ < 0, ω0 above OMEGA0_RANGE, v0 <= 0) gets REJECTED everywhere.
+    """
+    g = data.g
+    zeta, v_star, v0, t0 = values.T
+    impact_rows = np.isfinite(data.impact_speed)
+    rebound_rows = np.isfinite(data.rebound_speed)
+    valid = (zeta >= 0.0) & (v_star > g / OMEGA0_RANGE[1]) & (v0 > 0.0)
+    out = np.full((values.shape[0], _residual_size(data, priors)), REJECTED)
+    if not valid.any():
+        return out
+    _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid])
+    parts = [(data.times - t0[valid, None] - times[:, data.index]) / data.sigma]
+    if impact_rows.any():
+        parts.append((data.impact_speed[impact_rows] - speeds[:, data.index[impact_rows]])
+                     / data.speed_sigma[impact_rows])
+    if rebound_rows.any():
+        parts.append((data.rebound_speed[rebound_rows] - rebound[:, data.index[rebound_rows]])
+                     / data.speed_sigma[rebound_rows])
+    for name, centre, sd in priors:
+        parts.append((values[valid, PARAMETERS.index(name), None] - centre) / sd)
+    out[valid] = np.concatenate(parts, axis=1)
+    return out
+
+
+def _residual_size(data, priors):
+    """Number of residuals of :func:`_residual_rows`."""
+    return (data.times.size + int(np.isfinite(data.impact_speed).sum())
+            + int(np.isfinite(data.rebound_speed).sum()) + len(priors))
 
 
 def _needed_accuracy(data):
@@ -759,29 +792,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
     tolerance = bound * data.count
-    impact_rows = np.isfinite(data.impact_speed)
-    rebound_rows = np.isfinite(data.rebound_speed)
-    size = data.times.size + int(impact_rows.sum()) + int(rebound_rows.sum()) + len(priors)
-
-    def residual_rows(values):
-        """Normalized residuals, one row per parameter set (columns as in PARAMETERS)."""
-        zeta, v_star, v0, t0 = values.T
-        valid = (zeta >= 0.0) & (v_star > g / OMEGA0_RANGE[1]) & (v0 > 0.0)
-        out = np.full((values.shape[0], size), REJECTED)
-        if not valid.any():
-            return out
-        _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid])
-        parts = [(data.times - t0[valid, None] - times[:, data.index]) / data.sigma]
-        if impact_rows.any():
-            parts.append((data.impact_speed[impact_rows] - speeds[:, data.index[impact_rows]])
-                         / data.speed_sigma[impact_rows])
-        if rebound_rows.any():
-            parts.append((data.rebound_speed[rebound_rows]
-                          - rebound[:, data.index[rebound_rows]]) / data.speed_sigma[rebound_rows])
-        for name, centre, sd in priors:
-            parts.append((values[valid, PARAMETERS.index(name), None] - centre) / sd)
-        out[valid] = np.concatenate(parts, axis=1)
-        return out
+    residual_rows = functools.partial(_residual_rows, data=data, predictor=predictor,
+                                      priors=priors)
 
     def residual(p):
         """lmfit's residual function: one parameter set."""
@@ -789,7 +801,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         return residual_rows(np.array([[values[name] for name in PARAMETERS]]))[0]
 
     # ∂r/∂t0: the time offset enters linearly, only the impact-time rows.
-    t0_column = np.zeros(size)
+    t0_column = np.zeros(_residual_size(data, priors))
     t0_column[: data.times.size] = -1.0 / data.sigma
 
     def minimize(start):
@@ -842,11 +854,15 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         notes.append("covariance not available (singular Jacobian): the data do not determine "
                      "every parameter; errors reported as infinite")
     dof = max(int(result.nfree), 1)
+    # χ² is divided by this wherever it measures likelihood (the covariance carries it
+    # already): the fit's χ²/ν where σ is unknown, or where the model misses the data.
+    chisqr_scale = 1.0 if data.sigma_known else float(result.redchi)
     if data.sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
         # χ² far beyond its distribution (> 3σ): the model does not describe the data within
         # their uncertainties. Errors are scaled by √(χ²/ν) (the Birge ratio) so that they
         # at least reflect the actual scatter.
         cov = cov * result.redchi
+        chisqr_scale = float(result.redchi)
         notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
                      f"the model misses the data by more than their uncertainties; errors "
                      f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
@@ -935,8 +951,18 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     for method in uncertainty:
         if method in ("profile", "posterior") and success:
             started = time.process_time()
-            compute = _profile_beta if method == "profile" else _posterior_beta
-            intervals[method] = compute(residual, result, g, seed)
+            if method == "profile":
+                intervals[method] = _profile_beta(residual, result, g, chisqr_scale)
+            else:
+                # The sampler runs on the fast level's physics, whatever the fit's level.
+                sampled = _TrainPredictor(model, g, data.count, _physics("fast", model)[0])
+                sampled.start = predictor.start
+                intervals[method] = _posterior_beta(
+                    functools.partial(_residual_rows, data=data, predictor=sampled,
+                                      priors=priors), result, g, seed, chisqr_scale)
+                if not intervals[method]["converged"]:
+                    notes.append("posterior chain shorter than 50 autocorrelation times: its "
+                                 "intervals are rough")
             intervals[method]["cpu_seconds"] = time.process_time() - started
     v_star = data.g / omega0
     top = float(np.max(speeds))
@@ -1107,15 +1133,14 @@ def _interval_row(estimate):
             "high95": estimate.high95}
 
 
-def _profile_beta(residual, result, g, seed, points=17, span=4.0):
+def _profile_beta(residual, result, g, chisqr_scale=1.0, points=17, span=4.0):
     """Profile likelihood of β: the best χ² over the other parameters at each fixed β.
 
     β is put in as a parameter (ζ = βv*/g) on a grid of ±`span` standard errors in ln β
     around the fit, each point started from its neighbour; the 68.27 % and 95.45 % intervals
-    are where the profile rises by 1 and 4 above its minimum (linear interpolation in ln β),
-    unbounded where it does not within the grid [5]_.
+    are where the profile, χ²/`chisqr_scale`, rises by 1 and 4 above its minimum (linear
+    interpolation in ln β), unbounded where it does not within the grid [5]_.
     """
-    del seed
     params = result.params.copy()
     beta_hat = params["zeta"].value * g / params["v_star"].value
     params.add("beta", value=beta_hat, vary=False)
@@ -1134,7 +1159,7 @@ def _profile_beta(residual, result, g, seed, points=17, span=4.0):
             fitted = lmfit.minimize(residual, trial, method=METHOD, max_nfev=400, **OPTIONS)
             profile[i] = fitted.chisqr
             trial = fitted.params
-    rise = profile - min(profile.min(), result.chisqr)
+    rise = (profile - min(profile.min(), result.chisqr)) / chisqr_scale
     row = {}
     for level, label in ((1.0, "68"), (4.0, "95")):
         for side, key in ((-1, "low"), (1, "high")):
@@ -1155,34 +1180,69 @@ def _crossing(offsets, rise, level, side, centre, beta_hat):
     return 0.0 if side < 0 else math.inf
 
 
-def _posterior_beta(residual, result, g, seed, walkers=16, steps=400, burn=50):
-    """Posterior quantiles of β from emcee (flat priors on the fitted parameters) [6]_.
+def _posterior_beta(residual_rows, result, g, seed, chisqr_scale=1.0, walkers=32,
+                    chunk=500, max_steps=10000, lengths=50):
+    """Posterior quantiles of β by emcee's affine-invariant ensemble sampler [6]_.
 
-    The walkers start from seeded draws of the fit's Gaussian approximation rather than a
-    tight ball around the best fit, so the chain starts spread like the posterior and a short
-    burn-in suffices.
+    Flat priors on the fitted parameters, likelihood exp(−χ²/(2·`chisqr_scale`)). Every step
+    evaluates all walkers in one batched call of `residual_rows` (emcee's ``vectorize``), so
+    long chains are affordable: the chain is extended in chunks until it is `lengths`
+    integrated autocorrelation times long (emcee's guidance [6]_) or `max_steps` is reached;
+    the first 5 autocorrelation times are discarded as burn-in. The walkers start from seeded
+    draws of the fit's Gaussian approximation; the sampler is seeded by `seed`.
+
+    Returns
+    -------
+    dict
+        low68, high68, low95, high95 of β (1/s), the number of samples, the autocorrelation
+        time in steps and whether the chain reached `lengths` of them.
     """
-    sampler = lmfit.Minimizer(residual, result.params.copy())
-    start = None
+    import emcee
+
+    varied = list(result.var_names)
+    columns = [PARAMETERS.index(name) for name in varied]
+    best = np.array([result.params[name].value for name in PARAMETERS], float)
+
+    def log_probability(points):
+        values = np.repeat(best[None], points.shape[0], axis=0)
+        values[:, columns] = points
+        residual = residual_rows(values)
+        chisqr = np.einsum("ij,ij->i", residual, residual)
+        # A step outside the physical range comes back as REJECTED: zero prior there.
+        return np.where(np.all(residual != REJECTED, axis=1), -0.5 * chisqr / chisqr_scale,
+                        -np.inf)
+
+    rng = np.random.default_rng(seed)
+    centre = best[columns]
+    spread = np.abs(centre) * 1e-6 + 1e-12
+    start = centre + spread * rng.standard_normal((walkers, centre.size))
     if result.covar is not None and np.all(np.isfinite(result.covar)):
-        mean = np.array([result.params[name].value for name in result.var_names])
-        start = np.random.default_rng(seed).multivariate_normal(mean, result.covar,
-                                                                size=walkers, method="eigh")
-    # lmfit prints emcee's autocorrelation warning; the time is recorded instead.
-    with contextlib.redirect_stdout(io.StringIO()):
-        sampled = sampler.emcee(steps=steps, nwalkers=walkers, burn=burn, thin=2, seed=seed,
-                                is_weighted=True, progress=False, pos=start)
-    chain = sampled.flatchain
-    autocorrelation = (float(np.max(sampled.acor)) if getattr(sampled, "acor", None) is not None
-                       else math.nan)
-    zeta = chain["zeta"].to_numpy() if "zeta" in chain else result.params["zeta"].value
-    v_star = chain["v_star"].to_numpy() if "v_star" in chain else result.params["v_star"].value
+        eigenvalues, vectors = np.linalg.eigh(result.covar)
+        draws = centre + rng.standard_normal((walkers, centre.size)) @ (
+            vectors * np.sqrt(np.abs(eigenvalues))).T
+        # Walkers drawn outside the physical range start next to the best fit instead.
+        start = np.where(np.isfinite(log_probability(draws))[:, None], draws, start)
+    sampler = emcee.EnsembleSampler(walkers, centre.size, log_probability, vectorize=True)
+    sampler.random_state = np.random.RandomState(seed).get_state()
+    state, steps, autocorrelation = start, 0, math.nan
+    while steps < max_steps:
+        state = sampler.run_mcmc(state, chunk, progress=False)
+        steps += chunk
+        autocorrelation = float(np.max(sampler.get_autocorr_time(tol=0)))
+        if steps >= lengths * autocorrelation:
+            break
+    burn = min(int(5 * autocorrelation) if np.isfinite(autocorrelation) else steps // 2,
+               steps // 2)
+    chain = sampler.get_chain(discard=burn, flat=True)
+    zeta = chain[:, varied.index("zeta")] if "zeta" in varied else best[0]
+    v_star = chain[:, varied.index("v_star")] if "v_star" in varied else best[1]
     with np.errstate(divide="ignore"):
         beta = np.where(v_star > 0, zeta * g / v_star, np.inf)
     low68, high68, low95, high95 = np.quantile(beta, QUANTILES, method="inverted_cdf")
     return {"low68": float(low68), "high68": float(high68), "low95": float(low95),
             "high95": float(high95), "samples": int(beta.size),
-            "autocorrelation_steps": autocorrelation}
+            "autocorrelation_steps": autocorrelation,
+            "converged": bool(steps >= lengths * autocorrelation)}
 
 
 def _identifiability_notes(estimates, varied, correlation, params):

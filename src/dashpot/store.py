@@ -39,7 +39,8 @@ SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "c
                    "akaike_weight": "1", "rank": "1"}
 SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
-INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds")
+INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds", "samples",
+                    "autocorrelation_steps", "converged")
 PREDICTED_UNITS = {"times": "s", "speeds": "m/s", "restitution": "1",
                    "contact_durations": "s", "at_data": "s"}
 
@@ -129,10 +130,12 @@ def _write_fit(group, fit):
     predicted = group.create_group("predicted")
     for name, values in fit.predicted.items():
         _dataset(predicted, name, values, PREDICTED_UNITS[name])
-    rows = [{"method": method, **{key: row.get(key, np.nan) for key in INTERVAL_COLUMNS}}
+    # Numbers only (NaN where a method has no such figure; converged as 1 or 0).
+    rows = [{"method": method, **{key: float(row.get(key, np.nan)) for key in INTERVAL_COLUMNS}}
             for method, row in fit.intervals.items()]
     _table(group, "intervals", pd.DataFrame(rows, columns=["method", *INTERVAL_COLUMNS]),
-           {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s"})
+           {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s", "samples": "1",
+            "autocorrelation_steps": "1", "converged": "1"})
     curve = group.create_group("eps_curve")
     for name, unit in (("speed", "m/s"), ("eps", "1"), ("captured", "1")):
         if name in fit.eps_curve:
