@@ -16,7 +16,8 @@ Two tables.
    seeded synthetic trials whose 68.27 % and 95.45 % intervals of β contain the truth, and the
    mean CPU time of each method, for a well-determined scene and one close to capture.
 
-CPU times (time.process_time), best of two for the levels. Run with ``make bench``.
+CPU times (time.process_time), best of five for the levels (the first call of a level also
+loads its tables, compiled loops and caches). Run with ``make bench``.
 """
 
 from __future__ import annotations
@@ -60,10 +61,10 @@ def cart_scene(folder):
 def level_table(name, impacts, scene, beta_true, k_true):
     rows, exact = [], None
     for level in ("exact", "standard", "fast", "auto"):
-        # Best of two: the first call of a level also loads its tables and warms caches.
+        # Best of five: the first call of a level also loads its tables and warms caches.
         seconds, result = best_cpu(
             lambda level=level: fit_scene(impacts, dataclasses.replace(scene, accuracy=level)),
-            repeats=2)
+            repeats=5)
         if level == "exact":
             exact = result
         hybrid = result.results["hybrid"]
