@@ -786,8 +786,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
         notes.append("prior on v0 from the scene")
 
-    # Newton solves each train of the chosen map to machine precision: the Jacobians by
-    # finite differences difference trains whose parameters differ by ~1e-8.
+    # Each train is that of the level's map to machine precision (Newton's method, or the
+    # compiled impact-by-impact pass over the surrogate tables): the finite-difference
+    # Jacobians difference trains whose parameters differ by ~1e-8 to 1e-5.
     predictor = _TrainPredictor(model, data.g, data.count, physics)
     predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
@@ -987,9 +988,10 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
 def _solve_normal(normal, gradient):
     """x with normal·x = gradient, for one system or a stack of them (last axes).
 
-    By LU where every system is regular; by the pseudo-inverse where one is singular, which
-    must not stop the rest. A parameter without any effect (a zero row and column, e.g. a
-    train captured at every nearby value) gets no step, as from the pseudo-inverse, without it.
+    By LU where every system is regular, else by the pseudo-inverse: a singular system must
+    not stop the rest. A parameter without any effect (a zero row and column, e.g. a train
+    captured at every nearby value) gets no step, as the pseudo-inverse would give it, while
+    LU still solves for the others.
     """
     inert = np.einsum("...ii->...i", normal) <= 0.0
     if inert.any():
