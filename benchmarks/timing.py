@@ -4,6 +4,16 @@ import math
 import time
 
 
+def best_wall(func, repeats=3):
+    """Best wall-clock time (time.perf_counter, s) of `func()` over `repeats` runs."""
+    best = math.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        func()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
 def best_cpu(func, repeats=3):
     """Best CPU time (time.process_time, s) of `func()` over `repeats` runs, and its result.
 

@@ -136,7 +136,8 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
     solver = functools.partial(surrogate_collide, level=level, directory=directory)
     options = {} if rtol is None else {"rtol": rtol}
     zeta, vtilde0 = (np.atleast_1d(np.asarray(value, dtype=float)) for value in (zeta, vtilde0))
-    zeta, vtilde0 = np.broadcast_arrays(zeta, vtilde0)
+    if zeta.shape != vtilde0.shape:
+        zeta, vtilde0 = np.broadcast_arrays(zeta, vtilde0)
     if model not in ZETA_MAX:
         return impact_trains(model, zeta, vtilde0, count, solver=solver, **options)
     count = int(count)
