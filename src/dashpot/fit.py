@@ -129,6 +129,11 @@ class FitData:
     def has_speeds(self):
         return bool(np.any(np.isfinite(self.impact_speed)))
 
+    @functools.cached_property
+    def interval_flags(self):
+        """The bounce table's flag of each interval (read once: every model's fit uses it)."""
+        return self.bounces["flag"].to_numpy()
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -559,7 +564,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
         zeta_for, iterations = _zeta_for_restitution, 10
     g = data.g
     intervals = np.diff(data.times) / np.diff(data.index)
-    flags = data.bounces["flag"].to_numpy()[: intervals.size]
+    flags = data.interval_flags[: intervals.size]
     eps = _flight_ratio_start(intervals, flags)
     if data.has_speeds:
         measured = data.rebound_speed / data.impact_speed
