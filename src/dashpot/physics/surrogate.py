@@ -173,7 +173,7 @@ def _fit_coefficients(values):
     return coef
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _quintic_weights(t, n_nodes, weights):
     """Knot interval of grid coordinate t (node units, in [0, n_nodes − 1]; the right end is
     evaluated in the last interval), and the six nonzero B-spline weights there, written to
@@ -188,17 +188,35 @@ def _quintic_weights(t, n_nodes, weights):
     return int(cell)
 
 
+@numba.njit(cache=True, inline="always")
+def _spline_1d_at(coef, start, step, x, weights):
+    """Value at one point x of a 1-D uniform quintic spline with nodes start + i·step
+    (`weights`: scratch space for six numbers)."""
+    cell = _quintic_weights((x - start) / step, coef.size - 4, weights)
+    value = 0.0
+    for j in range(6):
+        value += coef[cell + j] * weights[j]
+    return value
+
+
+@numba.njit(cache=True, inline="always")
+def _add_patch(coef, cell_x, wx, cell_y, wy, out):
+    """Add the first out.size fields of a tensor-product spline on the 6×6 patch at
+    (cell_x, cell_y) with weights wx, wy to `out` (36 multiply-adds per field)."""
+    for a in range(6):
+        for b in range(6):
+            weight = wx[a] * wy[b]
+            for f in range(out.size):
+                out[f] += coef[cell_x + a, cell_y + b, f] * weight
+
+
 @numba.njit(cache=True)
 def _evaluate_1d(coef, start, step, x):
     """Value of a 1-D uniform quintic spline with nodes start + i·step at the points x."""
     out = np.empty(x.size)
     weights = np.empty(6)
     for i in range(x.size):
-        cell = _quintic_weights((x[i] - start) / step, coef.size - 4, weights)
-        value = 0.0
-        for j in range(6):
-            value += coef[cell + j] * weights[j]
-        out[i] = value
+        out[i] = _spline_1d_at(coef, start, step, x[i], weights)
     return out
 
 
@@ -215,11 +233,7 @@ def _evaluate_2d(coef, x_start, x_step, y_start, y_step, x, y):
     for i in range(x.size):
         cell_x = _quintic_weights((x[i] - x_start) / x_step, nx - 4, wx)
         cell_y = _quintic_weights((y[i] - y_start) / y_step, ny - 4, wy)
-        for a in range(6):
-            for b in range(6):
-                weight = wx[a] * wy[b]
-                for f in range(n_fields):
-                    out[i, f] += coef[cell_x + a, cell_y + b, f] * weight
+        _add_patch(coef, cell_x, wx, cell_y, wy, out[i])
     return out
 
 

@@ -8,8 +8,8 @@ trains. Here the bounce map u_{k+1} = ε(u_k)·u_k is applied impact by impact, 
 [1]_, in a loop compiled with numba, evaluating the same quintic-spline tables inline: about
 0.1 µs per impact, so a whole train of 40 impacts costs less than one numpy call.
 
-The numbers are those of :func:`dashpot.physics.surrogate.surrogate_collide` (the same tables,
-coordinates and formulas, in the same order of operations up to rounding). A train that reaches
+The numbers are those of :func:`dashpot.physics.surrogate.surrogate_collide` to rounding (the
+same tables, coordinates, formulas and compiled spline helpers). A train that reaches
 a point the table does not serve (ζ outside the table, ṽ above it, or the thin band around the
 critical speed where the exact solver decides capture) is computed instead by
 :func:`impact_trains` with ``surrogate_collide`` as its map, which passes those points to the
@@ -30,8 +30,8 @@ import math
 import numba
 import numpy as np
 
-from .surrogate import (CAPTURE_BAND, S_MIN, ZETA_MAX, ZETA_MIN, _quintic_weights,
-                        load_surrogate, surrogate_collide)
+from .surrogate import (CAPTURE_BAND, S_MIN, ZETA_MAX, ZETA_MIN, _add_patch, _quintic_weights,
+                        _spline_1d_at, load_surrogate, surrogate_collide)
 from .train import ImpactTrains, impact_trains
 
 __all__ = ["surrogate_trains"]
@@ -57,7 +57,7 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
     nx, ny = coef.shape[0], coef.shape[1]
     wx = np.empty(6)
     wy = np.empty(6)
-    wc = np.empty(6)
+    fields = np.empty(2)  # logit of ε (less ½ ln s where ε ∝ √s) and ln τ
     for row in range(trains):
         z = zeta[row]
         if not (ZETA_MIN <= z <= zeta_max):
@@ -65,10 +65,7 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
             continue
         # Per train: the ζ coordinate, its weights and the critical speed.
         x = math.log(z) - 0.5 * math.log1p(-z * z) if is_ib else math.log(z)
-        cell_c = _quintic_weights((x - crit_start) / crit_step, crit_coef.size - 4, wc)
-        log_critical = 0.0
-        for j in range(6):
-            log_critical += crit_coef[cell_c + j] * wc[j]
+        log_critical = _spline_1d_at(crit_coef, crit_start, crit_step, x, wy)
         cell_x = _quintic_weights((x - x_start) / x_step, nx - 4, wx)
         speed = vtilde0[row]
         for k in range(count):
@@ -84,18 +81,12 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
                 outcome[row] = _OFF_TABLE
                 break
             cell_y = _quintic_weights((y - y_start) / y_step, ny - 4, wy)
-            logit = 0.0
-            log_tau = 0.0
-            for i in range(6):
-                for j in range(6):
-                    weight = wx[i] * wy[j]
-                    logit += coef[cell_x + i, cell_y + j, 0] * weight
-                    log_tau += coef[cell_x + i, cell_y + j, 1] * weight
-            if root_capture:
-                logit += 0.5 * math.log(s)
+            fields[0] = fields[1] = 0.0
+            _add_patch(coef, cell_x, wx, cell_y, wy, fields)
+            logit = fields[0] + 0.5 * math.log(s) if root_capture else fields[0]
             eps = 1.0 / (1.0 + math.exp(-logit))
             restitution[row, k] = eps
-            contact_times[row, k] = math.exp(log_tau)
+            contact_times[row, k] = math.exp(fields[1])
             speed = eps * speed
             if speed == 0.0:
                 # ε·u underflowed: the train ends here, as in the impact-by-impact map.
