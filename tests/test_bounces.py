@@ -75,3 +75,17 @@ def test_slowly_varying_restitution_is_not_flagged():
 def test_bad_impacts(times, match):
     with pytest.raises(ValueError, match=match):
         bounce_table(_impacts(times), g=9.81)
+
+
+def test_running_median_is_pandas_centred_rolling_median():
+    from dashpot.bounces import TREND_WINDOW, _rolling_median
+
+    rng = np.random.default_rng(5)
+    for size in (1, 2, 3, 6, 7, 8, 40):
+        for _ in range(20):
+            values = 0.9 + 0.05 * rng.standard_normal(size)
+            values[rng.random(size) < 0.3] = np.nan
+            want = pd.Series(values).rolling(TREND_WINDOW, center=True,
+                                             min_periods=1).median().to_numpy()
+            np.testing.assert_allclose(_rolling_median(values), want, rtol=1e-15,
+                                       equal_nan=True)
