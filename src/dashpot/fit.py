@@ -288,6 +288,14 @@ class Physics(NamedTuple):
 EXACT_PHYSICS = Physics(collide, impact_trains)
 
 
+def _impact_times(trains, omega0):
+    """Impact times in s from the first, one row per train (ω0 in rad/s per train); after a
+    capture the ball rests on the surface, so later impacts keep the last time."""
+    times = np.zeros(trains.speeds.shape)
+    np.cumsum(trains.intervals, axis=1, out=times[:, 1:])
+    return times / omega0[:, None]
+
+
 class _TrainPredictor:
     """Predicted trains of one model for many parameter sets at once, each evaluation started
     from the previous one's train (Newton's start; see :func:`impact_trains`)."""
@@ -328,9 +336,7 @@ class _TrainPredictor:
                 1, self.count - first + 1)
             ratios = np.concatenate([ratios, np.maximum(last, 1e-300)])
         self.start = ratios
-        times = np.zeros((zeta.size, self.count))
-        np.cumsum(trains.intervals, axis=1, out=times[:, 1:])
-        times /= omega0[:, None]
+        times = _impact_times(trains, omega0)
         speeds = trains.speeds * v_star[:, None]
         return trains, times, speeds, trains.restitution * speeds
 
@@ -442,9 +448,7 @@ def _train_times(model, data, zeta, omega0, v0, start=None, physics=EXACT_PHYSIC
     trains : ImpactTrains
     """
     trains = physics.trains(model, zeta, v0 * omega0 / data.g, data.count, start=start)
-    times = np.concatenate([np.zeros((zeta.size, 1)), np.cumsum(trains.intervals, axis=1)],
-                           axis=1) / omega0[:, None]
-    return times[:, data.index], trains
+    return _impact_times(trains, omega0)[:, data.index], trains
 
 
 def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
@@ -638,15 +642,19 @@ def _draws(values, varied, cov, count):
     out = {name: np.full(count, float(value)) for name, value in values.items()}
     if varied and np.all(np.isfinite(cov)):
         mean = np.array([values[name] for name in varied])
-        # As numpy's multivariate_normal(method="eigh"), without its checks (a third of the
-        # cost): a singular covariance (a fixed direction) is allowed.
-        eigenvalues, vectors = np.linalg.eigh(cov)
-        factor = vectors * np.sqrt(np.abs(eigenvalues))
-        sample = np.random.default_rng(INTERVAL_SEED).standard_normal(
-            (count, mean.size)) @ factor.T + mean
+        sample = _gaussian_draws(mean, cov, count, np.random.default_rng(INTERVAL_SEED))
         for i, name in enumerate(varied):
             out[name] = sample[:, i]
     return out
+
+
+def _gaussian_draws(mean, cov, count, rng):
+    """`count` draws of N(mean, cov), shape (count, mean.size), as numpy's
+    multivariate_normal(method="eigh") without its checks (a third of the cost); a singular
+    covariance (a direction the data fix exactly) is allowed."""
+    eigenvalues, vectors = np.linalg.eigh(cov)
+    factor = vectors * np.sqrt(np.abs(eigenvalues))
+    return rng.standard_normal((count, mean.size)) @ factor.T + mean
 
 
 def _sampled(value, stderr, draws, unit, status, note=""):
@@ -1240,9 +1248,7 @@ def _posterior_beta(residual_rows, result, g, seed, chisqr_scale=1.0, walkers=32
     spread = np.abs(centre) * 1e-6 + 1e-12
     start = centre + spread * rng.standard_normal((walkers, centre.size))
     if result.covar is not None and np.all(np.isfinite(result.covar)):
-        eigenvalues, vectors = np.linalg.eigh(result.covar)
-        draws = centre + rng.standard_normal((walkers, centre.size)) @ (
-            vectors * np.sqrt(np.abs(eigenvalues))).T
+        draws = _gaussian_draws(centre, result.covar, walkers, rng)
         # Walkers drawn outside the physical range start next to the best fit instead.
         start = np.where(np.isfinite(log_probability(draws))[:, None], draws, start)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
