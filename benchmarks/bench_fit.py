@@ -46,7 +46,6 @@ def _impact_by_impact(model, zeta, vtilde0, count, *, start=None, **options):
 
 
 _NEWTON_TRAINS = fit_module.impact_trains
-_NEWTON_PHYSICS = fit_module.EXACT_PHYSICS
 
 
 def main():
@@ -63,14 +62,13 @@ def main():
     for model in dashpot.MODELS:
         seconds, fit = best_cpu(lambda model=model: fit_model(data, model, scene,
                                                              accuracy="exact"))
-        # The exact level's evaluations (start values and Levenberg–Marquardt) solve their
-        # trains with EXACT_PHYSICS.trains.
-        fit_module.EXACT_PHYSICS = _NEWTON_PHYSICS._replace(trains=_impact_by_impact)
+        # The exact level's train solver is dashpot.fit's impact_trains (looked up per fit).
+        fit_module.impact_trains = _impact_by_impact
         try:
             base_seconds, _ = best_cpu(
                 lambda model=model: fit_model(data, model, scene, accuracy="exact"), repeats=1)
         finally:
-            fit_module.EXACT_PHYSICS = _NEWTON_PHYSICS
+            fit_module.impact_trains = _NEWTON_TRAINS
         beta = fit.estimates["beta"]
         pull = (beta.value - TRUTH["beta"]) / beta.stderr
         print(f"{model:7s} {seconds:8.3f} {fit.nfev:6d} {beta.value:10.4f} {beta.stderr:8.3f} "

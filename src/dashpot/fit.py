@@ -41,7 +41,6 @@ import functools
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple
 
 import lmfit
 import numpy as np
@@ -269,25 +268,6 @@ def prepare_data(impacts, scene):
                    notes=notes)
 
 
-class Physics(NamedTuple):
-    """The physics of one accuracy level: collisions and whole trains.
-
-    Attributes
-    ----------
-    collide : callable
-        ``collide(model, zeta, vtilde)`` -> :class:`~dashpot.physics.models.Collision`.
-    trains : callable
-        ``trains(model, zeta, vtilde0, count, start=, rtol=)`` ->
-        :class:`~dashpot.physics.train.ImpactTrains`, the trains of that map.
-    """
-
-    collide: Callable
-    trains: Callable
-
-
-EXACT_PHYSICS = Physics(collide, impact_trains)
-
-
 def _impact_times(trains, omega0):
     """Impact times in s from the first, one row per train (ω0 in rad/s per train); after a
     capture the ball rests on the surface, so later impacts keep the last time."""
@@ -300,9 +280,9 @@ class _TrainPredictor:
     """Predicted trains of one model for many parameter sets at once, each evaluation started
     from the previous one's train (Newton's start; see :func:`impact_trains`)."""
 
-    def __init__(self, model, g, count, physics=EXACT_PHYSICS):
+    def __init__(self, model, g, count, trains_solver=impact_trains):
         self.model, self.g, self.count = model, g, count
-        self.physics = physics
+        self.trains_solver = trains_solver
         self.start = None
         self.error_bound = 0.0
 
@@ -325,8 +305,8 @@ class _TrainPredictor:
         v_star = self.g / omega0
         start = (None if self.start is None
                  else np.broadcast_to(self.start, (zeta.size, self.count)))
-        trains = self.physics.trains(self.model, zeta, v0 / v_star, self.count, start=start,
-                                     rtol=EXACT_RTOL)
+        trains = self.trains_solver(self.model, zeta, v0 / v_star, self.count, start=start,
+                                    rtol=EXACT_RTOL)
         self.error_bound = max(self.error_bound, float(np.max(trains.error_bound)))
         first = int(trains.impacts[0])
         ratios = trains.speeds[0, :first] / trains.speeds[0, 0]
@@ -387,7 +367,7 @@ def _needed_accuracy(data):
 
 
 def choose_accuracy(data, requested="auto", model="hybrid"):
-    """Accuracy level, its physics and the bound it guarantees, for one scene and model.
+    """Accuracy level, its train solver and the bound it guarantees, for one scene and model.
 
     Parameters
     ----------
@@ -401,8 +381,10 @@ def choose_accuracy(data, requested="auto", model="hybrid"):
     Returns
     -------
     level : str
-    physics : Physics
-        The level's collision map and train solver.
+    trains_solver : callable
+        ``trains_solver(model, zeta, vtilde0, count, start=, rtol=)`` ->
+        :class:`~dashpot.physics.train.ImpactTrains`: :func:`impact_trains` with the exact
+        solver, or the compiled trains over the level's surrogate tables.
     bound : float
         Certified maximum relative error of ε and τ (EXACT_RTOL for the exact solver).
     reason : str
@@ -413,31 +395,29 @@ def choose_accuracy(data, requested="auto", model="hybrid"):
     needed = _needed_accuracy(data)
     levels = ACCURACY_LEVELS if requested == "auto" else (requested,)
     for level in levels:
-        physics, bound = _physics(level, model)
+        trains_solver, bound = _trains_solver(level, model)
         if requested != "auto" or bound <= needed or level == "exact":
             reason = (f"{level} (asked)" if requested != "auto" else
                       f"{level}: certified error {bound:.1e} <= {needed:.1e} needed by the "
                       f"timing noise" if bound <= needed else
                       f"exact: no faster level meets the {needed:.1e} the timing noise needs")
-            return level, physics, bound, reason
+            return level, trains_solver, bound, reason
     raise AssertionError("unreachable: the exact level is always acceptable")
 
 
-def _physics(level, model):
-    """The physics of an accuracy level and its certified relative error."""
+def _trains_solver(level, model):
+    """The train solver of an accuracy level and its certified relative error."""
     if level == "exact" or model not in GRAVITY_MODELS:
         # Ia and IIa are closed forms: exact is also the fastest.
-        return EXACT_PHYSICS, EXACT_RTOL
+        return impact_trains, EXACT_RTOL
     # Imported here: the compiled train solver loads numba, which only these levels need.
-    from .physics.surrogate import load_surrogate, surrogate_collide
+    from .physics.surrogate import load_surrogate
     from .physics.surrogate_train import surrogate_trains
 
-    return (Physics(functools.partial(surrogate_collide, level=level),
-                    functools.partial(surrogate_trains, level=level)),
-            load_surrogate(model, level).bound)
+    return functools.partial(surrogate_trains, level=level), load_surrogate(model, level).bound
 
 
-def _train_times(model, data, zeta, omega0, v0, start=None, physics=EXACT_PHYSICS):
+def _train_times(model, data, zeta, omega0, v0, start=None, trains_solver=impact_trains):
     """Predicted times (s, from the first impact) of the observed impacts, many trains at once.
 
     A train captured before the last observed impact rests at its last one.
@@ -447,12 +427,12 @@ def _train_times(model, data, zeta, omega0, v0, start=None, physics=EXACT_PHYSIC
     times : ndarray, shape (trains, observed impacts)
     trains : ImpactTrains
     """
-    trains = physics.trains(model, zeta, v0 * omega0 / data.g, data.count, start=start)
+    trains = trains_solver(model, zeta, v0 * omega0 / data.g, data.count, start=start)
     return _impact_times(trains, omega0)[:, data.index], trains
 
 
 def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
-             physics=EXACT_PHYSICS):
+             trains_solver=impact_trains):
     """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
 
     Every iteration evaluates the trains at the current values and at a small step in each
@@ -488,7 +468,7 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
             trial[k + 1, :, k] *= 1.0 + step
         trial = trial.reshape(-1, 2)
         times, trains = _train_times(model, data, trial[:, 0], np.tile(omega0, names + 1),
-                                     trial[:, 1], start=start, physics=physics)
+                                     trial[:, 1], start=start, trains_solver=trains_solver)
         misfit = data.times[None, :] - times
         t0 = np.sum(misfit * weights, axis=1) / weights.sum()
         residual = ((misfit - t0[:, None]) / data.sigma).reshape(names + 1, count, -1)
@@ -520,16 +500,27 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     return best_chisqr, best[:, 0], best[:, 1], best_t0, start[winner]
 
 
-def _zeta_on_grid(model, eps, vtilde, solver, grid=None):
+def _restitution(trains_solver, model, zeta, vtilde):
+    """ε and the capture flag at (ζ, ṽ) (broadcast) from trains of one impact: the surrogate
+    levels' compiled pass costs a fraction of a ``collide`` call on the tables for the few
+    hundred points of a fit."""
+    zeta, vtilde = np.broadcast_arrays(zeta, vtilde)
+    trains = trains_solver(model, zeta.ravel(), vtilde.ravel(), 1)
+    return (trains.restitution[:, 0].reshape(zeta.shape),
+            np.isinf(trains.contact_times[:, 0]).reshape(zeta.shape))
+
+
+def _zeta_on_grid(model, eps, vtilde, trains_solver, grid=None):
     """ζ at which `model` gives restitution `eps` at impact speeds ṽ, to about 1 % (a start).
 
     ε falls monotonically with ζ: it is evaluated on a logarithmic grid of ζ for every target
-    in one call of `solver`, and ln ζ interpolated linearly in logit ε between the grid points
-    that bracket the target. Targets above the grid's first ε are looked for again on a grid of
+    in one call (trains of one impact by `trains_solver`, the compiled pass at the
+    surrogate levels), and ln ζ interpolated linearly in logit ε between the grid points that
+    bracket the target. Targets above the grid's first ε are looked for again on a grid of
     smaller ζ (nearly elastic balls). NaN where no grid point reaches it.
     """
     grid = ZETA_START_GRID if grid is None else grid
-    restitution = solver(model, grid[None, :], vtilde[:, None]).eps
+    restitution, _ = _restitution(trains_solver, model, grid[None, :], vtilde[:, None])
     below = restitution < eps[:, None]
     found = below.any(axis=1) & (restitution[:, 0] >= eps)
     upper = np.clip(np.argmax(below, axis=1), 1, grid.size - 1)
@@ -544,13 +535,13 @@ def _zeta_on_grid(model, eps, vtilde, solver, grid=None):
     zeta = np.where(found, zeta, np.nan)
     elastic = restitution[:, 0] < eps
     if grid is ZETA_START_GRID and elastic.any():
-        zeta[elastic] = _zeta_on_grid(model, eps[elastic], vtilde[elastic], solver,
+        zeta[elastic] = _zeta_on_grid(model, eps[elastic], vtilde[elastic], trains_solver,
                                       ZETA_ELASTIC_GRID)
     return zeta
 
 
 def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
-                  physics=EXACT_PHYSICS, level="exact"):
+                  trains_solver=impact_trains, level="exact"):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -562,7 +553,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     """
     if level == "fast":
-        zeta_for = functools.partial(_zeta_on_grid, solver=physics.collide)
+        zeta_for = functools.partial(_zeta_on_grid, trains_solver=trains_solver)
         iterations = FAST_PROFILE_ITERATIONS
     else:
         zeta_for, iterations = _zeta_for_restitution, 10
@@ -612,7 +603,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     chisqr, zeta, v0_fit, t0, ratios = _profile(model, data, zeta[usable], omega0,
                                                 np.full(omega0.size, v0), ratios,
                                                 fit_v0=fit_v0, iterations=iterations,
-                                                physics=physics)
+                                                trains_solver=trains_solver)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
     if (level != "fast" and 0 < best < omega0.size - 1
@@ -773,11 +764,12 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                               + (", v0" if fixed_v0 is None else "")
                               + "); give more impacts or known quantities in the scene",
                        notes, data)
-    level, physics, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
+    level, trains_solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
     notes.append(f"accuracy {reason}")
     known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
-                               known_omega0, fit_v0=fixed_v0 is None, physics=physics,
+                               known_omega0, fit_v0=fixed_v0 is None,
+                               trains_solver=trains_solver,
                                level=level)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
@@ -815,7 +807,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     # Each train is that of the level's map to machine precision (Newton's method, or the
     # compiled impact-by-impact pass over the surrogate tables): the finite-difference
     # Jacobians difference trains whose parameters differ by ~1e-8 to 1e-5.
-    predictor = _TrainPredictor(model, data.g, data.count, physics)
+    predictor = _TrainPredictor(model, data.g, data.count, trains_solver)
     predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
     tolerance = bound * data.count
@@ -981,8 +973,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
             if method == "profile":
                 intervals[method] = _profile_beta(residual, result, g, chisqr_scale)
             else:
-                # The sampler runs on the fast level's physics, whatever the fit's level.
-                sampled = _TrainPredictor(model, g, data.count, _physics("fast", model)[0])
+                # The sampler runs on the fast level's trains, whatever the fit's level.
+                sampled = _TrainPredictor(model, g, data.count,
+                                          _trains_solver("fast", model)[0])
                 sampled.start = predictor.start
                 intervals[method] = _posterior_beta(
                     functools.partial(_residual_rows, data=data, predictor=sampled,
@@ -995,7 +988,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     top = float(np.max(speeds))
     bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
     curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
-    curve = physics.collide(model, zeta, curve_speed / v_star)
+    curve_eps, curve_captured = _restitution(trains_solver, model, zeta,
+                                             curve_speed / v_star)
     return FitResult(
         model=model, success=success, message=message, estimates=estimates, varied=varied,
         correlation=correlation, chisqr=chisqr, redchi=float(result.redchi), aic=aic, bic=bic,
@@ -1006,7 +1000,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                    "restitution": trains.restitution[0, :impacts],
                    "contact_durations": trains.contact_times[0, :impacts] / omega0,
                    "at_data": predicted_at_data},
-        eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.captured},
+        eps_curve={"speed": curve_speed, "eps": curve_eps, "captured": curve_captured},
         notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
         intervals=intervals, accuracy=level)
 
