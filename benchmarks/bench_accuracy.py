@@ -16,8 +16,9 @@ Two tables.
    seeded synthetic trials whose 68.27 % and 95.45 % intervals of β contain the truth, and the
    mean CPU time of each method, for a well-determined scene and one close to capture.
 
-CPU times (time.process_time) and wall times, best of five for the levels (the first call of a level also
-loads its tables, compiled loops and caches). Run with ``make bench``.
+CPU times (time.process_time) and wall times of each level: the best of at least five runs
+and of about one second of runs, after a first call that loads its tables, compiled loops and
+caches. Run with ``make bench``.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from timing import best_cpu, best_wall
 G = 9.80665
 BALL = dict(model="hybrid", beta=8.0, omega0=800.0, v0=1.2)  # ṽ0 ≈ 98, 30 impacts
 CART_MASS, CART_K, CART_BETA = 0.506, 255.0, 1.87
+TIMING_BUDGET = 1.0  # s of repeated runs per accuracy level
 
 
 def audio_scene(folder):
@@ -61,12 +63,17 @@ def cart_scene(folder):
 def level_table(name, impacts, scene, beta_true, k_true):
     rows, exact = [], None
     for level in ("exact", "standard", "fast", "auto"):
-        # Best of five: the first call of a level also loads its tables and warms caches.
         def run(level=level):
             return fit_scene(impacts, dataclasses.replace(scene, accuracy=level))
 
-        seconds, result = best_cpu(run, repeats=5)
-        wall = best_wall(run, repeats=5)
+        # A first call loads the level's tables and compiled loops and warms caches. Then the
+        # best of at least five runs and of about a second of runs per level, so that a fast
+        # level's 20 ms runs get as much protection from bursts of other load as the exact
+        # level's 0.2 s runs.
+        first, _ = best_cpu(run, repeats=1)
+        repeats = max(5, math.ceil(TIMING_BUDGET / first))
+        seconds, result = best_cpu(run, repeats=repeats)
+        wall = best_wall(run, repeats=repeats)
         if level == "exact":
             exact = result
         hybrid = result.results["hybrid"]
