@@ -195,3 +195,107 @@ def test_missing_unreadable_and_binary_scene_files(tmp_path):
         load_scene(binary)
     for error in (caught.value,):
         assert "\n" not in str(error)
+
+
+# --- Bounded YAML: bombs, deep nesting and duplicate keys are one line, fast and small. ---
+
+def _billion_laughs():
+    """The classic document: nine levels of nine aliases each, 9⁹ ≈ 3.9e8 strings expanded.
+
+    Placed under ``models``, whose items the schema check walks (and prints), as in the
+    report of a scene that ran to 8.4 GB.
+    """
+    lines = ['models:', '  - &l0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    for level in range(1, 9):
+        lines.append(f"  - &l{level} [" + ", ".join([f"*l{level - 1}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def test_billion_laughs_is_refused_quickly_in_small_memory(tmp_path):
+    import time
+    import tracemalloc
+
+    path = _write(tmp_path / "bomb", _billion_laughs())
+    tracemalloc.start()
+    started = time.perf_counter()
+    try:
+        with pytest.raises(InputError) as caught:
+            load_scene(path)
+        elapsed = time.perf_counter() - started
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    message = str(caught.value)
+    assert message.startswith(f"{path}: refused YAML (") and "\n" not in message
+    assert "aliases expand to more than" in message
+    assert elapsed < 1.0
+    assert peak < 20 * 2**20
+
+
+@pytest.mark.parametrize("opening,closing", [("[", "]"), ("{a: ", "}")], ids=["list", "mapping"])
+def test_ten_thousand_nested_brackets_are_refused_without_recursion_error(
+        tmp_path, opening, closing):
+    path = _write(tmp_path / "deep", "models: " + opening * 10_000 + "Ia" + closing * 10_000 + "\n")
+    with pytest.raises(InputError) as caught:
+        load_scene(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: refused YAML (line 1, ") and "\n" not in message
+    assert "nested deeper than" in message
+
+
+def test_block_nesting_just_within_the_bound_loads_and_one_deeper_is_refused(tmp_path):
+    from dashpot.safe_yaml import MAX_DEPTH, parse_yaml
+
+    def nested(levels):
+        return "".join("  " * depth + "k:\n" for depth in range(levels - 1)) + \
+            "  " * (levels - 1) + "k: 1\n"
+
+    document = parse_yaml(nested(MAX_DEPTH))
+    for _ in range(MAX_DEPTH):
+        document = document["k"]
+    assert document == 1
+    with pytest.raises(InputError, match=r"line \d+, column \d+: nested deeper than"):
+        parse_yaml(nested(MAX_DEPTH + 1), "deep.yaml")
+
+
+@pytest.mark.parametrize("text,key,line,first", [
+    ("apparatus:\n  mass: 0.25\n  gravity: 9.81\n  mass: 0.3\n", "mass", 4, 2),
+    ("name: a\nsensor: audio\nname: b\n", "name", 3, 1),
+    ("reader: {unit: s, unit: ms}\n", "unit", 1, 1),
+], ids=["block", "top_level", "flow"])
+def test_duplicate_key_is_an_error_naming_the_key_and_lines(tmp_path, text, key, line, first):
+    path = _write(tmp_path / "dup", text)
+    with pytest.raises(InputError) as caught:
+        load_scene(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: refused YAML (line {line}, ") and "\n" not in message
+    assert f"duplicate key '{key}' (also on line {first})" in message
+
+
+def test_recursive_alias_is_refused(tmp_path):
+    path = _write(tmp_path / "loop", "models: &m [Ia, *m]\n")
+    with pytest.raises(InputError, match="alias refers to the node that contains it"):
+        load_scene(path)
+
+
+def test_a_few_aliases_and_merge_keys_still_load(tmp_path):
+    from dashpot.safe_yaml import load_yaml
+
+    path = tmp_path / "config.yaml"
+    path.write_text("defaults: &cart {mass: 0.5, g_eff: 0.3}\n"
+                    "a: *cart\n"
+                    "b: {<<: *cart, mass: 0.7}\n"
+                    "stiffness: 5e4\n", encoding="utf-8")
+    document = load_yaml(path)
+    assert document["a"] == {"mass": 0.5, "g_eff": 0.3}
+    # An explicit key overrides a merged one: that is not a duplicate.
+    assert document["b"] == {"mass": 0.7, "g_eff": 0.3}
+    assert document["stiffness"] == 50000.0
+
+
+def test_a_number_too_long_for_python_is_one_line(tmp_path):
+    path = _write(tmp_path / "digits", "apparatus:\n  mass: " + "9" * 5000 + "\n")
+    with pytest.raises(InputError) as caught:
+        load_scene(path)
+    assert str(caught.value).startswith(f"{path}: not valid YAML (")
+    assert "\n" not in str(caught.value)

@@ -15,13 +15,13 @@ References
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field, fields, replace
 from importlib.resources import files
 from pathlib import Path
 
 from .errors import InputError
 from .physics.models import MODELS
+from .safe_yaml import load_yaml
 
 __all__ = ["Known", "Scene", "load_scene", "scene_from_mapping", "STANDARD_GRAVITY"]
 
@@ -140,28 +140,6 @@ def _schema():
     return yaml.safe_load(files("dashpot").joinpath("scene.schema.yaml").read_text())
 
 
-def _yaml_loader():
-    """PyYAML's safe loader, also reading exponent floats without a dot (``5e4``, ``1e-3``).
-
-    YAML 1.1, which PyYAML implements, reads ``1e-3`` as a string; YAML 1.2 and every
-    scientist read it as a number.
-    """
-    import yaml
-
-    class Loader(yaml.SafeLoader):
-        pass
-
-    Loader.add_implicit_resolver(
-        "tag:yaml.org,2002:float",
-        re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-                    |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-                    |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-                    |[-+]?\.(?:inf|Inf|INF)
-                    |\.(?:nan|NaN|NAN))$""", re.X),
-        list("-+0123456789."))
-    return Loader
-
-
 def _non_finite(value, where=()):
     """Path of the first NaN or infinite number in a nested mapping/list, else None."""
     if isinstance(value, float) and not math.isfinite(value):
@@ -249,22 +227,12 @@ def load_scene(path):
     Raises
     ------
     InputError
-        Missing or unreadable file, YAML syntax error, or a scene that breaks the schema.
+        Missing or unreadable file, not UTF-8, YAML syntax error, a duplicate key, nesting or
+        aliases past the bounds of :func:`dashpot.safe_yaml.load_yaml`, or a scene that breaks
+        the schema.
     """
-    import yaml
-
     path = Path(path)
-    try:
-        mapping = yaml.load(path.read_text(encoding="utf-8"), Loader=_yaml_loader())
-    except OSError as error:
-        raise InputError(path, f"cannot read the scene file ({error.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(path, "not a text file in UTF-8") from None
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise InputError(path, f"not valid YAML ({where}{problem})") from None
+    mapping = load_yaml(path, what="scene file")
     if mapping is None:
         mapping = {}
     if not isinstance(mapping, dict):
