@@ -89,3 +89,54 @@ def test_running_median_is_pandas_centred_rolling_median():
                                              min_periods=1).median().to_numpy()
             np.testing.assert_allclose(_rolling_median(values), want, rtol=1e-15,
                                        equal_nan=True)
+
+
+def test_a_ratio_involving_a_flagged_interval_is_flagged():
+    """ε = T_{n+1}/T_n next to a missed impact or a typed-in 10x time is never "ok"."""
+    times = _geometric_train(30)
+    missed = bounce_table(_impacts(np.delete(times, 12)), g=9.81)
+    typo = times.copy()
+    typo[-1] *= 10  # the last time typed with its decimal point one place off
+    mistyped = bounce_table(_impacts(typo), g=9.81)
+    for table in (missed, mistyped):
+        flags = table["flag"].to_numpy()
+        assert np.any(flags != "ok")
+        both_ok = (flags[:-1] == "ok") & (flags[1:] == "ok")
+        ratio_flags = table["restitution_flag"].to_numpy()
+        np.testing.assert_array_equal(ratio_flags[:-1] == "ok", both_ok)
+        assert ratio_flags[-1] == "last"
+        # What is left "ok" is the ball's ε.
+        ok = table["restitution"][table["restitution_flag"] == "ok"]
+        np.testing.assert_allclose(ok, 0.9, rtol=1e-9)
+    assert missed.loc[[10, 11], "restitution_flag"].tolist() == ["missed", "missed"]
+    assert mistyped["restitution"].iloc[-2] > 100
+
+
+def test_runs_are_never_bridged():
+    """Two runs side by side: intervals and ratios within each run, numbered from 0."""
+    first, second = _geometric_train(12), _geometric_train(9, first=0.4, ratio=0.8) + 0.013
+    frame = pd.DataFrame({"time": np.concatenate([first, second]),
+                          "time_uncertainty": 1e-5,
+                          "run": np.repeat([0, 1], [first.size, second.size])})
+    frame = frame.sort_values("time", kind="stable").reset_index(drop=True)
+    table = bounce_table(frame, g=9.81)
+    for run, times, ratio in ((0, first, 0.9), (1, second, 0.8)):
+        mine = table[table["run"] == run]
+        np.testing.assert_array_equal(mine["bounce"], np.arange(times.size - 1))
+        np.testing.assert_allclose(mine["interval"], np.diff(times), rtol=1e-12)
+        np.testing.assert_allclose(mine["restitution"].dropna(), ratio, rtol=1e-9)
+    assert (table["flag"] == "ok").all()
+
+
+def test_unknown_and_bad_uncertainties():
+    times = _geometric_train(10)
+    sigma = np.full(times.size, 1e-4)
+    sigma[4] = np.nan
+    table = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=9.81)
+    assert np.isnan(table["interval_uncertainty"][[3, 4]]).all()
+    assert (table["interval_uncertainty"].drop(index=[3, 4]) > 0).all()
+    assert (table["flag"] == "ok").all()
+    for bad in (-1e-4, np.inf):
+        sigma[4] = bad
+        with pytest.raises(ValueError, match="time_uncertainty"):
+            bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=9.81)

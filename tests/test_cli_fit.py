@@ -80,11 +80,11 @@ BAD_INPUTS = {
     "binary": (bytes(range(256)) * 4, "binary"),
     "two_impacts": ("time,time_uncertainty\n0.10,1e-5\n0.40,1e-5\n", "only 2 impact(s)"),
     "backwards": ("time,time_uncertainty\n0.1,1e-5\n0.4,1e-5\n0.3,1e-5\n0.5,1e-5\n",
-                  "row 3: impact times must increase"),
+                  "row 3, column 'time': impact times must increase"),
     "repeated": ("time,time_uncertainty\n0.1,1e-5\n0.4,1e-5\n0.6,1e-5\n0.6,1e-5\n",
-                 "row 4: impact times must increase"),
+                 "row 4, column 'time': impact times must increase"),
     "not_a_number": ("time,time_uncertainty\n0.1,1e-5\nlate,1e-5\n0.6,1e-5\n",
-                     "row 2: impact time missing or not a number"),
+                     "row 2, column 'time': 'late' is not a number"),
 }
 
 

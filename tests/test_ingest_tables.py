@@ -412,7 +412,7 @@ BAD_TIMES = {
     "empty-cell": ("time (s),sigma (s)\n0.5,0.001\n,0.001\n1.9,0.001\n", 2, "missing"),
     "negative": ("time (s)\n-0.5\n1.0\n1.4\n", 1, "negative"),
     "not-increasing": ("time (s)\n0.5\n1.0\n1.4\n1.2\n", 4, "not after"),
-    "text": ("time (s)\n0.5\nabc\n1.4\n", 2, "not a number"),
+    "text": ("time (s)\n0.5\nabc\n1.4\n", r"2, column 'time \(s\)'", "'abc' is not a number"),
 }
 
 
@@ -499,3 +499,26 @@ def test_gate_state_that_is_not_a_state(tmp_path):
 def test_missing_file(tmp_path):
     with pytest.raises(InputError, match=r"nothere\.csv: no such file"):
         read_timestamps(tmp_path / "nothere.csv")
+
+
+def test_excel_unicode_text_comment_lines_and_extra_fields(tmp_path):
+    """Excel's "Unicode text" (UTF-16 LE, BOM, tabs, CRLF); leading '#' comments; a row with a
+    field too many is named unless the extra field is empty."""
+    text = "time (s)\tuncertainty (s)\r\n0.5\t0.001\r\n0.9\t0.001\r\n1.25\t0.001\r\n"
+    unicode_text = tmp_path / "clicks.txt"
+    unicode_text.write_bytes("\ufeff".encode("utf-16-le") + text.encode("utf-16-le"))
+    frame = read_timestamps(unicode_text)
+    np.testing.assert_array_equal(frame["time"], [0.5, 0.9, 1.25])
+    assert "UTF-16" in frame.attrs["notes"][0]
+    commented = tmp_path / "commented.csv"
+    commented.write_text("# bench 3, drop from 0.5 m\n# g = 9.81, sigma\ntime (s)\n0.5\n0.9\n"
+                         "1.25\n")
+    np.testing.assert_array_equal(read_timestamps(commented)["time"], [0.5, 0.9, 1.25])
+    trailing = tmp_path / "trailing.csv"
+    trailing.write_text("time (s),sigma (s)\n0.5,0.001\n0.9,0.001,\n1.25,0.001\n")
+    np.testing.assert_array_equal(read_timestamps(trailing)["time"], [0.5, 0.9, 1.25])
+    extra = tmp_path / "extra.csv"
+    extra.write_text("time (s),sigma (s)\n0.5,0.001\n0.9,0.001,x\n1.25,0.001\n")
+    with pytest.raises(InputError, match=r"extra\.csv, row 2: 3 fields where the header row "
+                                         r"has 2 \(extra 'x'\)$"):
+        read_timestamps(extra)

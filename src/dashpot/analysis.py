@@ -9,55 +9,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
-
 from .errors import InputError
-from .ingest import IMPACT_COLUMNS, read_impacts
+from .ingest import read_impacts
+from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
 
-__all__ = ["read_impact_table", "scene_impacts", "analyze"]
-
-
-def read_impact_table(path):
-    """Read an impact table written by ``dashpot impacts`` (CSV with the ingest columns).
-
-    Raises
-    ------
-    InputError
-        Unreadable file, no ``time`` column, or times that are missing, not finite or not
-        increasing (row named).
-    """
-    try:
-        table = pd.read_csv(path)
-    except (OSError, ValueError, UnicodeDecodeError) as error:
-        raise InputError(path, f"cannot read the impact table ({error})") from None
-    if "time" not in table:
-        raise InputError(path, "no 'time' column: write it with `dashpot impacts`")
-    times = pd.to_numeric(table["time"], errors="coerce").to_numpy(float)
-    bad = np.flatnonzero(~np.isfinite(times))
-    if bad.size:
-        raise InputError(path, "impact time missing or not a number", row=int(bad[0]) + 1)
-    backwards = np.flatnonzero(np.diff(times) <= 0)
-    if backwards.size:
-        raise InputError(path, "impact times must increase", row=int(backwards[0]) + 2)
-    for column in IMPACT_COLUMNS:
-        if column not in table:
-            table[column] = 0 if column == "run" else np.nan
-    table.attrs.update({"source": str(path), "sensor": "impact table", "notes": []})
-    return table
-
-
-def _is_impact_table(path):
-    """True for a CSV whose header holds the ingest columns ``time`` and ``time_uncertainty``."""
-    if Path(path).suffix.lower() != ".csv":
-        return False
-    try:
-        with open(path, encoding="utf-8", errors="replace") as handle:
-            header = handle.readline().strip().split(",")
-    except OSError:
-        return False
-    return {"time", "time_uncertainty"} <= set(header)
+__all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze"]
 
 
 def scene_impacts(path, scene=None):
@@ -67,16 +24,49 @@ def scene_impacts(path, scene=None):
     ----------
     path : str or os.PathLike
     scene : Scene, optional
-        Its ``sensor`` and ``reader`` options choose and configure the reader.
+        Its ``sensor`` and ``reader`` options choose and configure the reader of a recording.
 
     Returns
     -------
     pandas.DataFrame
+
+    Notes
+    -----
+    An impact table written by ``dashpot impacts`` is read as an impact table whatever the
+    scene's ``sensor`` says: the sensor describes the scene's recording, from which the table
+    was made (``dashpot impacts rec.wav -o imp.csv`` then ``dashpot fit imp.csv --scene
+    scene.yaml``).
     """
     scene = scene or Scene()
-    if scene.sensor is None and _is_impact_table(path):
-        return read_impact_table(path)
+    if is_impact_table(path):
+        impacts = read_impact_table(path)
+        if scene.sensor is not None:
+            impacts.attrs["notes"].append(
+                f"read as an impact table; the scene's sensor '{scene.sensor}' describes the "
+                f"recording it was made from")
+        return impacts
     return read_impacts(path, kind=scene.sensor, **scene.reader)
+
+
+def recording_note(path, scene):
+    """Plain-words note when the file analysed is not the scene's ``recording``, else None.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file actually read (a recording or an impact table).
+    scene : Scene or None
+
+    Returns
+    -------
+    str or None
+    """
+    if scene is None or scene.recording is None:
+        return None
+    if Path(path).resolve() == Path(scene.recording).resolve():
+        return None
+    return (f"fitted {path}; the scene's recording {scene.recording} was not read (the HDF5 "
+            f"file records {Path(path).name} as input_file)")
 
 
 def analyze(path, scene=None, *, models=None, progress=None):

@@ -23,8 +23,9 @@ from ._validation import check_nonnegative, check_positive
 
 __all__ = ["bounce_table", "BOUNCE_COLUMNS"]
 
-BOUNCE_COLUMNS = ("bounce", "start_time", "interval", "interval_uncertainty", "rebound_speed",
-                  "rebound_speed_uncertainty", "restitution", "restitution_uncertainty", "flag")
+BOUNCE_COLUMNS = ("run", "bounce", "start_time", "interval", "interval_uncertainty",
+                  "rebound_speed", "rebound_speed_uncertainty", "restitution",
+                  "restitution_uncertainty", "flag", "restitution_flag")
 
 # A ratio of consecutive intervals this far from the local trend (relative, beyond the timing
 # noise) is not a normal bounce. Real balls change ε by a few % between bounces.
@@ -56,13 +57,14 @@ def _local_ratio(ratios):
 
 
 def bounce_table(impacts, *, g, contact_duration=0.0):
-    """Intervals, rebound speeds and per-bounce restitution from an impact table.
+    """Intervals, rebound speeds and per-bounce restitution from an impact table, run by run.
 
     Parameters
     ----------
     impacts : pandas.DataFrame
-        Impact table of :mod:`dashpot.ingest` (columns ``time`` and ``time_uncertainty`` in s),
-        sorted by time, at least three impacts.
+        Impact table of :mod:`dashpot.ingest`: ``time`` in s, optional ``time_uncertainty``
+        (1σ in s; NaN = unknown) and ``run`` (runs side by side; 0 if absent). Times must
+        increase within each run; at least one run needs three impacts.
     g : float
         Acceleration pulling the ball back to the surface in m/s² (g·sin θ on an incline).
     contact_duration : float, default 0
@@ -72,40 +74,92 @@ def bounce_table(impacts, *, g, contact_duration=0.0):
     Returns
     -------
     pandas.DataFrame
-        One row per interval n (impact n to n + 1), columns ``BOUNCE_COLUMNS``: ``bounce`` n,
-        ``start_time`` (s), ``interval`` T_n (s) and its 1σ uncertainty, ``rebound_speed``
-        g·(T_n − τ_c)/2 (m/s) and its uncertainty, ``restitution`` T_{n+1}/T_n (NaN for the
-        last interval) and its uncertainty, and ``flag``: "ok", "missed" (an impact is missing
-        inside this interval), "spurious" (this interval ends or starts at an impact that is
-        not one), "irregular" (off the trend for another reason). ``attrs`` hold the notes.
+        One row per interval n (impact n to n + 1 of the same run; never across runs), columns
+        ``BOUNCE_COLUMNS``: ``run``, ``bounce`` n (from 0 in each run), ``start_time`` (s),
+        ``interval`` T_n (s) and its 1σ uncertainty, ``rebound_speed`` g·(T_n − τ_c)/2 (m/s)
+        and its uncertainty, ``restitution`` T_{n+1}/T_n (NaN for the last interval of a run)
+        and its uncertainty, ``flag`` judging the interval T_n: "ok", "missed" (an impact is
+        missing inside it), "spurious" (it ends or starts at an impact that is not one),
+        "irregular" (off the trend for another reason); and ``restitution_flag`` judging the
+        ratio: "ok" only if both of its intervals T_n and T_{n+1} are "ok", else the flag of
+        the first of them that is not (a ratio involving a flagged interval is never "ok"),
+        and "last" where there is no next interval. ``attrs`` hold the notes.
+
+    Raises
+    ------
+    ValueError
+        Times not finite or not increasing within a run, a negative or infinite
+        ``time_uncertainty``, or no run with three impacts.
 
     Notes
     -----
     Flight time T = τ_c + 2v/g gives v = g(T − τ_c)/2 [1]_ [2]_; the ratio of successive
     flight times estimates ε of the impact between them. Uncertainties are propagated from the
     impact times, with the shared middle impact of a ratio taken into account:
-    σ_r² = (σ_{n+2}² + r²σ_n² + (1 + r)²σ_{n+1}²)/T_n².
+    σ_r² = (σ_{n+2}² + r²σ_n² + (1 + r)²σ_{n+1}²)/T_n². An unknown (NaN) σ makes the
+    uncertainties that involve it NaN, never 0; the flags then judge those ratios against the
+    trend tolerance alone.
     """
     g = float(check_positive("g", g))
     contact_duration = float(check_nonnegative("contact_duration", contact_duration))
     times = np.asarray(impacts["time"], dtype=float)
-    if times.size < 3:
-        raise ValueError(f"a bounce table needs at least three impacts; got {times.size}")
-    if np.any(np.diff(times) <= 0):
-        raise ValueError("impact times must increase strictly")
+    if not np.all(np.isfinite(times)):
+        raise ValueError(f"impact time {np.flatnonzero(~np.isfinite(times))[0]} is not finite")
     if "time_uncertainty" in impacts:
         sigma = np.asarray(impacts["time_uncertainty"], dtype=float)
-        sigma = np.where(np.isfinite(sigma), sigma, 0.0)
     else:
-        sigma = np.zeros(times.size)
+        sigma = np.full(times.size, np.nan)
+    bad = np.isinf(sigma) | (np.nan_to_num(sigma) < 0)
+    if bad.any():
+        raise ValueError(f"time_uncertainty {sigma[bad][0]!r} of impact "
+                         f"{np.flatnonzero(bad)[0]} must be ≥ 0 and finite (NaN = unknown)")
+    run = (np.asarray(impacts["run"], dtype=int) if "run" in impacts
+           else np.zeros(times.size, dtype=int))
+    runs = list(dict.fromkeys(run))  # order of first appearance
+    sizes = [int(np.sum(run == number)) for number in runs]
+    if max(sizes, default=0) < 3:
+        raise ValueError(f"a bounce table needs at least three impacts in a run; got "
+                         f"{', '.join(map(str, sizes)) or 0}")
+    parts = []
+    for number in runs:  # loop over runs
+        members = np.flatnonzero(run == number)
+        if np.any(np.diff(times[members]) <= 0):
+            raise ValueError(f"impact times must increase strictly within a run (run {number})")
+        if members.size >= 2:
+            parts.append(_run_bounces(times[members], sigma[members], g, contact_duration,
+                                      number))
+    table = pd.concat(parts, ignore_index=True)
+    flags, ratio_flags = table["flag"], table["restitution_flag"]
+    unknown = int(np.sum(np.isnan(sigma)))
+    table.attrs["notes"] = [
+        f"{np.sum(flags == 'missed')} interval(s) hide a missed impact, "
+        f"{np.sum(flags == 'spurious')} involve a spurious one, "
+        f"{np.sum(flags == 'irregular')} are off the geometric trend otherwise; flagged rows kept",
+        f"{int(np.sum(~ratio_flags.isin(['ok', 'last'])))} restitution value(s) involve a "
+        f"flagged interval (restitution_flag)",
+        "rebound speed from the flight time g(T - contact)/2 with contact duration "
+        f"{contact_duration:g} s",
+    ]
+    if len(runs) > 1:
+        table.attrs["notes"].append(f"{len(runs)} runs: intervals within each run only")
+    if unknown:
+        table.attrs["notes"].append(f"{unknown} impact time(s) without an uncertainty: the "
+                                    f"uncertainties involving them are NaN")
+    return table
+
+
+def _run_bounces(times, sigma, g, contact_duration, run):
+    """Bounce table rows of one run (see bounce_table)."""
     intervals = np.diff(times)
     interval_sigma = np.hypot(sigma[:-1], sigma[1:])
     ratio = intervals[1:] / intervals[:-1]
     ratio_sigma = np.sqrt(sigma[2:] ** 2 + (ratio * sigma[:-2]) ** 2
                           + ((1 + ratio) * sigma[1:-1]) ** 2) / intervals[:-1]
-
-    flags = _flag_intervals(intervals, ratio, ratio_sigma)
-    table = pd.DataFrame({
+    # An unknown σ leaves the timing term out of the flags' tolerance, not the flags out.
+    flags = _flag_intervals(intervals, ratio, np.nan_to_num(ratio_sigma))
+    ratio_flags = np.where(flags[:-1] != "ok", flags[:-1], flags[1:])
+    return pd.DataFrame({
+        "run": np.full(intervals.size, run, dtype=int),
         "bounce": np.arange(intervals.size),
         "start_time": times[:-1],
         "interval": intervals,
@@ -115,15 +169,8 @@ def bounce_table(impacts, *, g, contact_duration=0.0):
         "restitution": np.append(ratio, np.nan),
         "restitution_uncertainty": np.append(ratio_sigma, np.nan),
         "flag": flags,
-    })
-    table.attrs["notes"] = [
-        f"{np.sum(flags == 'missed')} interval(s) hide a missed impact, "
-        f"{np.sum(flags == 'spurious')} involve a spurious one, "
-        f"{np.sum(flags == 'irregular')} are off the geometric trend otherwise; flagged rows kept",
-        "rebound speed from the flight time g(T - contact)/2 with contact duration "
-        f"{contact_duration:g} s",
-    ]
-    return table
+        "restitution_flag": np.append(ratio_flags, "last").astype(object),
+    }, columns=list(BOUNCE_COLUMNS))
 
 
 def _flag_intervals(intervals, ratio, ratio_sigma):

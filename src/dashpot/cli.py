@@ -43,27 +43,23 @@ def _impacts(args):
 
 
 def _bounces(args):
-    import pandas as pd
-
+    from .analysis import read_impact_table
     from .bounces import bounce_table
 
-    try:
-        impacts = pd.read_csv(args.impacts)
-    except (OSError, ValueError) as error:
-        raise InputError(args.impacts, f"cannot read the impact table ({error})") from error
-    if "time" not in impacts:
-        raise InputError(args.impacts, "no 'time' column: write it with `dashpot impacts`")
+    impacts = read_impact_table(args.impacts)
     try:
         table = bounce_table(impacts, g=args.g, contact_duration=args.contact_duration)
     except ValueError as error:
-        raise InputError(args.impacts, str(error)) from error
+        raise InputError(args.impacts, str(error)) from None
     _write_csv_atomically(table, args.output, [args.impacts])
     flagged = int((table["flag"] != "ok").sum())
     print(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> {args.output}")
+    for note in table.attrs.get("notes", []):
+        print(f"  note: {note}")
 
 
 def _fit(args):
-    from .analysis import analyze
+    from .analysis import analyze, recording_note
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -81,6 +77,9 @@ def _fit(args):
         raise InputError(args.output, f"cannot write the output ({error.strerror or error})") \
             from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
+    for note in [recording_note(args.impacts, scene), *scene_fit.data.notes]:
+        if note:
+            print(f"  note: {note}")
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")
         state = (f"beta = {beta.value:.4g} ± {beta.stderr:.2g} 1/s" if fit.success and beta

@@ -14,11 +14,18 @@ class InputError(ValueError):
         What is wrong, in plain words.
     row : int, optional
         1-based data row (after the header) where the problem is, for tables.
+    column : str, optional
+        Header of the column where the problem is, for tables.
     """
 
-    def __init__(self, path, problem, *, row=None):
+    def __init__(self, path, problem, *, row=None, column=None):
         self.path = str(path)
         self.problem = problem
         self.row = row
-        where = f"{self.path}, row {row}" if row is not None else self.path
+        self.column = column
+        where = self.path
+        if row is not None:
+            where += f", row {row}"
+        if column is not None:
+            where += f", column '{column}'"
         super().__init__(f"{where}: {problem}")

@@ -207,7 +207,9 @@ def prepare_data(impacts, scene):
     -----
     Where the recording gives no timing uncertainty the scene's timing resolution r gives
     σ = r/√12 (uniform rounding); where neither is known σ is estimated from the scatter of
-    the fit (and the information criteria use the unknown-variance form). Impacts the bounce
+    the fit (and the information criteria use the unknown-variance form). Where only some
+    uncertainties are zero or unknown, those are set to r/√12, or without r to the smallest
+    positive σ of the table, and the others kept (noted). Impacts the bounce
     table flags as spurious are left out; an interval flagged as hiding a missed impact
     shifts the later impacts by one place in the train. Only the first run of a multi-run
     file is fitted.
@@ -224,7 +226,19 @@ def prepare_data(impacts, scene):
         raise ValueError(f"fitting needs at least three impacts; got {times.size}")
     sigma = table["time_uncertainty"].to_numpy(float) if "time_uncertainty" in table \
         else np.full(times.size, np.nan)
-    sigma_known = bool(np.all(np.isfinite(sigma) & (sigma > 0)))
+    usable = np.isfinite(sigma) & (sigma > 0)
+    sigma_known = bool(np.all(usable))
+    if usable.any() and not sigma_known:
+        # A few zero or unknown σ must not discard the others: fill in those few.
+        if scene.timing_resolution:
+            fill, source = scene.timing_resolution / math.sqrt(12.0), \
+                "the scene's timing resolution / sqrt(12)"
+        else:
+            fill, source = float(np.min(sigma[usable])), "the smallest timing uncertainty given"
+        notes.append(f"{int(np.sum(~usable))} of {times.size} timing uncertainties zero or "
+                     f"missing: set to {source} ({fill:.3g} s); the others kept")
+        sigma = np.where(usable, sigma, fill)
+        sigma_known = True
     if not sigma_known:
         if scene.timing_resolution:
             sigma = np.full(times.size, scene.timing_resolution / math.sqrt(12.0))
@@ -234,7 +248,9 @@ def prepare_data(impacts, scene):
             sigma = np.ones(times.size)
             notes.append("no timing uncertainty given: estimated from the scatter of the fit")
     g = scene.driving_acceleration
-    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=g)
+    run = table["run"].to_numpy() if "run" in table else np.zeros(times.size, dtype=int)
+    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma, "run": run}),
+                           g=g)
     flags = bounces["flag"].to_numpy()
     # Interval n ends at impact n + 1: a "spurious" interval pair brackets one false impact.
     spurious_impacts = np.flatnonzero((flags[:-1] == "spurious") & (flags[1:] == "spurious")) + 1

@@ -31,9 +31,10 @@ __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_p
 FORMAT = "dashpot-scene-1"
 IMPACT_UNITS = {"time": "s", "time_uncertainty": "s", "amplitude": "1", "impact_speed": "m/s",
                 "rebound_speed": "m/s", "speed_uncertainty": "m/s", "run": "1"}
-BOUNCE_UNITS = {"bounce": "1", "start_time": "s", "interval": "s", "interval_uncertainty": "s",
-                "rebound_speed": "m/s", "rebound_speed_uncertainty": "m/s", "restitution": "1",
-                "restitution_uncertainty": "1", "flag": "1"}
+BOUNCE_UNITS = {"run": "1", "bounce": "1", "start_time": "s", "interval": "s",
+                "interval_uncertainty": "s", "rebound_speed": "m/s",
+                "rebound_speed_uncertainty": "m/s", "restitution": "1",
+                "restitution_uncertainty": "1", "flag": "1", "restitution_flag": "1"}
 SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "chisqr": "1",
                    "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1",
                    "akaike_weight": "1", "rank": "1"}
@@ -166,6 +167,12 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
         if input_path is not None:
             out.attrs["input_file"] = Path(input_path).name
             out.attrs["input_sha256"] = file_sha256(input_path)
+            recording = scene_fit.scene.recording
+            if recording is not None:
+                # The scene may name another file (the recording an impact table came from):
+                # say which of the two was fitted.
+                out.attrs["input_is_scene_recording"] = bool(
+                    Path(input_path).resolve() == Path(recording).resolve())
         out.attrs["verdict"] = scene_fit.verdict
         table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
         group = _table(out, "impacts", table, IMPACT_UNITS)

@@ -131,15 +131,108 @@ _FILE_FORMATS = {"WAV", "FLAC", "OGG"}
 # Reading
 
 
+_UNSET_SIZES = (0, 0xFFFFFFFF)  # sizes a recorder writes before it knows (or never closed)
+
+
+class _PatchedHeaderFile:
+    """A read-only file object: `header` in place of the file's first bytes, then the file.
+
+    Lets libsndfile read a WAV whose header sizes were never filled in, without copying the
+    samples.
+    """
+
+    def __init__(self, path, header):
+        self._file = open(path, "rb")
+        self._header = bytes(header)
+        self._size = Path(path).stat().st_size
+        self._position = 0
+
+    def seek(self, offset, whence=0):
+        base = {0: 0, 1: self._position, 2: self._size}[whence]
+        self._position = max(0, base + offset)
+        return self._position
+
+    def tell(self):
+        return self._position
+
+    def read(self, size=-1):
+        if size is None or size < 0:
+            size = max(0, self._size - self._position)
+        data = self._header[self._position:self._position + size]
+        if len(data) < size:
+            self._file.seek(self._position + len(data))
+            data += self._file.read(size - len(data))
+        self._position += len(data)
+        return data
+
+    def close(self):
+        self._file.close()
+
+
+class _RepairedSoundFile(sf.SoundFile):
+    """SoundFile over a _PatchedHeaderFile that closes it too; ``repair_note`` says why."""
+
+    def __init__(self, source, repair_note):
+        super().__init__(source)
+        self.source = source
+        self.repair_note = repair_note
+
+    def close(self):
+        super().close()
+        self.source.close()
+
+
+def _wav_with_unset_sizes(path):
+    """Repaired header and a note for a WAV whose data size is 0 or 0xFFFFFFFF while samples
+    follow the data chunk's header (a recorder that crashed or was never stopped); None for
+    any other file. The samples are taken to run to the end of the file (whole frames)."""
+    size = Path(path).stat().st_size
+    with open(path, "rb") as handle:
+        head = handle.read(1 << 16)
+    if head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+        return None
+    position, block_align = 12, 1
+    while position + 8 <= len(head):  # loop over the chunks before the samples
+        chunk, length = head[position:position + 4], int.from_bytes(head[position + 4:position + 8],
+                                                                    "little")
+        if chunk == b"fmt " and position + 22 <= len(head):
+            block_align = max(1, int.from_bytes(head[position + 20:position + 22], "little"))
+        if chunk == b"data":
+            break
+        position += 8 + length + (length & 1)
+    else:
+        return None
+    start = position + 8
+    present = (size - start) // block_align * block_align
+    if present <= 0 or length not in _UNSET_SIZES:
+        return None
+    header = bytearray(head[:start])
+    header[4:8] = (start + present - 8).to_bytes(4, "little")
+    header[position + 4:position + 8] = present.to_bytes(4, "little")
+    note = (f"the WAV header gives {'no' if length == 0 else 'an unset (0xFFFFFFFF)'} size for "
+            f"the samples (a recording that was not closed properly): read the {present} bytes "
+            f"of samples that follow it")
+    return bytes(header), note
+
+
 def _open(path):
-    """Open `path` with libsndfile, turning every reason it cannot be used into InputError."""
+    """Open `path` with libsndfile, turning every reason it cannot be used into InputError.
+
+    A WAV whose header sizes were never filled in (0 or 0xFFFFFFFF, as a crashed recorder
+    leaves them) is read from the samples present; the handle's ``repair_note`` says so.
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
     if path.stat().st_size == 0:
         raise InputError(path, "empty file (0 bytes)")
     try:
-        handle = sf.SoundFile(str(path))
+        repair = _wav_with_unset_sizes(path)
+        if repair is None:
+            handle = sf.SoundFile(str(path))
+            handle.repair_note = ""
+        else:
+            handle = _RepairedSoundFile(_PatchedHeaderFile(path, repair[0]), repair[1])
     except (sf.LibsndfileError, RuntimeError, TypeError) as error:
         raise InputError(path, f"not a readable audio file (WAV, FLAC or OGG expected): "
                                f"{error}") from None
@@ -1090,7 +1183,7 @@ def _fixed_delays(times, chain):
 
 def _read_segment(path, start, stop):
     """Samples `start` to `stop` (frames, clipped to the file) as float64 (frames, channels)."""
-    with sf.SoundFile(str(path)) as handle:
+    with _open(path) as handle:
         start, stop = max(0, int(start)), min(handle.frames, int(stop))
         handle.seek(start)
         return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
@@ -1436,7 +1529,11 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
             pending = block
         _process(stream, pending, final=True)
         duration = handle.frames / sample_rate
-    return _impact_table(path, stream, sample_rate, duration)
+        repair_note = handle.repair_note
+    table = _impact_table(path, stream, sample_rate, duration)
+    if repair_note:
+        table.attrs["notes"].append(repair_note)
+    return table
 
 
 def _fitted_onsets(stream):

@@ -51,10 +51,10 @@ import pandas as pd
 from scipy.integrate import cumulative_trapezoid
 
 from ..errors import InputError
-from . import IMPACT_COLUMNS
+from . import AUDIO_SUFFIXES, IMPACT_COLUMNS
 
 __all__ = ["read_phyphox", "read_timestamps", "read_motion_sensor", "read_photogate",
-           "sniff_table", "TABLE_KINDS"]
+           "read_impact_table", "is_impact_table", "sniff_table", "TABLE_KINDS"]
 
 TABLE_KINDS = ("phyphox", "timestamps", "motion_sensor", "photogate")
 """What :func:`sniff_table` can answer, and the ``sensor`` attribute of each reader's table."""
@@ -159,28 +159,80 @@ def _is_number(strings, decimal):
 
 
 def _sniff_separator(lines):
-    """The separator that splits all sniffed lines into the same number (> 1) of fields."""
+    """The separator that splits the sniffed lines into the header's number (> 1) of fields.
+
+    One line in ten (at least one) may differ, so that a row with a stray extra field is
+    reported by its row rather than hiding the separator.
+    """
     for candidate in ("\t", ";", ","):
-        counts = {len(fields) for fields in csv.reader(lines, delimiter=candidate)}
-        if len(counts) == 1 and counts.pop() > 1:
-            return candidate
+        counts = [len(fields) for fields in csv.reader(lines, delimiter=candidate)]
+        if counts and counts[0] > 1:
+            differing = sum(count != counts[0] for count in counts)
+            if differing <= max(1, len(counts) // 10):
+                return candidate
     return None
 
 
-def _text_table(path, raw, member):
-    """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark)."""
+def _decode(path, raw, member):
+    """Text of a table file and the name of its encoding.
+
+    UTF-16 with a byte-order mark (Excel's "Unicode text") and UTF-8 with or without one are
+    recognised; anything else is read as Windows-1252 (Excel's "CSV" on Western systems).
+    """
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        try:
+            return raw.decode("utf-16"), "UTF-16"
+        except UnicodeDecodeError as error:
+            raise InputError(path, f"not a table: {member or 'the file'} starts like UTF-16 "
+                                   f"text but does not decode ({error.reason})") from None
     if b"\x00" in raw:
         raise InputError(path, f"not a table: {member or 'the file'} holds binary data")
-    for encoding in ("utf-8-sig", "cp1252"):
+    for encoding, name in (("utf-8-sig", "UTF-8"), ("cp1252", "Windows-1252")):
         try:
-            text = raw.decode(encoding)
-            break
+            return raw.decode(encoding), name
         except UnicodeDecodeError:
             continue
-    else:  # pragma: no cover - cp1252 decodes almost anything
-        raise InputError(path, "not a table: the file is not text")
+    raise InputError(path, f"not a table: {member or 'the file'} is not text")
+
+
+def _rows_by_csv_module(path, text, separator, decimal, member):
+    """Cells of a table whose rows have different numbers of fields (pandas refuses those).
+
+    Rows shorter than the first are padded with empty cells; fields past the first row's
+    width are dropped when empty (a trailing separator) and refused, naming the row, when not.
+    """
+    try:
+        rows = [row for row in csv.reader(io.StringIO(text), delimiter=separator or "\x1f")
+                if row and not (len(row) == 1 and not row[0].strip())]
+    except csv.Error as error:
+        raise InputError(path, f"not a table: {error}") from None
+    width = len(rows[0])
+    # Data rows are counted after the header; a first row of numbers is data itself.
+    first_is_data = bool(np.all(_is_number([c.strip() for c in rows[0] if c.strip()], decimal)))
+    for k, row in enumerate(rows):  # loop over rows only where pandas could not
+        extra = [cell for cell in row[width:] if cell.strip()]
+        if extra:
+            where = f"'{member}': " if member else ""
+            raise InputError(path, f"{where}{len(row)} fields where the header row has {width} "
+                                   f"(extra '{extra[0].strip()}')",
+                             row=k + (1 if first_is_data else 0))
+    return np.array([row[:width] + [""] * (width - len(row)) for row in rows], dtype=str)
+
+
+def _text_table(path, raw, member):
+    """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark).
+
+    Lines starting with '#' before the first table line are comments and are skipped.
+    """
+    text, encoding = _decode(path, raw, member)
+    lines = text.splitlines()
+    comments = 0
+    while comments < len(lines) and lines[comments].lstrip().startswith("#"):
+        comments += 1
+    if comments:
+        text = "\n".join(lines[comments:])
     # Sniff from the first non-blank lines only; the whole table is parsed by pandas below.
-    head = [line for line in text.splitlines()[:60] if line.strip()][:20]
+    head = [line for line in lines[comments:comments + 60] if line.strip()][:20]
     if not head:
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
     separator = _sniff_separator(head)
@@ -190,13 +242,17 @@ def _text_table(path, raw, member):
         frame = pd.read_csv(io.StringIO(text), sep=separator or "\x1f", header=None, dtype=str,
                             keep_default_na=False, skip_blank_lines=True, quotechar='"',
                             engine="c")
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as error:
+        cells = frame.fillna("").to_numpy(dtype=str)
+    except pd.errors.ParserError:
+        cells = _rows_by_csv_module(path, text, separator, decimal, member)
+    except (pd.errors.EmptyDataError, ValueError) as error:
         raise InputError(path, f"not a table: {str(error).strip()}") from error
-    cells = frame.fillna("").to_numpy(dtype=str)
     cells = np.char.strip(cells)
     names = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
     variant = (f"CSV, {names[separator]}{' separated' if separator else ''}, decimal "
-               f"{'comma' if decimal == ',' else 'point'}")
+               f"{'comma' if decimal == ',' else 'point'}"
+               + (f", {encoding}" if encoding != "UTF-8" else "")
+               + (f", {comments} comment line(s) skipped" if comments else ""))
     return _finish_table(path, cells, decimal, variant, member)
 
 
@@ -281,7 +337,7 @@ def _numbers(path, table, index, *, what):
     """Float values of column `index` and the resolution of the written digits.
 
     Empty cells and 'NaN' become NaN (callers decide what they mean); any other text raises
-    InputError with its row.
+    InputError naming its row and column.
     """
     strings = pd.Series(table.cells[:, index], dtype=object).astype(str)
     if table.decimal == ",":
@@ -290,8 +346,11 @@ def _numbers(path, table, index, *, what):
     bad = values.isna() & (strings != "") & ~strings.str.fullmatch(r"(?i)nan")
     if bad.any():
         row = int(np.flatnonzero(bad.to_numpy())[0])
-        raise InputError(path, f"{table.where}{what} '{table.cells[row, index]}' is not a number",
-                         row=row + 1)
+        cell = table.cells[row, index]
+        if table.columns:
+            raise InputError(path, f"{table.where}'{cell}' is not a number", row=row + 1,
+                             column=table.columns[index].header)
+        raise InputError(path, f"{table.where}{what} '{cell}' is not a number", row=row + 1)
     # Resolution of the written digits: one unit of the last decimal place, allowing for an
     # exponent (phyphox writes 1.234567890E-1).
     parts = strings.str.extract(_NUMBER)
@@ -385,6 +444,8 @@ def _kind_of(table):
     """Which reader a single table belongs to, or None."""
     if _phyphox_layout(table) is not None:
         return "phyphox"
+    if _is_impact_header(table):
+        return "timestamps"  # dashpot's own impact table, read by read_impact_table
     if table.columns is None:
         return "timestamps" if table.cells.shape[1] <= 2 else None
     names = _names(table)
@@ -700,6 +761,9 @@ def read_timestamps(path, *, unit=None):
 
     Without an uncertainty column, ``time_uncertainty`` is the rounding of the written digits:
     one unit of the last decimal place over √12 (uniform rounding error).
+
+    dashpot's own impact table (headers ``time`` and ``time_uncertainty``, as ``dashpot
+    impacts`` writes them) is read by :func:`read_impact_table`, keeping all its columns.
     """
     if unit is not None and unit not in ("s", "ms"):
         raise ValueError(f"unit must be 's', 'ms' or None; got {unit!r}")
@@ -710,6 +774,11 @@ def read_timestamps(path, *, unit=None):
         described = ", ".join(c.header for c in first.columns) if first.columns else "no header"
         raise InputError(path, f"{first.where}no time column (expected a header like 'time (s)' "
                                f"or 'time (ms)'; found: {described})")
+    if _is_impact_header(table):
+        if unit == "ms":
+            raise InputError(path, f"{table.where}dashpot's impact table holds times in s; "
+                                   f"unit='ms' contradicts it")
+        return _read_impact_table(path, table)
     where = table.where
     notes = [f"file variant: {table.variant}"]
     _check_duplicates(path, table)
@@ -767,6 +836,157 @@ def read_timestamps(path, *, unit=None):
         sigma = resolution * factor / np.sqrt(12.0)
         notes.append("time uncertainty: rounding of the written digits (last digit/√12)")
     return _impact_frame(path, "timestamps", notes, times, sigma)
+
+
+# ---------------------------------------------------------------------------------------------
+# dashpot's own impact tables
+# ---------------------------------------------------------------------------------------------
+
+# Columns that hold a magnitude or a 1σ: never negative.
+_NONNEGATIVE_COLUMNS = ("time_uncertainty", "impact_speed", "rebound_speed", "speed_uncertainty")
+
+
+def _impact_columns(table):
+    """{column of IMPACT_COLUMNS: index} for the headers that are exactly those names."""
+    found = {}
+    for j, column in enumerate(table.columns or ()):
+        key = column.header.strip().lower()
+        if key in IMPACT_COLUMNS and key not in found:
+            found[key] = j
+    return found
+
+
+def _is_impact_header(table):
+    """True for dashpot's impact table: headers ``time`` and ``time_uncertainty``, no units."""
+    return {"time", "time_uncertainty"} <= set(_impact_columns(table))
+
+
+def is_impact_table(path):
+    """True if `path` is an impact table as ``dashpot impacts`` writes it (in any re-saving).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    bool
+        False for audio files, unreadable files and tables without the headers ``time`` and
+        ``time_uncertainty``.
+    """
+    if Path(path).suffix.lower() in AUDIO_SUFFIXES:
+        return False
+    try:
+        return any(_is_impact_header(table) for table in _load_tables(path))
+    except (InputError, OSError):
+        return False
+
+
+def read_impact_table(path):
+    """Read an impact table written by ``dashpot impacts``, as saved by any spreadsheet.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Text table with the columns of :data:`dashpot.ingest.IMPACT_COLUMNS` (only ``time``
+        is required), in any variant :func:`sniff_table` reads: comma, tab or semicolon
+        separated, decimal point or comma, UTF-8 with or without a byte-order mark or UTF-16
+        (Excel's "Unicode text"), leading ``#`` comment lines; or an Excel workbook.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The impact table of :mod:`dashpot.ingest`, sorted by time; missing columns are NaN
+        (``run`` 0). ``attrs['sensor']`` is "impact table".
+
+    Raises
+    ------
+    InputError
+        One line naming the file, and the row and column where they apply: no ``time``
+        column; a cell that is not a number; an impact time that is empty, NaN or infinite;
+        a negative or infinite uncertainty or speed; a ``run`` that is not a whole number
+        ≥ 0; times that do not increase within a run.
+
+    Notes
+    -----
+    An empty or NaN ``time_uncertainty`` means the uncertainty is unknown: it stays NaN
+    (never 0); the bounce table then gives NaN uncertainties for the intervals involving it,
+    and the fit uses the file's other uncertainties (see :func:`dashpot.fit.prepare_data`).
+    Times must increase within each run; runs may interleave in time (motion-sensor files
+    hold several runs side by side).
+    """
+    tables = _load_tables(path)
+    table = next((t for t in tables if "time" in _impact_columns(t)), None)
+    if table is None:
+        described = "; ".join(
+            (t.where or "") + (", ".join(c.header for c in t.columns) if t.columns
+                               else "no header") for t in tables)
+        raise InputError(path, f"no 'time' column: not an impact table written by `dashpot "
+                               f"impacts` (found: {described})")
+    return _read_impact_table(path, table)
+
+
+def _read_impact_table(path, table):
+    """The impact table held in `table` (see read_impact_table)."""
+    columns = _impact_columns(table)
+    rows = table.cells.shape[0]
+
+    def refuse(name, k, problem):
+        raise InputError(path, f"{table.where}{problem}", row=int(k) + 1,
+                         column=table.columns[columns[name]].header)
+
+    values = {name: _numbers(path, table, j, what=name)[0] for name, j in columns.items()}
+    time = values["time"]
+    bad = ~np.isfinite(time)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        cell = table.cells[k, columns["time"]]
+        refuse("time", k, "impact time is empty" if cell == "" else
+               f"impact time '{cell}' is not a finite number")
+    for name in columns:
+        if name == "time":
+            continue
+        value = values[name]
+        bad = np.isinf(value) | ((value < 0) if name in _NONNEGATIVE_COLUMNS else False)
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            refuse(name, k, f"'{table.cells[k, columns[name]]}' is "
+                            f"{'infinite' if np.isinf(value[k]) else 'negative'}")
+    if "run" in columns:
+        run = values["run"]
+        bad = ~np.isfinite(run) | (run < 0) | (run != np.round(run))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            refuse("run", k, f"run '{table.cells[k, columns['run']]}' is not a whole number "
+                             f"≥ 0")
+        run = run.astype(int)
+    else:
+        run = np.zeros(rows, dtype=int)
+    runs = np.unique(run)
+    for number in runs:  # loop over runs
+        members = np.flatnonzero(run == number)
+        steps = np.diff(time[members])
+        if np.any(steps <= 0):
+            i = int(np.flatnonzero(steps <= 0)[0])
+            k, before = members[i + 1], members[i]
+            of_run = f" of run {number}" if runs.size > 1 else ""
+            refuse("time", k, f"impact times must increase within a run: "
+                              f"{float(time[k])!r} s is not after {float(time[before])!r} s "
+                              f"in row {before + 1}{of_run}")
+    notes = [f"dashpot impact table; file variant: {table.variant}"
+             + (f", {table.where.rstrip(': ')}" if table.member else "")]
+    sigma = values.get("time_uncertainty", np.full(rows, np.nan))
+    unknown = int(np.sum(np.isnan(sigma)))
+    if unknown:
+        notes.append(f"{unknown} of {rows} impact time(s) have no uncertainty (empty or NaN "
+                     f"time_uncertainty): treated as unknown")
+    if runs.size > 1:
+        notes.append(f"{runs.size} runs; times increase within each run")
+    return _impact_frame(path, "impact table", notes, time, sigma,
+                         amplitude=values.get("amplitude"),
+                         impact_speed=values.get("impact_speed"),
+                         rebound_speed=values.get("rebound_speed"),
+                         speed_uncertainty=values.get("speed_uncertainty"), run=run)
 
 
 # ---------------------------------------------------------------------------------------------
