@@ -15,19 +15,36 @@ from .errors import InputError
 from .physics.models import MODELS
 
 
+def _cannot_write(path, error):
+    """InputError for an output that could not be written (full disk, no permission, ...).
+
+    h5py reports a failed write as RuntimeError (or an OSError whose text runs over several
+    lines) rather than a plain OSError: the reason is the system's text for the error number
+    where there is one, else the first line of the message.
+    """
+    number = getattr(error, "errno", None)
+    lines = str(error).strip().splitlines()
+    reason = os.strerror(number) if number else (lines[0] if lines else type(error).__name__)
+    return InputError(path, f"cannot write the output ({reason})")
+
+
 def _write_csv_atomically(table, output, inputs):
-    """Write `table` to `output` via a temporary file; never over one of the inputs."""
+    """Write `table` to `output` via a unique temporary file; never over one of the inputs.
+
+    Floats are written in their shortest round-trip form, so they read back bit for bit
+    (a fixed number of digits would round Unix-epoch times to whole seconds).
+    """
+    from .atomic import atomic_path
+
     output = Path(output)
     for source in inputs:
         if output.resolve() == Path(source).resolve():
             raise InputError(output, "refusing to overwrite the input with the output")
-    output.parent.mkdir(parents=True, exist_ok=True)
-    temporary = output.with_name(f".{output.name}.partial")
     try:
-        table.to_csv(temporary, index=False, float_format="%.10g")
-        os.replace(temporary, output)
-    finally:
-        temporary.unlink(missing_ok=True)
+        with atomic_path(output) as temporary:
+            table.to_csv(temporary, index=False)
+    except OSError as error:
+        raise _cannot_write(output, error) from None
 
 
 def _impacts(args):
@@ -73,9 +90,8 @@ def _fit(args):
     try:
         write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
                         config={"models": list(scene_fit.results)})
-    except OSError as error:
-        raise InputError(args.output, f"cannot write the output ({error.strerror or error})") \
-            from None
+    except (OSError, RuntimeError) as error:
+        raise _cannot_write(args.output, error) from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
     for note in [recording_note(args.impacts, scene), *scene_fit.data.notes]:
         if note:
@@ -108,40 +124,70 @@ def _analyze(args):
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise InputError(out, "is a file; give the folder to write into")
-    # Everything is written in a private folder first and moved into `out` at the end, so a
-    # failure leaves no partial output.
-    with tempfile.TemporaryDirectory(prefix=".dashpot-analyze-") as staging:
-        staging = Path(staging)
-        models = tuple(args.models or scene.models)
-        with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
-                  disable=None) as bar:
-            def progress(step, total, text):
-                bar.set_postfix_str(text)
-                bar.update(step - bar.n)
+    models = tuple(args.models or scene.models)
+    with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
+              disable=None) as bar:
+        def progress(step, total, text):
+            bar.set_postfix_str(text)
+            bar.update(step - bar.n)
 
-            bar.set_postfix_str("finding impacts")
-            impacts, scene_fit = analyze(recording, scene, models=models, progress=progress)
-            bar.set_postfix_str("writing")
+        bar.set_postfix_str("finding impacts")
+        impacts, scene_fit = analyze(recording, scene, models=models, progress=progress)
+        bar.set_postfix_str("writing")
+        created = not out.exists()
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            # Staged in a hidden folder inside `out` (the same file system, so the final
+            # renames are atomic) and renamed into place only once every file is complete.
+            staging = Path(tempfile.mkdtemp(prefix=".dashpot-analyze-", dir=out))
+        except OSError as error:
+            raise _cannot_write(out, error) from None
+        try:
             h5 = staging / f"{name}.h5"
-            write_scene_fit(h5, scene_fit, impacts, input_path=recording,
-                            config={"models": list(scene_fit.results)})
+            try:
+                write_scene_fit(h5, scene_fit, impacts, input_path=recording,
+                                config={"models": list(scene_fit.results)})
+            except (OSError, RuntimeError) as error:
+                raise _cannot_write(out / h5.name, error) from None
             bar.update(1)
             bar.set_postfix_str("figures")
             audio = impacts.attrs.get("sensor") == "audio" or is_audio(
                 replace(scene, recording=recording))
-            save_scene_figures(load_record(h5), staging / name,
-                               recording=recording if audio else None)
+            try:
+                save_scene_figures(load_record(h5), staging / name,
+                                   recording=recording if audio else None)
+            except (OSError, RuntimeError) as error:
+                raise _cannot_write(out / name, error) from None
             bar.update(1)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-            (out / name).mkdir(exist_ok=True)
-            for source in sorted(staging.rglob("*")):
-                if source.is_file():
-                    shutil.move(source, out / source.relative_to(staging))
-        except OSError as error:
-            raise InputError(out, f"cannot write the output ({error.strerror or error})") \
-                from None
+            _move_into_place(staging, out)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+            if created:
+                _remove_if_empty(out)
     _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
+
+
+def _move_into_place(staging, out):
+    """Rename every file under `staging` to the same place under `out` (same file system)."""
+    moves = [(source, out / source.relative_to(staging))
+             for source in sorted(staging.rglob("*")) if source.is_file()]
+    try:
+        for _, target in moves:
+            if target.is_dir():
+                raise IsADirectoryError(f"{target} is a folder")
+            target.parent.mkdir(parents=True, exist_ok=True)
+        for source, target in moves:
+            os.replace(source, target)
+    except OSError as error:
+        raise _cannot_write(out, error) from None
+
+
+def _remove_if_empty(folder):
+    """Remove `folder` if nothing ended up in it (a run that made it and then failed)."""
+    try:
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def _print_summary(recording, impacts, scene_fit, h5, figures):

@@ -88,7 +88,7 @@ class FitData:
     Attributes
     ----------
     times : ndarray
-        Impact times used in s.
+        Impact times used in s, counted from `time_origin`.
     sigma : ndarray
         1σ uncertainty of each time in s.
     index : ndarray of int
@@ -105,6 +105,10 @@ class FitData:
     bounces : pandas.DataFrame
         The bounce table of :func:`dashpot.bounces.bounce_table` with its flags.
     notes : list of str
+    time_origin : float
+        Time of the first impact of the table in s, subtracted from `times`: the fit works
+        with times since the first impact, so that a clock far from zero (Unix-epoch times
+        near 1.7e9 s resolve only 0.24 µs) costs no precision in its arithmetic.
     """
 
     times: np.ndarray
@@ -118,6 +122,7 @@ class FitData:
     excluded: np.ndarray
     bounces: pd.DataFrame
     notes: list = field(default_factory=list)
+    time_origin: float = 0.0
 
     @property
     def count(self):
@@ -275,7 +280,9 @@ def prepare_data(impacts, scene):
     if np.any(np.isfinite(column("impact_speed"))) and not np.any(has_speed):
         notes.append("measured speeds have no uncertainty: not used in the fit")
     rebound_speed = column("rebound_speed")
-    return FitData(times=times[keep], sigma=sigma[keep], index=index,
+    origin = float(times[0])  # t - origin is exact for t up to twice the origin (Sterbenz)
+    return FitData(times=times[keep] - origin, time_origin=origin, sigma=sigma[keep],
+                   index=index,
                    impact_speed=np.where(has_speed, column("impact_speed"), np.nan),
                    rebound_speed=np.where(has_speed & np.isfinite(rebound_speed),
                                           rebound_speed, np.nan),
@@ -960,7 +967,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                                  beta_draws, "1/s", "derived", "beta = zeta * omega0")
     st, why = status("v0")
     estimates["v0"] = _linear_estimate(values["v0"], sd.get("v0", 0.0), "m/s", st, why)
-    estimates["t0"] = _linear_estimate(values["t0"], sd.get("t0", 0.0), "s", "fitted")
+    # Times on output are on the table's clock again.
+    estimates["t0"] = _linear_estimate(data.time_origin + values["t0"], sd.get("t0", 0.0), "s",
+                                       "fitted")
     if mass is not None:
         mass_sd = (mass.uncertainty or 0.0) / mass.value
         k = mass.value * omega0 ** 2
@@ -981,7 +990,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         aic, bic = chisqr + 2 * nvarys, chisqr + nvarys * math.log(ndata)
     else:
         aic, bic = float(result.aic), float(result.bic)
-    predicted_at_data = values["t0"] + times[data.index]
+    predicted_at_data = values["t0"] + times[data.index]  # since the origin
     intervals = {"covariance": _interval_row(estimates["beta"])}
     for method in uncertainty:
         if method in ("profile", "posterior") and success:
@@ -1012,10 +1021,11 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         ndata=ndata, nvarys=nvarys, nfev=int(result.nfev),
         time_residuals=data.times - predicted_at_data,
         normalized_residuals=np.asarray(result.residual, float),
-        predicted={"times": values["t0"] + times[:impacts], "speeds": speeds[:impacts],
+        predicted={"times": data.time_origin + (values["t0"] + times[:impacts]),
+                   "speeds": speeds[:impacts],
                    "restitution": trains.restitution[0, :impacts],
                    "contact_durations": trains.contact_times[0, :impacts] / omega0,
-                   "at_data": predicted_at_data},
+                   "at_data": data.time_origin + predicted_at_data},
         eps_curve={"speed": curve_speed, "eps": curve_eps, "captured": curve_captured},
         notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
         intervals=intervals, accuracy=level)

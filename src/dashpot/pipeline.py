@@ -11,7 +11,6 @@ out; what happens to a scene is here:
 
 from __future__ import annotations
 
-import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -49,6 +48,7 @@ def write_synthetic_scene(directory, spec, *, name):
     """
     import yaml
 
+    from .atomic import atomic_path
     from .synth.scene import RECORDING_NAMES, write_scene
 
     spec = dict(spec)
@@ -60,10 +60,9 @@ def write_synthetic_scene(directory, spec, *, name):
     scene_from_mapping(mapping, source=f"synthetic scene {name}", base=directory)
     write_scene(directory, kind, **spec, **options)
     target = directory / "scene.yaml"
-    temporary = directory / ".scene.yaml.partial"
-    temporary.write_text("# Written by the workflow's simulate rule from config/config.yaml.\n"
-                         + yaml.safe_dump(mapping, sort_keys=False), encoding="utf-8")
-    os.replace(temporary, target)
+    with atomic_path(target) as temporary:
+        temporary.write_text("# Written by the workflow's simulate rule from config/config.yaml.\n"
+                             + yaml.safe_dump(mapping, sort_keys=False), encoding="utf-8")
     return target
 
 

@@ -29,7 +29,6 @@ References
 from __future__ import annotations
 
 import os
-import uuid
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +36,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from ._validation import check_positive
+from .atomic import atomic_path
 from .physics import MODELS, collide, critical_velocity
 from .physics.models import GRAVITY_MODELS
 
@@ -759,24 +759,10 @@ def save_figure(figure, stem):
     stem = Path(stem)
     if not stem.name:
         raise ValueError(f"stem must name a file; got {os.fspath(stem)!r}")
-    stem.parent.mkdir(parents=True, exist_ok=True)
     targets = {fmt: stem.with_name(f"{stem.name}.{fmt}") for fmt in ("png", "pdf")}
-    temporaries = []
-    try:
-        for fmt, target in targets.items():
-            temporary = target.with_name(f".{target.name}.{uuid.uuid4().hex}.tmp")
-            # os.open with the usual 0o666 (umask applies), unlike mkstemp's private 0o600.
-            descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            temporaries.append(temporary)
-            with os.fdopen(descriptor, "wb") as handle:
+    # Both renames happen only after both files are complete.
+    with atomic_path(targets["png"]) as png, atomic_path(targets["pdf"]) as pdf:
+        for fmt, temporary in (("png", png), ("pdf", pdf)):
+            with open(temporary, "wb") as handle:
                 figure.savefig(handle, format=fmt, dpi=PNG_DPI, metadata=_METADATA[fmt])
-        for temporary, target in zip(temporaries, targets.values()):
-            os.replace(temporary, target)
-    except BaseException:
-        for temporary in temporaries:
-            try:
-                os.unlink(temporary)
-            except FileNotFoundError:
-                pass
-        raise
     return tuple(targets.values())

@@ -4,17 +4,16 @@ The layout (``docs/hdf5-layout.md`` lists every item and unit) uses only groups,
 UTF-8 string datasets and attributes, so plain h5py reads it; every table is a group with one
 dataset per column (attribute ``columns`` keeps their order, each dataset an attribute
 ``unit``), so ``pandas.DataFrame({c: group[c][()] for c in group.attrs["columns"]})`` rebuilds
-it; :func:`read_table` does exactly that. Files are written to a temporary name in the same
-folder and renamed, so an interrupted run never leaves a half-written file, and they carry
-no timestamps other than the root attribute ``created``: the same inputs give the same numbers
-bit for bit.
+it; :func:`read_table` does exactly that. Files are built in memory, written to a unique
+temporary name in the same folder and renamed, so an interrupted run, a full disk or a
+concurrent writer never leaves a half-written file; they carry no timestamps other than the
+root attribute ``created``: the same inputs give the same numbers bit for bit.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
@@ -24,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
+from .atomic import atomic_path
 
 __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
            "write_summary", "FORMAT"]
@@ -56,16 +56,23 @@ def file_sha256(path):
 
 
 @contextmanager
-def atomic_path(path):
-    """Yield a temporary path beside `path`; rename it to `path` only if the block succeeds."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.partial")
-    try:
-        yield temporary
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
+def _new_hdf5(path, **options):
+    """Yield a new HDF5 file built in memory; write it to `path` atomically when done.
+
+    HDF5 that fails to write (a full disk) cannot close its objects, and its own exit handler
+    then crashes the process (SIGSEGV in H5_term_library): so the file is built in memory
+    (core driver, no backing store; the same bytes as a file on disk) and written with one
+    plain write, whose failure is an ordinary OSError. `options` go to :class:`h5py.File`.
+    """
+    with atomic_path(path) as temporary:
+        # Named after the unique temporary (no file of that name is opened) so that two
+        # files built at once in one process never share a name.
+        with h5py.File(f"{temporary}.image", "w", driver="core", backing_store=False,
+                       **options) as out:
+            yield out
+            out.flush()
+            image = out.id.get_file_image()
+        temporary.write_bytes(image)
 
 
 def _dataset(group, name, values, unit):
@@ -158,7 +165,7 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
     config : dict, optional
         Analysis configuration to record.
     """
-    with atomic_path(path) as temporary, h5py.File(temporary, "w", track_order=True) as out:
+    with _new_hdf5(path, track_order=True) as out:
         out.attrs["format"] = FORMAT
         out.attrs["dashpot_version"] = __version__
         out.attrs["created"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -220,9 +227,9 @@ def read_fit(path):
 
 def write_summary(path_h5, path_csv, summary):
     """Cross-scene summary (one row per scene and model) as HDF5 and CSV, each atomically."""
-    with atomic_path(path_h5) as temporary, h5py.File(temporary, "w") as out:
+    with _new_hdf5(path_h5) as out:
         out.attrs["format"] = "dashpot-summary-1"
         out.attrs["dashpot_version"] = __version__
         _table(out, "summary", summary, SUMMARY_UNITS)
     with atomic_path(path_csv) as temporary:
-        summary.to_csv(temporary, index=False, float_format="%.10g")
+        summary.to_csv(temporary, index=False)  # shortest round-trip floats

@@ -69,7 +69,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -79,6 +78,7 @@ import numpy as np
 from scipy.special import expit, lambertw
 
 from .._validation import check_model, check_nonnegative, check_positive
+from ..atomic import atomic_path
 from .models import EXACT_RTOL, MODELS, Collision, collide, critical_velocity
 
 __all__ = ["LEVELS", "SURROGATE_MODELS", "Surrogate", "build_surrogate", "cache_dir",
@@ -509,21 +509,15 @@ def _checksum(arrays):
 
 
 def _write(table, path):
-    """Write atomically: a temporary file in the same directory, then os.replace."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write atomically: a unique temporary file in the same directory, then os.replace."""
     arrays = {name: getattr(table, name) for name in _ARRAYS}
     meta = {name: getattr(table, name) for name in _SCALARS}
     meta.update(model=table.model, level=table.level, errors=table.errors, params=table.params,
                 hash=_params_hash(table.params), version=_package_version(),
                 checksum=_checksum(arrays))
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, meta=np.array(json.dumps(meta)), **arrays)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
+    # Through an open file: given a name without ".npz", np.savez would append one.
+    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+        np.savez(stream, meta=np.array(json.dumps(meta)), **arrays)
 
 
 def _read(path, params):

@@ -16,13 +16,13 @@ References
 
 from __future__ import annotations
 
-import os
-import secrets
 from pathlib import Path
 
 import numpy as np
 import soundfile as sf
 from scipy import signal
+
+from ..atomic import atomic_path
 
 __all__ = ["impact_sound", "write_audio", "AUDIO_FORMATS"]
 
@@ -308,14 +308,6 @@ def write_audio(path, samples, sample_rate, *, subtype="PCM_16", channels=1, for
     if _subtype_bits(subtype) is not None or subtype in ("VORBIS", "OPUS"):
         data = np.clip(data, -1.0, 1.0)
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # A unique temporary name beside the destination (same file system, so os.replace is
-    # atomic); libsndfile creates it with the usual permissions.
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-    try:
+    with atomic_path(path) as temporary:  # the format is given: the name has no suffix
         sf.write(temporary, data, int(sample_rate), subtype=subtype, format=format)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
     return path

@@ -9,11 +9,11 @@ readers and the fits can be checked against the truth. Deterministic for a given
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_path
 from ..physics import bounce_sequence
 from .audio import impact_sound, write_audio
 from .tables import (
@@ -110,7 +110,6 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
         "recording": {"file": recording.name, **written},
     }
     sidecar = directory / "truth.json"
-    temporary = sidecar.with_name(".truth.json.partial")
-    temporary.write_text(json.dumps(_jsonable(truth), indent=1, allow_nan=True))
-    os.replace(temporary, sidecar)
+    with atomic_path(sidecar) as temporary:
+        temporary.write_text(json.dumps(_jsonable(truth), indent=1, allow_nan=True))
     return recording

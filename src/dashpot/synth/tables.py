@@ -35,13 +35,13 @@ References
 from __future__ import annotations
 
 import io
-import os
-import secrets
 import zipfile
 from pathlib import Path
 
 import numpy as np
 from scipy.signal import savgol_filter
+
+from ..atomic import atomic_path
 
 __all__ = ["write_phyphox_stopwatch", "write_phyphox_collision", "write_timestamps",
            "write_motion_sensor", "write_photogate"]
@@ -56,15 +56,9 @@ _PHYPHOX_BOUNCES = 6  # the (In)elastic collision experiment keeps bounces 0 …
 # ---------------------------------------------------------------------------------------------
 
 def _atomic_write(path, data):
-    """Write bytes to `path` through a temporary name in the same directory and os.replace."""
-    path = Path(path)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-    try:
+    """Write bytes to `path` through a unique temporary name beside it and os.replace."""
+    with atomic_path(path) as temporary:
         temporary.write_bytes(data)
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
 
 
 def _check_times(name, values, *, min_size=1):
