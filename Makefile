@@ -14,8 +14,9 @@ $(STAMP): pyproject.toml constraints.txt
 
 install: $(STAMP)
 
+# The Snakefile is at the root, so Snakemake would not find workflow/profiles/default itself.
 run: $(STAMP)
-	$(BIN)/snakemake --cores all --snakefile Snakefile
+	$(BIN)/snakemake --profile workflow/profiles/default --snakefile Snakefile
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

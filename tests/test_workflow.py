@@ -154,6 +154,7 @@ def test_summary_has_one_row_per_scene_and_model(default_run):
     assert len(table) == len(scenes) * len(MODELS)
     assert set(table["scene"]) == set(scenes)
     assert (table.groupby("scene")["selected"].sum() == 1).all()
+    assert (table["status"] == "ok").all() and table["problem"].isna().all()
     with h5py.File(default_run / "results" / "summary.h5", "r") as f:
         assert f.attrs["format"] == "dashpot-summary-1"
         assert list(f["summary"].attrs["columns"]) == list(SUMMARY_COLUMNS)

@@ -5,24 +5,44 @@ workflow's summary step only has the scene files. :func:`summary_from_records` r
 :func:`dashpot.store.read_fit` dicts exactly what ``summary_table`` reads (each fit's success,
 reduced χ² and estimates, the selection table and the verdict) and calls it, so the summary
 of stored files and of fits in memory are the same table.
+
+A workflow summary must also be honest about scenes it could not use: :func:`summary_from_files`
+opens and checks every file (a damaged one becomes one row naming it, not a traceback) and
+marks the scenes the workflow could not run, so the table says which rows are stale.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
+import h5py
 import pandas as pd
 
 from .select import summary_table
-from .store import read_fit
+from .store import FORMAT, read_fit
 
-__all__ = ["SUMMARY_COLUMNS", "summary_from_records", "summary_from_files"]
+__all__ = ["SUMMARY_COLUMNS", "STATUSES", "summary_from_records", "summary_from_files",
+           "scene_file_problem"]
 
 SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "delta_aic",
                    "delta_bic", "redchi", "beta", "beta_stderr", "k", "k_stderr", "omega0",
-                   "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict")
+                   "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
+                   "status", "problem")
 """Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`)."""
+
+STATUSES = {
+    "ok": "fitted from the scene's current inputs",
+    "stale": "the scene cannot run now (see `problem`); its rows are those of an earlier run",
+    "failed": "the scene cannot run and has no earlier result: one row, no model",
+    "unreadable": "its results/<scene>.h5 cannot be read: one row, no model",
+}
+"""Values of the ``status`` column and what each means."""
+
+_TEXT_COLUMNS = ("scene", "model", "verdict", "status", "problem")
+# h5py raises all of these for a damaged or foreign file, depending on where the damage is.
+_READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 
 
 def _fit_view(fit):
@@ -62,20 +82,94 @@ def summary_from_records(records):
     """
     table = summary_table({name: _scene_view(record) for name, record in records.items()})
     if table.empty:
-        return pd.DataFrame({column: pd.Series(dtype=object if column in
-                                               ("scene", "model", "verdict") else float)
-                             for column in SUMMARY_COLUMNS})
+        return _empty_table()
+    table = table.assign(status="ok", problem="")
     return table[list(SUMMARY_COLUMNS)].reset_index(drop=True)
 
 
-def summary_from_files(paths):
-    """:func:`summary_from_records` of scene files, each named by its file stem.
+def _empty_table():
+    return pd.DataFrame({column: pd.Series(dtype=object if column in _TEXT_COLUMNS else float)
+                         for column in SUMMARY_COLUMNS})
+
+
+def scene_file_problem(path):
+    """Why a stored scene file cannot be used, in one line naming it, or None if it can.
+
+    A quick check (the file opens as HDF5, says it is a dashpot scene file and holds its
+    groups); :func:`summary_from_files` reads each file whole as well.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``results/<scene>.h5`` written by :func:`dashpot.store.write_scene_fit`.
+    """
+    try:
+        with h5py.File(path, "r") as source:
+            found = source.attrs.get("format")
+            if found != FORMAT:
+                return f"{path}: not a dashpot scene file (format {found!r}, not {FORMAT!r})"
+            missing = [group for group in ("impacts", "bounces", "selection", "fits")
+                       if group not in source]
+    except _READ_ERRORS as error:
+        return f"{path}: not a readable HDF5 file ({_one_line(error)})"
+    if missing:
+        return f"{path}: damaged scene file (no {', '.join(missing)})"
+    return None
+
+
+def _one_line(error):
+    return " ".join(str(error).split()) or type(error).__name__
+
+
+def _scene_row(scene, status, problem):
+    row = {column: math.nan for column in SUMMARY_COLUMNS}
+    row.update(scene=scene, model="", success=False, selected=False, verdict="", status=status,
+               problem=problem)
+    return row
+
+
+def summary_from_files(paths, problems=None):
+    """:func:`summary_from_records` of scene files, each named by its file stem, with a status.
+
+    Every file is read whole first; one that cannot be read gives one ``unreadable`` row
+    naming it (and its problem) instead of stopping the summary.
 
     Parameters
     ----------
     paths : sequence of str or os.PathLike
         Scene files written by :func:`dashpot.store.write_scene_fit`.
-    """
-    from pathlib import Path
+    problems : dict of str -> str, optional
+        Scene name -> why it cannot run now (one line). Such a scene's rows, from its file in
+        `paths` (an earlier run), are marked ``stale``; one without a file gets one ``failed``
+        row.
 
-    return summary_from_records({Path(path).stem: read_fit(path) for path in paths})
+    Returns
+    -------
+    pandas.DataFrame
+        Columns :data:`SUMMARY_COLUMNS`: the fit columns of :func:`summary_from_records`, then
+        ``status`` (see :data:`STATUSES`) and ``problem`` (empty when ``ok``). Rows of fitted
+        scenes first, in the order of `paths`, then one row per scene without a usable file.
+    """
+    problems = dict(problems or {})
+    records, unusable = {}, []
+    for path in paths:
+        scene = Path(path).stem
+        problem = scene_file_problem(path)
+        if problem is None:
+            try:
+                records[scene] = read_fit(path)
+            except _READ_ERRORS as error:
+                problem = f"{path}: damaged scene file ({_one_line(error)})"
+        if problem is not None:
+            unusable.append(_scene_row(scene, "unreadable", problem))
+    table = summary_from_records(records)
+    stale = table["scene"].isin(list(problems))
+    table.loc[stale, "status"] = "stale"
+    table.loc[stale, "problem"] = table.loc[stale, "scene"].map(problems)
+    seen = set(records) | {row["scene"] for row in unusable}
+    unusable += [_scene_row(scene, "failed", problem) for scene, problem in problems.items()
+                 if scene not in seen]
+    if not unusable:
+        return table
+    rows = pd.DataFrame(unusable, columns=list(SUMMARY_COLUMNS))
+    return pd.concat([table, rows], ignore_index=True) if len(table) else rows

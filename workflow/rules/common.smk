@@ -1,6 +1,13 @@
 # Scenes of the workflow: folders of scenes_dir, entries of `scenes:` and synthetic scenes.
-# Nothing here reads a scene fully: a broken scene.yaml or recording must fail only that
-# scene's jobs (the library checks them there), so the DAG is built from a tolerant peek.
+#
+# Every scene is checked here, before any job is built from it, and the check never raises:
+# a scene that cannot run (a reserved name, an unreadable or invalid scene.yaml, no recording
+# or a missing one, an unreadable results/<scene>.h5) gets a single `broken_scene` job that
+# fails with one line naming the file in results/logs/fit/<scene>.log, and the other scenes
+# run. A broken scene is left out of the `scene` wildcard of every other rule, so whatever an
+# earlier run made of it (results/<scene>.h5, its figures) is a plain file that no job owns:
+# Snakemake, which deletes a job's outputs before running it, never touches it, and the
+# summary keeps the scene's old rows, marked stale.
 import os
 import re
 import sys
@@ -8,31 +15,53 @@ from pathlib import Path
 
 import yaml
 
-from dashpot.ingest import AUDIO_SUFFIXES
+from dashpot.errors import InputError
+from dashpot.pipeline import is_audio, workflow_scene
+from dashpot.summary import scene_file_problem
 from dashpot.synth.scene import RECORDING_NAMES
 
 
-def _peek(path):
-    """The mapping of a scene.yaml, or {} if it cannot be read (its job will say why)."""
+def _reserved_names():
+    """Names a scene may not have: the folders and files of results/ other rules write.
+
+    The config schema's list (one list for config keys and folder names), lower-cased:
+    on a case-insensitive file system `Summary` is `summary`.
+    """
+    schema = Path(workflow.basedir) / "workflow" / "schemas" / "config.schema.yaml"
+    names = yaml.safe_load(schema.read_text(encoding="utf-8"))["definitions"]["name"]["not"]
+    return frozenset(name.lower() for name in names["enum"])
+
+
+RESERVED_NAMES = _reserved_names()
+
+
+def _scene_problem(name, scene_file, mapping):
+    """A folder or config scene's (scene, None) if it can run, else (None, one-line problem)."""
+    source = scene_file or f"config.yaml: scenes/{name}"
+    if name.lower() in RESERVED_NAMES:
+        return None, (f"{source}: the scene name {name!r} is reserved for the workflow's "
+                      f"own outputs ({', '.join(sorted(RESERVED_NAMES))}): rename the scene")
     try:
-        mapping = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
-        return {}
-    return mapping if isinstance(mapping, dict) else {}
+        scene = workflow_scene(name, scene_file=scene_file, mapping=mapping)
+    except InputError as error:
+        return None, str(error)
+    except Exception as error:  # noqa: BLE001 - one scene must never stop the DAG
+        return None, f"{source}: cannot be read ({type(error).__name__}: {error})"
+    if not os.path.isfile(scene.recording):
+        return None, f"{os.path.normpath(scene.recording)}: no such file (the recording of {source})"
+    return scene, None
 
 
-def _entry(source, scene_file, mapping, recording):
-    sensor = mapping.get("sensor") if isinstance(mapping.get("sensor"), str) else None
-    audio = sensor == "audio" if sensor else (
-        recording is not None and Path(recording).suffix.lower() in AUDIO_SUFFIXES)
-    return {"source": source, "scene_file": scene_file, "recording": recording, "audio": audio}
+def _entry(source, scene_file, recording, audio, problem=None):
+    return {"source": source, "scene_file": scene_file, "recording": recording, "audio": audio,
+            "problem": problem}
 
 
-def _recording_of(mapping, base):
-    recording = mapping.get("recording")
-    if not isinstance(recording, str):
-        return None
-    return os.path.normpath(os.path.join(base, recording))
+def _checked(name, source, scene_file, mapping):
+    scene, problem = _scene_problem(name, scene_file, mapping)
+    if scene is None:
+        return _entry(source, scene_file, None, False, problem)
+    return _entry(source, scene_file, os.path.normpath(scene.recording), is_audio(scene))
 
 
 def _collect_scenes():
@@ -49,45 +78,92 @@ def _collect_scenes():
         name = scene_file.parent.name
         if name in real and not use_real:
             continue
-        mapping = _peek(scene_file)
-        scenes[name] = _entry("folder", str(scene_file), mapping,
-                              _recording_of(mapping, str(scene_file.parent)))
+        if "{" in name or "}" in name:  # would read as a wildcard in every path: no job
+            print(f"dashpot: {scene_file}: skipped: a scene name may not hold braces",
+                  file=sys.stderr)
+            continue
+        scenes[name] = _checked(name, "folder", str(scene_file), None)
     for name, mapping in config.get("scenes", {}).items():
         if name in scenes:
             raise ValueError(f"config.yaml: scene {name!r} is both a folder and a config entry")
-        scenes[name] = _entry("config", None, mapping, _recording_of(mapping, "."))
+        scenes[name] = _checked(name, "config", None, mapping)
     for name, spec in config.get("synthetic", {}).items():
         if name in scenes:
             raise ValueError(f"config.yaml: synthetic scene {name!r} has the name of another scene")
         recording = f"results/synthetic/{name}/{RECORDING_NAMES[spec['kind']]}"
-        scenes[name] = _entry("synthetic", None, {"sensor": spec["kind"]}, recording)
+        scenes[name] = _entry("synthetic", None, recording, spec["kind"] == "audio")
+    for name, scene in scenes.items():
+        # A damaged result would be taken as up to date ("Nothing to be done") and break the
+        # summary: the scene stops with a line saying so, and deleting the file recomputes it.
+        result = f"results/{name}.h5"
+        if scene["problem"] is None and os.path.exists(result):
+            problem = scene_file_problem(result)
+            if problem is not None:
+                scene["problem"] = f"{problem}: delete it to compute the scene again"
     return scenes
 
 
+def _last_fit_error(name, scene):
+    """The error line of the scene's last fit if it failed and nothing changed since, or None.
+
+    A fit that fails at run time (an unreadable recording) leaves its log and no
+    results/<scene>.h5. Until the scene's inputs change, its fit is expected to fail again,
+    so the summary does not wait for it (see `summary_input`). A log without an ERROR line
+    (a killed job) is not a failure. The first line of a fit's log is "fit scene <name>"
+    (dashpot.joblog and workflow/scripts/fit.py).
+    """
+    log = Path(f"results/logs/fit/{name}.log")
+    if os.path.exists(f"results/{name}.h5") or not log.is_file():
+        return None
+    inputs = [scene["scene_file"], scene["recording"]]
+    if scene["source"] == "synthetic":
+        inputs = [f"results/synthetic/{name}"]
+    try:
+        logged = log.stat().st_mtime
+        if any(os.path.getmtime(path) > logged for path in inputs
+               if path and os.path.exists(path)):
+            return None
+        lines = log.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return None
+    if not lines or not lines[0].endswith(f" INFO fit scene {name}"):
+        return None  # the log of broken_scene (same path), not of a fit
+    errors = [line.split(" ERROR ", 1)[1] for line in lines if " ERROR " in line]
+    return f"its last fit failed: {errors[-1]}" if errors else None
+
+
 SCENES = _collect_scenes()
-AUDIO_SCENES = [name for name, scene in SCENES.items() if scene["audio"]]
+BROKEN_SCENES = {name: scene["problem"] for name, scene in SCENES.items() if scene["problem"]}
+RUNNABLE_SCENES = [name for name in SCENES if name not in BROKEN_SCENES]
+FAILED_FITS = {name: error for name in RUNNABLE_SCENES
+               if (error := _last_fit_error(name, SCENES[name]))}
+AUDIO_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["audio"]]
 SCENE_FIGURES = ["intervals", "restitution", "selection"]
 THEORY_FIGURES = ["contact_time", "restitution", "critical_speed", "restitution_vs_speed"]
 
 
+def _names_pattern(names):
+    return "|".join(re.escape(name) for name in names) or "(?!x)x"
+
+
+# Only runnable scenes match {scene} in the rules that make or read a scene's results;
+# `broken_scene` sets its own constraint (the broken ones).
 wildcard_constraints:
-    scene="|".join(re.escape(name) for name in SCENES) or "(?!x)x",
+    scene=_names_pattern(RUNNABLE_SCENES),
 
 
 def fit_input(wildcards):
-    """The scene's definition (scene.yaml or synthetic folder) and its recording if present.
+    """The scene's definition (scene.yaml or synthetic folder) and its recording.
 
-    A missing recording is left out, not demanded: the fit job then fails with the reader's
-    message in its log, and the other scenes go on (with --keep-going).
+    The recording exists (a scene whose recording is missing is broken, see above), so it
+    is demanded: a changed recording reruns the fit.
     """
     scene = SCENES[wildcards.scene]
     if scene["source"] == "synthetic":
         return {"scene": f"results/synthetic/{wildcards.scene}"}
-    inputs = {}
+    inputs = {"recording": scene["recording"]}
     if scene["scene_file"]:
         inputs["scene"] = scene["scene_file"]
-    if scene["recording"] and os.path.isfile(scene["recording"]):
-        inputs["recording"] = scene["recording"]
     return inputs
 
 
@@ -97,19 +173,52 @@ def config_scene(wildcards):
 
 
 def recording_input(wildcards):
-    """The recording of an audio scene (for its detection figure), if present (as fit_input)."""
+    """The recording of an audio scene (for its detection figure)."""
     scene = SCENES[wildcards.scene]
     if scene["source"] == "synthetic":
         return f"results/synthetic/{wildcards.scene}"
-    return [scene["recording"]] if os.path.isfile(scene["recording"]) else []
+    return scene["recording"]
+
+
+def summary_input(wildcards):
+    """The scene files the summary reads.
+
+    Those of runnable scenes, which their fits make, except a scene whose last fit failed
+    and whose inputs have not changed since: its fit runs again, but the summary does not
+    wait for it, so that while one scene is broken the summary is still rebuilt for the
+    others (it lists that scene as failed). A broken scene's earlier file, if there is one,
+    is read as it is (no rule makes it). Only in the run where a fit fails for the first
+    time does the summary wait (and, with --keep-going, is left for the next run).
+    """
+    names = [name for name in RUNNABLE_SCENES if name not in FAILED_FITS]
+    names += [name for name in BROKEN_SCENES if earlier_result(name)]
+    return [f"results/{name}.h5" for name in SCENES if name in names]
+
+
+def earlier_result(name):
+    """A broken scene's results/<scene>.h5 from an earlier run, or "" (none, or the name is
+    reserved: results/summary.h5 is the summary's, not a scene's)."""
+    path = f"results/{name}.h5"
+    return path if name.lower() not in RESERVED_NAMES and os.path.exists(path) else ""
+
+
+def summary_problems(wildcards):
+    """Scene -> why it is not up to date (one line), for the summary's status column."""
+    return {**BROKEN_SCENES, **FAILED_FITS}
+
+
+def broken_scene_problem(wildcards):
+    """The one-line problem of a broken scene."""
+    return BROKEN_SCENES[wildcards.scene]
 
 
 def all_outputs():
-    """Every file of a full run: scene files, summary, figures, theory."""
-    outputs = expand("results/{scene}.h5", scene=SCENES)
+    """Every file of a full run: scene files, summary, figures, theory; broken scenes' jobs."""
+    outputs = expand("results/{scene}.h5", scene=RUNNABLE_SCENES)
+    outputs += expand("results/logs/fit/{scene}.broken", scene=BROKEN_SCENES)
     outputs += ["results/summary.h5", "results/summary.csv"]
     if config.get("scene_plots", True):
-        outputs += expand("results/plots/{scene}/{figure}.{ext}", scene=SCENES,
+        outputs += expand("results/plots/{scene}/{figure}.{ext}", scene=RUNNABLE_SCENES,
                           figure=SCENE_FIGURES, ext=["png", "pdf"])
         outputs += expand("results/plots/{scene}/detection.{ext}", scene=AUDIO_SCENES,
                           ext=["png", "pdf"])

@@ -14,3 +14,24 @@ rule fit:
         "../envs/dashpot.yaml"
     script:
         "../scripts/fit.py"
+
+
+rule broken_scene:
+    """A scene that cannot run: fails with one line naming the file and the problem.
+
+    Its output is never written (the job always fails, so each run reports the scene again);
+    the scene's earlier results are no output of any job of this run, so they are kept.
+    """
+    output:
+        "results/logs/fit/{scene}.broken",
+    params:
+        problem=broken_scene_problem,
+        earlier=lambda wildcards: earlier_result(wildcards.scene),
+    log:
+        "results/logs/fit/{scene}.log",
+    wildcard_constraints:
+        scene=_names_pattern(BROKEN_SCENES),
+    conda:
+        "../envs/dashpot.yaml"
+    script:
+        "../scripts/broken_scene.py"

@@ -1,7 +1,11 @@
 rule summary:
-    """One row per scene and model: β, k, ω0, ζ, v0 with errors and the model selection."""
+    """One row per scene and model: β, k, ω0, ζ, v0 with errors and the model selection.
+
+    Scenes that are not up to date (broken, or whose last fit failed) are listed with their
+    status and problem, so a broken scene never stops the summary (see summary_input).
+    """
     input:
-        expand("results/{scene}.h5", scene=SCENES),
+        summary_input,
     output:
         h5="results/summary.h5",
         csv=report(
@@ -10,6 +14,8 @@ rule summary:
             category="Summary",
             labels={"table": "all scenes"},
         ),
+    params:
+        problems=summary_problems,
     log:
         "results/logs/summary.log",
     benchmark:
