@@ -115,7 +115,7 @@ def test_invalid_scene_fails_cleanly_and_keeps_an_old_output(fitted, tmp_path):
                              "--scene", str(scene)])
     assert status == 2 and out == ""
     assert err == f"dashpot fit: error: {scene}: invalid scene (apparatus/mass: -0.05 is less " \
-                  "than or equal to the minimum of 0)\n"
+                  "than the minimum of 1e-06)\n"
     assert output.read_bytes() == b"an earlier result"
     missing = tmp_path / "no_scene.yaml"
     status, _, err = run_cli(["fit", str(fitted["table"]), "-o", str(tmp_path / "new.h5"),

@@ -166,6 +166,26 @@ BAD_SCENES = [
     ("string_number", "timing_resolution: fast\n", ["timing_resolution", "'fast'"]),
     ("both_speeds", "apparatus:\n  drop_height: 0.5\n  first_impact_speed: 3.1\n",
      ["first_impact_speed", "drop_height", "not both"]),
+    # Absurd magnitudes: a typo or a unit slip, refused with the key named.
+    ("gravity_1e300", "apparatus: {gravity: 1e300}\n", ["apparatus/gravity", "maximum"]),
+    ("gravity_inf", "apparatus: {gravity: .inf}\n", ["apparatus/gravity"]),
+    ("mass_1e308", "apparatus: {mass: 1e308}\n", ["apparatus/mass", "maximum"]),
+    ("mass_in_grams", "apparatus: {mass: 2700}\n", ["apparatus/mass", "maximum of 1000"]),
+    ("zero_mass", "apparatus: {mass: 0}\n", ["apparatus/mass", "minimum"]),
+    ("zero_height", "apparatus: {drop_height: 0}\n", ["apparatus/drop_height", "minimum"]),
+    ("height_1e9", "apparatus: {drop_height: 1e9}\n", ["apparatus/drop_height", "maximum"]),
+    ("huge_prior_spread", "apparatus: {stiffness: {value: 1e5, uncertainty: 1e300}}\n",
+     ["apparatus/stiffness/uncertainty", "maximum"]),
+    ("speed_of_light", "apparatus: {first_impact_speed: 3e8}\n",
+     ["apparatus/first_impact_speed", "maximum"]),
+    ("g_eff_1e-300", "apparatus: {g_eff: 1e-300}\n", ["apparatus/g_eff", "minimum"]),
+    ("flat_incline", "apparatus: {incline_angle: 1e-9}\n",
+     ["apparatus/incline_angle", "less than the minimum of 0.001 m/s²"]),
+    ("tiny_resolution", "timing_resolution: 1e-300\n", ["timing_resolution", "minimum"]),
+    ("flag_in_mm", "reader: {flag_length: 20}\n", ["reader/flag_length", "maximum"]),
+    ("bumper_far_away", "reader: {bumper_position: -1e300}\n", ["reader/bumper_position"]),
+    ("huge_integer", "apparatus:\n  stiffness: 1" + "0" * 400 + "\n",
+     ["apparatus/stiffness", "maximum"]),
 ]
 
 
@@ -175,11 +195,30 @@ def test_bad_scene_is_one_line_naming_the_file(tmp_path, label, text, fragments)
     with pytest.raises(InputError) as caught:
         load_scene(path)
     message = str(caught.value)
-    assert "\n" not in message
+    assert "\n" not in message and len(message) < len(str(path)) + 300
     assert message.startswith(f"{path}: ")
     assert caught.value.path == str(path)
     for fragment in fragments:
         assert fragment in message
+
+
+def test_large_and_small_but_real_apparatus_is_accepted(tmp_path):
+    # A heavy cart on a nearly level track, a drop from a building, a stiff steel contact.
+    scene = load_scene(_write(tmp_path / "heavy", """\
+timing_resolution: 1.0e-6
+reader: {flag_length: 0.5, gate_distance: 3.0, bumper_position: -8.5}
+apparatus:
+  mass: {value: 45.0, uncertainty: 0.5}
+  stiffness: 2.0e9
+  drop_height: 30
+  g_eff: 0.01
+"""))
+    assert scene.mass == Known(45.0, 0.5) and scene.stiffness == Known(2.0e9)
+    assert scene.driving_acceleration == 0.01 and scene.drop_height == Known(30.0)
+    assert scene.known_impact_speed.value == pytest.approx(math.sqrt(2 * 0.01 * 30), rel=1e-15)
+    tilted = load_scene(_write(tmp_path / "tilted", "apparatus: {incline_angle: 0.1}\n"))
+    assert tilted.driving_acceleration == pytest.approx(
+        STANDARD_GRAVITY * math.sin(math.radians(0.1)), rel=1e-15)
 
 
 def test_missing_unreadable_and_binary_scene_files(tmp_path):

@@ -59,3 +59,27 @@ def test_bad_sequence_parameters(argument, value):
 def test_restitution_outside_unit_interval():
     with pytest.raises(ValueError, match="eps must be"):
         dashpot.contact_from_restitution("Ia", 0.01, 1.2, mass=1.0, v0=1.0, g=9.81)
+
+
+@pytest.mark.parametrize("value,problem", [
+    (-1.0, "must be a finite number in (0, 1] m"), (0.0, "in (0, 1] m"),
+    (1.5, "in (0, 1] m"), (float("nan"), "finite"), (float("inf"), "finite"),
+    ("2 cm", "must be a number"), (None, "must be a number")])
+def test_check_range_names_the_argument_and_the_range(value, problem):
+    from dashpot._validation import check_range
+
+    with pytest.raises(ValueError) as caught:
+        check_range("flag_length", value, 0.0, 1.0, unit="m")
+    message = str(caught.value)
+    assert message.startswith("flag_length ") and problem in message
+    assert message.endswith(f"got {value!r}")
+
+
+def test_check_range_bounds_and_an_open_top():
+    from dashpot._validation import check_range
+
+    assert check_range("x", "1", 0.0, 1.0) == 1.0  # the top is included
+    assert check_range("x", 0, 0.0, 1.0, low_inclusive=True) == 0.0
+    assert check_range("x", 1e300, 0.0, float("inf"), low_inclusive=True) == 1e300
+    with pytest.raises(ValueError, match=r"in \[0, inf\) s; got inf"):
+        check_range("x", float("inf"), 0.0, float("inf"), unit="s", low_inclusive=True)

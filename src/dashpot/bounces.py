@@ -89,7 +89,8 @@ def bounce_table(impacts, *, g, contact_duration=0.0):
     ------
     ValueError
         Times not finite or not increasing within a run, a negative or infinite
-        ``time_uncertainty``, or no run with three impacts.
+        ``time_uncertainty``, no run with three impacts, or a ``contact_duration`` not
+        shorter than every interval.
 
     Notes
     -----
@@ -129,6 +130,13 @@ def bounce_table(impacts, *, g, contact_duration=0.0):
             parts.append(_run_bounces(times[members], sigma[members], g, contact_duration,
                                       number))
     table = pd.concat(parts, ignore_index=True)
+    # Each interval contains a contact: a longer contact makes g(T - contact)/2 negative.
+    too_short = np.flatnonzero(table["interval"].to_numpy() <= contact_duration)
+    if too_short.size:
+        row = table.iloc[too_short[0]]
+        raise ValueError(f"contact_duration {contact_duration:g} s is not shorter than the "
+                         f"interval {row['interval']:.6g} s of bounce {row['bounce']} (run "
+                         f"{row['run']}): the rebound speed g(T - contact)/2 would be negative")
     flags, ratio_flags = table["flag"], table["restitution_flag"]
     unknown = int(np.sum(np.isnan(sigma)))
     table.attrs["notes"] = [

@@ -7,8 +7,10 @@ Every failure is one line on standard error naming the file and the problem, wit
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from .errors import InputError
@@ -213,28 +215,59 @@ def _print_summary(recording, impacts, scene_fit, h5, figures):
     print(f"  preferred: {scene_fit.verdict}")
 
 
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are one line like every other error of the command."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _number(low, high, *, unit, low_inclusive=False):
+    """argparse type: a finite number in the physically sensible range (low, high] or
+    [low, high], else the option's one-line error naming the range."""
+    from ._validation import range_problem
+
+    def number(text):
+        problem = range_problem(text, low, high, unit=unit, low_inclusive=low_inclusive)
+        if problem is not None:
+            raise argparse.ArgumentTypeError(f"{problem}; got {text!r}")
+        return float(text)
+
+    return number
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="dashpot", description=__doc__.splitlines()[0])
+    from ._validation import (ACCELERATION_RANGE, BUMPER_POSITION_RANGE, FLAG_LENGTH_RANGE,
+                              GATE_DISTANCE_RANGE)
+
+    parser = _Parser(prog="dashpot", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
     impacts = commands.add_parser("impacts", help="find the impacts in a recording or table")
     impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
     impacts.add_argument("-o", "--output", required=True, help="impact table to write (CSV)")
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
                                             "photogate"], help="reader (default: detected)")
-    impacts.add_argument("--flag-length", type=float, help="photogate flag length in m")
-    impacts.add_argument("--gate-distance", type=float,
-                         help="photogate distance from the bumper in m (exact impact times)")
+    impacts.add_argument("--flag-length", type=_number(*FLAG_LENGTH_RANGE, unit="m"),
+                         help="photogate flag length in m, in (%g, %g]" % FLAG_LENGTH_RANGE)
+    impacts.add_argument("--gate-distance", type=_number(*GATE_DISTANCE_RANGE, unit="m"),
+                         help="photogate distance from the bumper in m, in (%g, %g] (exact "
+                              "impact times)" % GATE_DISTANCE_RANGE)
     impacts.add_argument("--unit", choices=["s", "ms"], help="time unit of a timestamp table")
-    impacts.add_argument("--bumper-position", type=float,
-                         help="bumper position in m (motion sensor; default inferred)")
+    impacts.add_argument("--bumper-position",
+                         type=_number(*BUMPER_POSITION_RANGE, unit="m", low_inclusive=True),
+                         help="bumper position in m, in [%g, %g] (motion sensor; default "
+                              "inferred)" % BUMPER_POSITION_RANGE)
     impacts.set_defaults(run=_impacts)
     bounces = commands.add_parser("bounces", help="intervals, speeds and ε from an impact table")
     bounces.add_argument("impacts", help="impact table written by `dashpot impacts`")
     bounces.add_argument("-o", "--output", required=True, help="bounce table to write (CSV)")
-    bounces.add_argument("--g", type=float, default=9.81,
-                         help="acceleration towards the surface in m/s² (default 9.81)")
-    bounces.add_argument("--contact-duration", type=float, default=0.0,
-                         help="contact duration in s, if known (default 0)")
+    bounces.add_argument("--g", type=_number(*ACCELERATION_RANGE, unit="m/s²"), default=9.81,
+                         help="acceleration towards the surface in m/s², in (%g, %g] "
+                              "(default 9.81)" % ACCELERATION_RANGE)
+    bounces.add_argument("--contact-duration",
+                         type=_number(0.0, math.inf, unit="s", low_inclusive=True), default=0.0,
+                         help="contact duration in s, if known; shorter than every interval "
+                              "(default 0)")
     bounces.set_defaults(run=_bounces)
     fit = commands.add_parser("fit", help="fit β and k under every contact model; HDF5 out")
     fit.add_argument("impacts", help="impact table from `dashpot impacts`, or a recording")
@@ -259,11 +292,18 @@ def build_parser():
 def main(argv=None):
     """Entry point of the ``dashpot`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
-    try:
-        args.run(args)
-    except InputError as error:
-        print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
-        return 2
+
+    def note(message, category, *_):
+        # A warning (e.g. an unusable cache: results computed without it) is a note, one line.
+        print(f"dashpot {args.command}: note: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = note
+        try:
+            args.run(args)
+        except InputError as error:
+            print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
+            return 2
     return 0
 
 

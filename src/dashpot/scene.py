@@ -26,6 +26,7 @@ from .safe_yaml import load_yaml
 __all__ = ["Known", "Scene", "load_scene", "scene_from_mapping", "STANDARD_GRAVITY"]
 
 STANDARD_GRAVITY = 9.80665  # m/s², conventional value (CGPM 1901)
+MIN_DRIVING_ACCELERATION = 1e-3  # m/s², as the schema's g_eff: a track level to 1e-4 rad
 
 
 @dataclass(frozen=True)
@@ -172,7 +173,8 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
     Raises
     ------
     InputError
-        The mapping does not follow the schema, or its values are inconsistent.
+        The mapping does not follow the schema (which also bounds every number to a
+        physically sensible range), or its values are inconsistent.
     """
     import jsonschema
 
@@ -181,7 +183,10 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
         jsonschema.validate(mapping, _schema())
     except jsonschema.ValidationError as error:
         where = "/".join(str(part) for part in error.absolute_path) or "top level"
-        raise InputError(source, f"invalid scene ({where}: {error.message})") from None
+        message = error.message
+        if len(message) > 200:  # the schema quotes the value: a 5000-digit number, a list
+            message = f"{message[:100]}…{message[-60:]}"
+        raise InputError(source, f"invalid scene ({where}: {message})") from None
     bad = _non_finite(mapping)
     if bad is not None:
         where = "/".join(str(part) for part in bad)
@@ -205,11 +210,18 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
     if recording is not None:
         recording = Path(base or ".") / recording
     models = tuple(mapping.get("models", MODELS))
-    return Scene(name=str(mapping.get("name", Path(str(source)).parent.name or "scene")),
-                 sensor=mapping.get("sensor"), recording=recording, models=models,
-                 timing_resolution=mapping.get("timing_resolution"),
-                 reader=dict(mapping.get("reader", {})),
-                 accuracy=mapping.get("accuracy", "auto"), **kwargs)
+    scene = Scene(name=str(mapping.get("name", Path(str(source)).parent.name or "scene")),
+                  sensor=mapping.get("sensor"), recording=recording, models=models,
+                  timing_resolution=mapping.get("timing_resolution"),
+                  reader=dict(mapping.get("reader", {})),
+                  accuracy=mapping.get("accuracy", "auto"), **kwargs)
+    if scene.incline_angle is not None and scene.g_eff is None and \
+            scene.driving_acceleration < MIN_DRIVING_ACCELERATION:
+        # The schema bounds g_eff itself; a nearly flat incline can undercut it.
+        raise InputError(source, f"invalid scene (apparatus/incline_angle: g·sin θ = "
+                                 f"{scene.driving_acceleration:.3g} m/s² is less than the "
+                                 f"minimum of {MIN_DRIVING_ACCELERATION:g} m/s²)")
+    return scene
 
 
 def load_scene(path):

@@ -87,6 +87,9 @@ _MAX_NOISE_CORRELATION = 0.99
 # Rough onset and grouping (step 2).
 _BACK_SEARCH_SECONDS = 3e-3
 _AIC_MARGIN = 4  # samples: shortest segment the AIC picker may leave on either side
+# Lowest sample rate the detector works at: the first 0.5 ms of a transient must span the
+# picker's shortest segment (8 kHz; below about 5 kHz the windows collapse and picking fails).
+MIN_SAMPLE_RATE = int(round(_AIC_MARGIN / _STA_SECONDS))
 _MERGE_SECONDS = 1e-3  # triggers this close to a transient's onset belong to it
 _WEAK_JUMP_FACTOR = 2.0  # weak candidates: power jump down to min_jump / 2 (3 dB lower)
 _RING_GAP_SECONDS = 0.5e-3  # a sound this long before a transient's jump is a sound of its own
@@ -1443,8 +1446,8 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     Parameters
     ----------
     path : str or os.PathLike
-        WAV, FLAC or OGG file; any sample rate; 8/16/24/32-bit integer or float samples; any
-        number of channels.
+        WAV, FLAC or OGG file; sample rate at least :data:`MIN_SAMPLE_RATE` (8 kHz);
+        8/16/24/32-bit integer or float samples; any number of channels.
     block_seconds : float, default 30
         The file is decoded and analysed in blocks of this length (s), so that memory stays
         bounded however long the recording.
@@ -1484,8 +1487,9 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     Raises
     ------
     InputError
-        The file cannot be read (missing, empty, truncated, not audio, corrupt), holds no
-        impact (silence, noise only), or a single impact, which is not a bounce sequence.
+        The file cannot be read (missing, empty, truncated, not audio, corrupt), is sampled
+        below :data:`MIN_SAMPLE_RATE`, holds no impact (silence, noise only), or a single
+        impact, which is not a bounce sequence.
     ValueError
         An option is out of range.
 
@@ -1513,6 +1517,11 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
             raise ValueError(f"{name} must be a positive number; got {value!r}")
     with _open(path) as handle:
         sample_rate = int(handle.samplerate)
+        if sample_rate < MIN_SAMPLE_RATE:
+            raise InputError(path, f"sample rate {sample_rate} Hz is below the "
+                                   f"{MIN_SAMPLE_RATE} Hz the impact detector needs (the first "
+                                   f"{_STA_SECONDS * 1e3:g} ms of a transient must span "
+                                   f"{_AIC_MARGIN} samples)")
         if highpass_hz >= 0.45 * sample_rate:
             raise ValueError(f"highpass_hz must be below 0.45 × the sample rate "
                              f"({0.45 * sample_rate:g} Hz); got {highpass_hz!r}")

@@ -50,6 +50,8 @@ import numpy as np
 import pandas as pd
 from scipy.integrate import cumulative_trapezoid
 
+from .._validation import (BUMPER_POSITION_RANGE, FLAG_LENGTH_RANGE, GATE_DISTANCE_RANGE,
+                           check_range)
 from ..errors import InputError
 from . import AUDIO_SUFFIXES, IMPACT_COLUMNS
 
@@ -1478,7 +1480,7 @@ def read_motion_sensor(path, *, bumper_position=None):
         cells. Units m/cm/mm, m/s/cm/s/mm/s, s/ms.
     bumper_position : float, optional
         Position reading (m, the file's axis) at which the cart touches the bumper, if known
-        from the scene. Otherwise estimated (see Notes).
+        from the scene, in [-20, 20] m. Otherwise estimated (see Notes).
 
     Returns
     -------
@@ -1494,6 +1496,8 @@ def read_motion_sensor(path, *, bumper_position=None):
         Empty file, not a table, no time column or no position/velocity column, bad cells,
         missing/negative/non-increasing times (row named), a value missing inside a run,
         duplicated rows, unknown units.
+    ValueError
+        If `bumper_position` is not a finite number in [-20, 20] m.
 
     Notes
     -----
@@ -1542,6 +1546,9 @@ def read_motion_sensor(path, *, bumper_position=None):
     impact whose outgoing flight is too short keeps its time and impact speed with a NaN
     rebound speed.
     """
+    if bumper_position is not None:
+        bumper_position = check_range("bumper_position", bumper_position,
+                                      *BUMPER_POSITION_RANGE, unit="m", low_inclusive=True)
     table = _table_of_kind(path, "motion_sensor", "no position or velocity column",
                            "a motion sensor (expected e.g. 'Time (s) Run #1' and "
                            "'Position (m) Run #1'")
@@ -1719,10 +1726,11 @@ def read_photogate(path, *, flag_length, gate_distance=None):
         sampled log (``Time (s) Run #1``, ``Gate State Run #1``, one row per sample). States
         1 = blocked, 0 = unblocked, or the words Blocked/Unblocked.
     flag_length : float
-        Length in m of the flag on the cart that blocks the beam, > 0.
+        Length in m of the flag on the cart that blocks the beam, in (0, 1] m.
     gate_distance : float, optional
         Distance in m the cart travels from leaving the beam to touching the bumper, if
-        measured in the scene. With it, times and speeds are extrapolated to the bumper.
+        measured in the scene, in (0, 10] m. With it, times and speeds are extrapolated to
+        the bumper.
 
     Returns
     -------
@@ -1734,7 +1742,7 @@ def read_photogate(path, *, flag_length, gate_distance=None):
     InputError
         Bad file (as for the other readers), no time or state column, states other than 1/0.
     ValueError
-        If `flag_length` or `gate_distance` is not a positive number.
+        If `flag_length` or `gate_distance` is not a finite number in its range.
 
     Notes
     -----
@@ -1762,14 +1770,10 @@ def read_photogate(path, *, flag_length, gate_distance=None):
     acceleration gives t = t_off + G(gG + 2w)/(2(gG + v + w)) (w the speed entering the beam
     on the way out); the speeds reported are then the passage speeds L/τ at the gate.
     """
-    flag_length = float(flag_length)
-    if not np.isfinite(flag_length) or flag_length <= 0:
-        raise ValueError(f"flag_length must be a positive length in m; got {flag_length!r}")
+    flag_length = check_range("flag_length", flag_length, *FLAG_LENGTH_RANGE, unit="m")
     if gate_distance is not None:
-        gate_distance = float(gate_distance)
-        if not np.isfinite(gate_distance) or gate_distance <= 0:
-            raise ValueError(f"gate_distance must be a positive length in m; got "
-                             f"{gate_distance!r}")
+        gate_distance = check_range("gate_distance", gate_distance, *GATE_DISTANCE_RANGE,
+                                    unit="m")
     table = _table_of_kind(path, "photogate", "no gate-state column",
                            "a photogate log (expected e.g. 'Latest: Time (s)' and "
                            "'Latest: GateState'")

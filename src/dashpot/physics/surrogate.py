@@ -70,6 +70,7 @@ import json
 import math
 import os
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -81,8 +82,8 @@ from .._validation import check_model, check_nonnegative, check_positive
 from ..atomic import atomic_path
 from .models import EXACT_RTOL, MODELS, Collision, collide, critical_velocity
 
-__all__ = ["LEVELS", "SURROGATE_MODELS", "Surrogate", "build_surrogate", "cache_dir",
-           "load_surrogate", "surrogate_collide"]
+__all__ = ["LEVELS", "SURROGATE_MODELS", "Surrogate", "CacheWarning", "build_surrogate",
+           "cache_dir", "load_surrogate", "surrogate_collide"]
 
 SURROGATE_MODELS = ("Ib", "IIb", "hybrid")
 """Models with a tabulated surrogate; Ia and IIa are closed forms and use the exact path."""
@@ -481,6 +482,18 @@ def certify(table, n=200_000, seed=1):
 
 # --- cache -------------------------------------------------------------------------------------
 
+class CacheWarning(RuntimeWarning):
+    """The cache directory cannot be created, read or written: tables are kept in memory only."""
+
+
+def _without_cache(directory, model, level, error):
+    """Warn (one line) that a table is built and kept in memory because the cache failed."""
+    reason = getattr(error, "strerror", None) or str(error).strip().splitlines()[0]
+    warnings.warn(f"cannot use the surrogate cache {directory} ({reason}); the {model} "
+                  f"{level} table is computed and kept in memory for this run only",
+                  CacheWarning, stacklevel=3)
+
+
 def cache_dir(directory=None):
     """Cache directory: `directory`, else $DASHPOT_CACHE_DIR, else ~/.cache/dashpot."""
     if directory is not None:
@@ -555,7 +568,9 @@ def load_surrogate(model, level="fast", *, directory=None, overrides=None):
     -------
     Surrogate
         A file that is unreadable, fails its checksum, or was built with other parameters or
-        another package version is rebuilt and replaced.
+        another package version is rebuilt and replaced. If the cache directory cannot be
+        created, read or written, the table is built and kept in memory only (``path`` "")
+        with a :class:`CacheWarning`.
     """
     # Hot path (every surrogate_collide call): a dictionary look-up, no hashing or file access.
     quick = (model, level, None if directory is None else str(directory),
@@ -566,14 +581,25 @@ def load_surrogate(model, level="fast", *, directory=None, overrides=None):
         return table
     model = check_model(model, SURROGATE_MODELS)
     level = check_model(level, tuple(LEVELS))
-    directory = cache_dir(directory)
     params = _build_params(model, level, overrides)
-    path = _cache_path(directory, params)
-    table = _read(path, params) if path.exists() else None
+    # A cache that cannot be used (no home folder, no permission, a file in the way, a full
+    # disk) costs the build time, never the result.
+    try:
+        directory = cache_dir(directory)
+        path = _cache_path(directory, params)
+        table = _read(path, params) if path.exists() else None
+    except (OSError, RuntimeError) as error:  # RuntimeError: Path.home() without a home
+        _without_cache(directory or "~/.cache/dashpot", model, level, error)
+        path = table = None
     if table is None:
         table = build_surrogate(model, level, overrides=overrides)
-        _write(table, path)
-        table = dataclasses.replace(table, path=str(path))
+        if path is not None:
+            try:
+                _write(table, path)
+            except OSError as error:
+                _without_cache(directory, model, level, error)
+            else:
+                table = dataclasses.replace(table, path=str(path))
     _LOADED[quick] = table
     return table
 
