@@ -289,6 +289,21 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
 
 
 
+def test_probed_impacts_stay_in_time_order_where_the_tolerance_exceeds_the_interval():
+    """A scatter of 50 % makes the tolerance 1.5 intervals: a probe may find the onset of the
+    impact before; taking it as the next one made an interval negative (math domain error)."""
+    impacts = np.cumsum(0.3 * 0.9 ** np.arange(8))
+
+    def probe(predicted, tolerance, not_before=None):
+        return (predicted - 0.9 * tolerance, 1e-5, 1.0, False)
+
+    coefficients, _ = audio._robust_trend(impacts)
+    added, retimed = audio._fill_impacts(impacts, np.ones(impacts.size), coefficients, 0.5,
+                                         np.zeros(0), probe, impacts[-1] + 1.0)
+    timeline = np.sort(np.concatenate([impacts, [row[0] for row in added]]))
+    assert np.all(np.diff(timeline) > 0) and not retimed
+
+
 def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
     impacts = np.cumsum(0.3 * 0.9 ** np.arange(30))
     # Impact 27 was timed at the start of the ring of impact 26, which starts 1.5 ms before it

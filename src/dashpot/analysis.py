@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .errors import InputError
+from .plausibility import check_bounce_train
 from .ingest import read_impacts
 from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
@@ -97,6 +98,7 @@ def analyze(path, scene=None, *, models=None, progress=None):
     impacts = scene_impacts(path, scene)
     if len(impacts) < 3:
         raise InputError(path, f"only {len(impacts)} impact(s) found; fitting needs three")
+    check_bounce_train(impacts, path)  # random clicks or times are not fitted as bounces
     models = tuple(models or (scene or Scene()).models)
     report = None
     if progress is not None:

@@ -26,7 +26,7 @@ from . import plots
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
-           "scene_figures", "detection_figure", "save_scene_figures"]
+           "scene_figures", "detection_figure_data", "detection_figure", "save_scene_figures"]
 
 SCENE_FIGURES = ("intervals", "restitution", "selection")
 """Figures of every scene (``detection`` is added for audio recordings)."""
@@ -147,14 +147,46 @@ def scene_figures(record):
     }
 
 
+def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000):
+    """What the detection figure draws of a recording, read in blocks (bounded memory).
+
+    Parameters
+    ----------
+    recording : str or os.PathLike
+        Audio file.
+    impact_times : array_like
+        Impact times in s.
+    tail_count : int, default 8
+        Impacts in the close-up (:func:`dashpot.plots.detection_closeup`).
+    columns : int, default 2000
+        Pixel columns of the close-up: its raw samples are reduced to the smallest and largest
+        of each (:func:`dashpot.envelope.channel_extremes`).
+
+    Returns
+    -------
+    dict
+        ``time`` and ``envelope`` (1 ms peak envelope of the whole recording, s and full
+        scale), ``sample_time`` and ``samples`` (the loudest channel over the close-up's span,
+        s and full scale).
+    """
+    from .envelope import channel_extremes, recording_envelope
+
+    time, envelope, loudest, _ = recording_envelope(recording)
+    start, stop = plots.detection_closeup(impact_times, time[0], time[-1],
+                                          tail_count=tail_count)
+    # A sample or two beyond the span, so that the curve reaches both edges of the close-up.
+    margin = 2e-3
+    sample_time, samples = channel_extremes(recording, loudest, start - margin, stop + margin,
+                                            columns=columns)
+    return {"time": time, "envelope": envelope, "sample_time": sample_time, "samples": samples}
+
+
 def detection_figure(record, recording):
     """Envelope of an audio recording with the impacts stored in its scene file."""
-    from .envelope import recording_envelope
-
-    time, envelope, sample_time, samples = recording_envelope(recording)
-    impacts = record["impacts"]
-    return plots.detection_figure(time, envelope, impacts["time"].to_numpy(float),
-                                  sample_time=sample_time, samples=samples)
+    impacts = record["impacts"]["time"].to_numpy(float)
+    data = detection_figure_data(recording, impacts)
+    return plots.detection_figure(data["time"], data["envelope"], impacts,
+                                  sample_time=data["sample_time"], samples=data["samples"])
 
 
 def save_scene_figures(record, folder, *, recording=None):

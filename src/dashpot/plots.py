@@ -41,7 +41,7 @@ from .physics import MODELS, collide, critical_velocity
 from .physics.models import GRAVITY_MODELS
 
 __all__ = ["MODEL_LABELS", "MODEL_STYLES", "contact_time_figure", "critical_speed_figure",
-           "detection_figure", "intervals_figure", "restitution_figure",
+           "detection_closeup", "detection_figure", "intervals_figure", "restitution_figure",
            "restitution_speed_figure", "restitution_vs_speed_figure", "save_figure",
            "selection_figure"]
 
@@ -446,6 +446,31 @@ def _as_series(name, value):
     return array
 
 
+def detection_closeup(impact_times, start_time, end_time, *, tail_count=8):
+    """Span (s) of the close-up of :func:`detection_figure`: the last `tail_count` impacts.
+
+    Half the longest interval among them is added on either side (2 % of the recording for a
+    single impact), within the recording from `start_time` to `end_time` (s) where that leaves
+    a span; the whole recording without impacts. A caller can read just this span of a long
+    recording at full resolution.
+
+    Returns
+    -------
+    start, stop : float
+    """
+    tail = np.sort(np.asarray(impact_times, dtype=float).ravel())[-int(tail_count):]
+    if not tail.size:
+        return start_time, end_time
+    if tail.size >= 2:
+        pad = 0.5 * np.max(np.diff(tail))
+    else:
+        pad = 0.02 * max(end_time - start_time, 1e-9)
+    start, stop = max(tail[0] - pad, start_time), min(tail[-1] + pad, end_time)
+    if not stop > start:
+        start, stop = tail[0] - pad, tail[-1] + pad
+    return start, stop
+
+
 def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=None,
                      tail_count=8):
     """The recording's envelope with the detected impacts, and a close-up of the last bounces.
@@ -462,7 +487,9 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
         Detected impact times in s.
     sample_time, samples : array_like, optional
         Raw recording (times in s, samples in full-scale units), drawn behind the envelope in
-        the close-up. Give both or neither.
+        the close-up. Give both or neither. Only the close-up's span is drawn
+        (:func:`detection_closeup`): the samples of that span suffice, whole or as the extremes
+        of each pixel column (:func:`dashpot.envelope.channel_extremes`).
     tail_count : int, default 8
         Number of final impacts the close-up shows.
 
@@ -498,18 +525,10 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
                   label=f"detected impacts ({impacts.size})")
 
     tail = impacts[-tail_count:]
-    if tail.size >= 2:
-        pad = 0.5 * np.max(np.diff(tail))
-    else:
-        pad = 0.02 * max(time[-1] - time[0], 1e-9)
+    start, stop = detection_closeup(impacts, time[0], time[-1], tail_count=tail_count)
     if tail.size:
-        start, stop = max(tail[0] - pad, time[0]), min(tail[-1] + pad, time[-1])
-        if not stop > start:
-            start, stop = tail[0] - pad, tail[-1] + pad
         overview.axvspan(start, stop, color="0.5", alpha=0.15, linewidth=0,
                          label="close-up below")
-    else:
-        start, stop = time[0], time[-1]
     overview.set_xlim(time[0], time[-1])
     overview.set_xlabel("time $t$ (s)")
     overview.set_ylabel("envelope (full scale)")

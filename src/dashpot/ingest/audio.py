@@ -72,6 +72,7 @@ import soundfile as sf
 from scipy import signal
 
 from ..errors import InputError
+from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem, ratio_trend
 from . import IMPACT_COLUMNS
 
 __all__ = ["read_audio", "detect_impacts"]
@@ -113,7 +114,10 @@ _AMPLITUDE_SECONDS = 3e-3  # peak amplitude: largest deviation within this time 
 _CLIP_RUN = 3  # samples at the extreme value that mark a flat (clipped) top
 _CLIP_TOLERANCE = 1e-4
 # Selection (step 3).
-_RATIO_BOUNDS = (0.45, 1.2)  # next interval / this interval for successive bounces
+_RATIO_BOUNDS = (0.45, 1.2)  # next interval / this interval for successive bounces, at most
+_GROWTH_ALLOWANCE = 0.05  # a ratio may exceed 1 by this (restitution scatter of a few %) plus
+# 3σ of the rough onsets' jitter on both intervals: up to 1.2 on the last, few-ms intervals,
+# 1.06 on intervals of 0.3 s (random clicks otherwise chain at ratios of up to 1.2)
 _RATIO_SCATTER_FLOOR = 0.02  # in log(ratio)
 _ONSET_JITTER = 0.5e-3  # s: a faint transient's rough onset may move by this much (first
 # arrival or loud part), which matters on the last, short intervals
@@ -844,7 +848,11 @@ def _best_chain(times, weights, trend=None):
             # Cauchy (Lorentzian) cost: quadratic for small deviations, logarithmic for large
             # ones, so that one odd bounce (a spin, a tilted floor) does not cut the chain.
             total -= np.log1p(0.5 * deviation)
-        total[(log_ratio < log_lo) | (log_ratio > log_hi)] = -np.inf
+        # Bouncing balls' intervals shrink: one may grow only as much as the restitution's
+        # scatter and the rough onsets' jitter on both intervals explain.
+        growth = np.minimum(log_hi, np.log1p(_GROWTH_ALLOWANCE) + 3.0 * np.sqrt(
+            jitter[:k, k, None] + jitter[k, k + 1:stop]))
+        total[(log_ratio < log_lo) | (log_ratio > growth)] = -np.inf
         best = np.argmax(total, axis=0)
         value = total[best, columns[:stop - k - 1]]
         better = value > score[k, k + 1:stop]
@@ -1136,6 +1144,36 @@ def _trim_start(chain, amplitude):
     return chain[int(np.argmax(loud)):]
 
 
+def _louder_between(times, power_ratio, amplitude, strong, chain):
+    """Plain-words problem if the chain was picked out of clicks, else ''.
+
+    Between two impacts of a ball the loudest sounds are theirs and their own rings, rattles
+    and echoes; a transient louder than both impacts around it that is not such a secondary
+    (:func:`_chain_weights`: no transient at least a third as loud in the 160 ms before it)
+    is a sound of its own. In more than a quarter of the intervals, the chain is a
+    selection among clicks or knocks, not a bounce train (synthetic trains with rings and
+    echoes: none; the real bouncy-ball drop, rattle-heavy: 9 of 51 intervals; random clicks:
+    a quarter to all of them).
+    """
+    chain = np.sort(chain)
+    candidates = np.flatnonzero(strong)
+    weights = np.zeros(times.size)
+    weights[candidates] = _chain_weights(times[candidates], power_ratio[candidates],
+                                         amplitude[candidates])
+    primary = strong & (weights >= _NOISE_WEIGHT)
+    after = np.searchsorted(chain, np.arange(times.size))  # chain[after - 1] < i <= chain[after]
+    between = (after > 0) & (after < chain.size) & ~np.isin(np.arange(times.size), chain)
+    around = np.clip(after, 1, chain.size - 1)
+    louder = between & primary & (amplitude >= np.maximum(amplitude[chain[around - 1]],
+                                                          amplitude[chain[around]]))
+    intervals = np.unique(after[louder]).size
+    if intervals <= 0.25 * (chain.size - 1):
+        return ""
+    return (f"{intervals} of {chain.size - 1} intervals between the impacts found hold a sound "
+            f"louder than both of them that is not their ring or echo: the impacts were picked "
+            f"out of clicks or knocks, not heard from one bouncing ball")
+
+
 def _secondary_delays(times, chain):
     """Delays (s) at which rings or echoes recur after the impacts of `chain`.
 
@@ -1302,23 +1340,10 @@ def _robust_trend(impact_times, rounds=3):
     """:func:`_trend` of the impacts, leaving out ratios more than 3 scatters off the trend.
 
     A missed impact doubles an interval: the two ratios around it (about 1.9 and 0.5) would
-    bend a parabola fitted through them exactly where the missed impacts are looked for.
+    bend a parabola fitted through them exactly where the missed impacts are looked for
+    (:func:`dashpot.plausibility.ratio_trend`, with the scatter floor of the selection).
     """
-    intervals = np.diff(impact_times)
-    log_ratio = np.log(intervals[1:] / intervals[:-1])
-    log_interval = np.log(intervals[:-1])
-    keep = np.ones(log_ratio.size, dtype=bool)
-    for _ in range(rounds):
-        degree = 2 if keep.sum() >= 9 else 1
-        coefficients = np.polyfit(log_interval[keep], log_ratio[keep], degree)
-        residual = log_ratio - np.polyval(coefficients, log_interval)
-        scatter = max(1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep]))),
-                      _RATIO_SCATTER_FLOOR)
-        inside = np.abs(residual) <= 3.0 * scatter
-        if inside.sum() < 3 or (inside == keep).all():
-            break
-        keep = inside
-    return coefficients, scatter
+    return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds)
 
 
 def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
@@ -1378,12 +1403,17 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
         return delays.size > 0 and bool(np.abs(moment - earlier[:, None] - delays[None, :])
                                         .min() < _PROBE_SECONDARY_SECONDS)
 
-    def accept(result, predicted, tolerance):
+    def accept(result, predicted, tolerance, before=None):
+        # In time order between its neighbours: where the ratios scatter widely the tolerance
+        # can exceed the interval itself.
+        if before is None:
+            before = anchors[i + 1] if i + 1 < len(anchors) else np.inf
         return (result is not None and abs(result[0] - predicted) <= tolerance
+                and anchors[i] < result[0] < before
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
                 and not secondary(result[0], i))
 
-    def peel(predicted, tolerance, onset):
+    def peel(predicted, tolerance, onset, before=None):
         # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
         # sound of its own starting after it, possibly after further secondaries.
         for _ in range(delays.size + 1):
@@ -1391,7 +1421,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             if result is None or result[0] <= onset:
                 return None
             if not secondary(result[0], i):
-                return result if accept(result, predicted, tolerance) else None
+                return result if accept(result, predicted, tolerance, before) else None
             onset = result[0]
         return None
 
@@ -1404,9 +1434,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             # The next impact is there; if it sits off the trend at a secondary's delay after
             # an earlier impact, its onset is that of the ring or echo: time it again.
             following = anchors[i + 1]
+            before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
-                    and following < predicted and secondary(following, i)):
-                result = peel(predicted, tolerance, following)
+                    and following < predicted < before and secondary(following, i)):
+                result = peel(predicted, tolerance, following, before)
                 if result is None:
                     # No onset of its own rises out of the ring or echo: the impact is there
                     # (its sound follows), its time is the trend's, with the trend's scatter.
@@ -1627,6 +1658,12 @@ def _impact_table(path, stream, sample_rate, duration):
     amplitudes = np.array([c["amplitude"] for c in chosen])
     clipped_flags = [c["clipped"] for c in chosen]
     order = np.argsort(times)
+    # Only a chain whose intervals shrink as a bouncing ball's do is a bounce train: random
+    # clicks also hold chains within the ratio bounds.
+    problem = bounce_train_problem(times[order], sigmas[order]) or _louder_between(
+        rough, strength / stream.settings.min_power, amplitude, strong, chain)
+    if problem:
+        raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     filled, retimed = [], {}
     if chain.size >= 4:
         # The last impacts may have no trigger of their own: look for them in the file where

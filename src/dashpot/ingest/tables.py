@@ -43,6 +43,7 @@ import io
 import re
 import warnings
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,6 +92,12 @@ _HEADER = re.compile(
     r"(?P<suffix>run\s*#?\s*\d+)?\s*$",              # PASCO run label: 'Run #1'
     re.IGNORECASE)
 _NUMBER = re.compile(r"^[+-]?(?P<int>\d*)(?:\.(?P<frac>\d*))?(?:[eE](?P<exp>[+-]?\d+))?$")
+# Zip archives (phyphox exports, .xlsx): what a member may expand to. A lab table of impacts
+# or of a motion sensor's samples is at most a few MB; the ratio limit is Apache POI's
+# default for the same protection (an expanded member at most 100 times its compressed size).
+_ZIP_MEMBER_BYTES = 64_000_000
+_ZIP_MAX_RATIO = 100
+_ZIP_RATIO_FROM_BYTES = 1_000_000  # smaller members may compress as well as they like
 
 
 @dataclass(frozen=True)
@@ -304,6 +311,32 @@ def _excel_tables(path, raw):
     return tables
 
 
+def _check_zip_sizes(path, archive, names):
+    """InputError if a member of `archive` would expand past what a lab table can be.
+
+    A zip bomb (a few hundred KB expanding to hundreds of MB) would otherwise take minutes and
+    many GB to parse. The sizes are those the archive declares: Python's zipfile stops a
+    member at its declared size (and fails its CRC check if there was more).
+    """
+    infos = {info.filename: info for info in archive.infolist()}
+    total = 0
+    for name in names:
+        info = infos[name]
+        total += info.file_size
+        ratio = info.file_size / max(info.compress_size, 1)
+        if info.file_size > _ZIP_MEMBER_BYTES or (info.file_size > _ZIP_RATIO_FROM_BYTES
+                                                  and ratio > _ZIP_MAX_RATIO):
+            raise InputError(path, f"archive member '{name}' expands to "
+                                   f"{info.file_size / 1e6:.0f} MB ({ratio:.0f} times its "
+                                   f"compressed size): refused as a possible zip bomb (limits: "
+                                   f"{_ZIP_MEMBER_BYTES / 1e6:.0f} MB, or {_ZIP_MAX_RATIO} times "
+                                   f"above {_ZIP_RATIO_FROM_BYTES / 1e6:.0f} MB)")
+    if total > _ZIP_MEMBER_BYTES:
+        raise InputError(path, f"archive members expand to {total / 1e6:.0f} MB together: "
+                               f"refused as a possible zip bomb (limit "
+                               f"{_ZIP_MEMBER_BYTES / 1e6:.0f} MB)")
+
+
 def _load_tables(path):
     """All tables in a file: a text table, every CSV of a zip, or every sheet of a workbook."""
     path = Path(path)
@@ -319,14 +352,21 @@ def _load_tables(path):
         except zipfile.BadZipFile as error:
             raise InputError(path, "not a table: a damaged zip/xlsx archive") from error
         if "xl/workbook.xml" in names:
+            _check_zip_sizes(path, archive, names)
             return _excel_tables(path, raw)
         members = [n for n in names if n.lower().endswith(".csv") and not n.startswith("meta/")]
         if not members:
             raise InputError(path, "not a table: a zip archive without CSV files")
+        _check_zip_sizes(path, archive, members)
         tables = []
         for member in members:  # loop over archive members
             try:
-                tables.append(_text_table(path, archive.read(member), member))
+                content = archive.read(member)
+            except (zipfile.BadZipFile, zlib.error, EOFError) as error:
+                raise InputError(path, f"not a table: archive member '{member}' is damaged "
+                                       f"({error})") from None
+            try:
+                tables.append(_text_table(path, content, member))
             except InputError:
                 continue
         if not tables:

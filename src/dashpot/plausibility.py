@@ -1,0 +1,150 @@
+"""Whether a sequence of impact times is a ball bouncing to rest, before anything is fitted to it.
+
+A bouncing ball's flight times shrink at every bounce: T_{n+1} = ε·T_n with the restitution
+ε < 1 changing smoothly with impact speed and scattering by a few % from bounce to bounce (real
+recordings: 0.2-0.7 % [1]_, a log-ratio scatter of about 1 % about the trend). Clicks at random
+times are not: about half of their intervals are longer than the one before, and a chain of them
+picked to shrink (an impact detector choosing among many transients) keeps long stretches of
+equal intervals and steps between them, with ratios scattering by 5-20 %.
+
+Two tests, on the ratios r_n = T_{n+1}/T_n:
+
+* growing intervals: r_n > 1 by more than 3σ of the timing noise, where neither interval is
+  flagged by :func:`dashpot.bounces.bounce_table` as hiding a missed impact or holding a
+  spurious one (those the fit accounts for). More than a quarter of the ratios growing is not a
+  bounce train.
+* scatter: the robust scatter of ln r_n about a smooth trend in ln T_n (:func:`ratio_trend`),
+  less the timing noise (in quadrature), above 5 % is not a bounce train (from six ratios on:
+  fewer cannot tell a trend from scatter).
+
+References
+----------
+.. [1] The recordings in ``../shared/data`` (README there): restitution scatter of about
+   0.2-0.3 % for a ping-pong ball and 0.7 % for a bouncy ball.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .errors import InputError
+
+__all__ = ["ratio_trend", "bounce_train_problem", "check_bounce_train", "NOT_A_BOUNCE_TRAIN",
+           "MAX_GROWING_FRACTION", "MAX_RATIO_SCATTER"]
+
+MAX_GROWING_FRACTION = 0.25  # of the interval ratios that may exceed 1 beyond the timing noise
+MAX_RATIO_SCATTER = 0.05  # of ln(interval ratio) about its trend, beyond the timing noise
+_MIN_RATIOS_FOR_SCATTER = 6
+NOT_A_BOUNCE_TRAIN = "intervals do not shrink as a bouncing ball's do"  # start of the message
+
+
+def ratio_trend(impact_times, *, floor=0.0, rounds=3):
+    """Trend of ln(next interval / interval) against ln(interval), fitted robustly.
+
+    A straight line, or a parabola from nine ratios on (restitution may change faster at high
+    speed), refitted up to `rounds` times without the ratios more than 3 scatters off it: a
+    missed impact doubles an interval, and the two ratios around it (about 1.9 and 0.5) would
+    bend the fit.
+
+    Parameters
+    ----------
+    impact_times : array_like
+        At least four increasing impact times (s).
+    floor : float, default 0
+        Smallest scatter returned (in ln ratio).
+    rounds : int, default 3
+
+    Returns
+    -------
+    coefficients : ndarray
+        Polynomial coefficients (highest power first) of ln ratio against ln interval (s).
+    scatter : float
+        Robust standard deviation of ln ratio about the trend (1.4826 × the median absolute
+        deviation of the residuals kept), at least `floor`.
+    """
+    intervals = np.diff(np.asarray(impact_times, dtype=float))
+    log_ratio = np.log(intervals[1:] / intervals[:-1])
+    log_interval = np.log(intervals[:-1])
+    keep = np.ones(log_ratio.size, dtype=bool)
+    for _ in range(rounds):
+        degree = 2 if keep.sum() >= 9 else 1
+        coefficients = np.polyfit(log_interval[keep], log_ratio[keep], degree)
+        residual = log_ratio - np.polyval(coefficients, log_interval)
+        scatter = max(1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep]))),
+                      floor)
+        inside = np.abs(residual) <= 3.0 * scatter
+        if inside.sum() < 3 or (inside == keep).all():
+            break
+        keep = inside
+    return coefficients, scatter
+
+
+def bounce_train_problem(times, sigma=None):
+    """Why the intervals between `times` are not those of a ball bouncing to rest, or ''.
+
+    Parameters
+    ----------
+    times : array_like
+        Increasing impact times (s) of one run.
+    sigma : array_like, optional
+        Their 1σ uncertainties (s); missing or NaN count as 0.
+
+    Returns
+    -------
+    str
+        '' for a plausible bounce train (or fewer than three impacts, which say nothing), else
+        the reason in plain words, with the numbers (see the module notes for the tests).
+    """
+    from .bounces import bounce_table
+
+    times = np.asarray(times, dtype=float)
+    if times.size < 3 or not np.all(np.diff(times) > 0):
+        return ""  # too few to judge, or refused by the readers and the fit for what they are
+    sigma = np.zeros(times.size) if sigma is None else np.asarray(sigma, dtype=float)
+    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=1.0)
+    ratio = bounces["restitution"].to_numpy(float)[:-1]
+    ratio_sigma = bounces["restitution_uncertainty"].to_numpy(float)[:-1]
+    glitch = np.isin(bounces["flag"].to_numpy(str), ["missed", "spurious"])
+    explained = glitch[:-1] | glitch[1:]  # the fit bridges a missed or drops a spurious impact
+    growing = (ratio > 1.0 + 3.0 * ratio_sigma) & ~explained
+    if growing.sum() > MAX_GROWING_FRACTION * ratio.size:
+        worst = int(np.argmax(np.where(growing, ratio, -np.inf)))
+        return (f"{int(growing.sum())} of {ratio.size} intervals are longer than the one before "
+                f"(up to {ratio[worst]:.3g} times, the interval from {times[worst + 1]:.6g} s "
+                f"to {times[worst + 2]:.6g} s), where a ball's shrink at every bounce")
+    if ratio.size >= _MIN_RATIOS_FOR_SCATTER:
+        _, scatter = ratio_trend(times)
+        noise = float(np.median(ratio_sigma / ratio))
+        excess = np.sqrt(max(scatter**2 - noise**2, 0.0))
+        if excess > MAX_RATIO_SCATTER:
+            return (f"the ratios of successive intervals scatter by {100 * excess:.0f} % about "
+                    f"their trend, a bouncing ball's by a few % at most (the impacts are "
+                    f"clicks or noise, not one ball's bounces)")
+    return ""
+
+
+def check_bounce_train(impacts, source):
+    """Raise InputError naming `source` unless the impacts are a ball bouncing to rest.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest` (``time``, optional ``time_uncertainty`` and
+        ``run``). Only the first run is checked: it is the one fitted
+        (:func:`dashpot.fit.prepare_data`).
+    source : str or os.PathLike
+        The file the impacts come from.
+
+    Raises
+    ------
+    InputError
+        "intervals do not shrink as a bouncing ball's do: <reason>" (:func:`bounce_train_problem`).
+    """
+    table = impacts
+    if "run" in table and table["run"].nunique() > 1:
+        table = table[table["run"] == table["run"].min()]
+    sigma = table["time_uncertainty"] if "time_uncertainty" in table else None
+    problem = bounce_train_problem(table["time"].to_numpy(float), sigma)
+    if problem:
+        raise InputError(source, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
