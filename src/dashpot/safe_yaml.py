@@ -181,7 +181,13 @@ def load_yaml(path, *, what="file"):
     path = Path(path)
     try:
         with path.open("rb") as stream:
-            data = stream.read(MAX_BYTES + 1)
+            # In pieces: read(MAX_BYTES + 1) would allocate all of it for a file of a few kB,
+            # and a size from stat says nothing for a pipe or a device.
+            chunks, size = [], 0
+            while size <= MAX_BYTES and (chunk := stream.read(1 << 16)):
+                chunks.append(chunk)
+                size += len(chunk)
+            data = b"".join(chunks)
     except OSError as error:
         raise InputError(path, f"cannot read the {what} ({error.strerror or error})") from None
     if len(data) > MAX_BYTES:
