@@ -48,7 +48,8 @@ def _scene_problem(name, scene_file, mapping):
     except Exception as error:  # noqa: BLE001 - one scene must never stop the DAG
         return None, f"{source}: cannot be read ({type(error).__name__}: {error})"
     if not os.path.isfile(scene.recording):
-        return None, f"{os.path.normpath(scene.recording)}: no such file (the recording of {source})"
+        recording = os.path.normpath(scene.recording)
+        return None, f"{recording}: no such file (the recording of {source})"
     return scene, None
 
 
