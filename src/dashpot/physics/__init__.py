@@ -15,3 +15,14 @@ from .units import (  # noqa: E402
 __all__ += ["BounceSequence", "bounce_sequence", "contact_coefficients",
             "contact_from_restitution", "dimensionless_parameters", "natural_parameters",
             "restitution_from_contact"]
+from .flight import (  # noqa: E402
+    Flight,
+    drag_constant,
+    drag_flight,
+    effective_gravity,
+    gravity_flight,
+    incline_flight,
+)
+
+__all__ += ["Flight", "drag_constant", "drag_flight", "effective_gravity", "gravity_flight",
+            "incline_flight"]
