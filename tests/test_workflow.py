@@ -5,13 +5,9 @@ the tests that run the workflow again work in copies of that finished run, so th
 the jobs they are about.
 """
 
-import fcntl
 import json
-import os
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import h5py
@@ -24,11 +20,12 @@ from dashpot.physics.models import MODELS
 from dashpot.store import read_fit
 from dashpot.summary import SUMMARY_COLUMNS
 from dashpot.synth.scene import write_scene
+from workflow_run import run_once
+from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
-SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 SHARED = REPO.parent / "shared" / "data"
 WORKFLOW_FILES = ("Snakefile", "config", "workflow", "data")
 SCENE_FIGURES = ("intervals", "restitution", "selection")
@@ -47,14 +44,6 @@ def _copy_repo(target):
     return target
 
 
-def _snakemake(workdir, *args, timeout=300):
-    """Run the workflow in `workdir`; returns the CompletedProcess (output in .stdout)."""
-    command = [str(SNAKEMAKE), "--snakefile", str(workdir / "Snakefile"), "--directory",
-               str(workdir), "--cores", "2", *args]
-    return subprocess.run(command, cwd=workdir, capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
-
-
 def _synthetic(workdir):
     return yaml.safe_load((workdir / "config" / "config.yaml").read_text())["synthetic"]
 
@@ -67,21 +56,9 @@ def default_run(tmp_path_factory):
     wait and reuse it). Nothing runs in this folder afterwards: tests that run the workflow
     again work in copies (`run_copy`).
     """
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent
-    workdir = root / "workflow-default-run" / "repo"
-    marker = root / "workflow-default-run.status"
-    with open(root / "workflow-default-run.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not marker.exists():
-            shutil.rmtree(workdir.parent, ignore_errors=True)
-            done = _snakemake(_copy_repo(workdir), "--config", "real_data=False")
-            marker.write_text("ok" if done.returncode == 0 else
-                              done.stdout[-3000:] + done.stderr[-3000:])
-    status = marker.read_text()
-    assert status == "ok", status
-    return workdir
+    return run_once(tmp_path_factory, "workflow-default-run",
+                    lambda workdir: _snakemake(_copy_repo(workdir), "--config",
+                                               "real_data=False"))
 
 
 def _expected_outputs(workdir):

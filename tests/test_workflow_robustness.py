@@ -5,13 +5,11 @@ theory curves) is shared; each test works in a copy of it, so it only runs the j
 about.
 """
 
-import fcntl
 import hashlib
 import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -21,11 +19,12 @@ import pytest
 import yaml
 
 from dashpot.synth.scene import write_scene
+from workflow_run import SNAKEMAKE, run_once
+from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[1]
-SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 PROFILE = "workflow/profiles/default"
 
 CONFIG = {
@@ -44,13 +43,6 @@ FOLDER_SCENE = "recording: timestamps.csv\nsensor: timestamps\nmodels: [IIb]\n" 
                "timing_resolution: 1.0e-5\n"
 
 
-def _snakemake(workdir, *args, timeout=300):
-    command = [str(SNAKEMAKE), "--snakefile", str(workdir / "Snakefile"), "--directory",
-               str(workdir), "--cores", "2", *args]
-    return subprocess.run(command, cwd=workdir, capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
-
-
 def _folder_scene(workdir, name, seed):
     folder = workdir / "scenes" / name
     write_scene(folder, "timestamps", model="IIb", beta=35.0, omega0=2800.0, g=9.81, v0=1.4,
@@ -62,28 +54,16 @@ def _folder_scene(workdir, name, seed):
 @pytest.fixture(scope="session")
 def small_run(tmp_path_factory):
     """The small workflow run once (under a file lock shared by pytest-xdist workers)."""
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent
-    workdir = root / "workflow-small-run" / "repo"
-    marker = root / "workflow-small-run.status"
-    with open(root / "workflow-small-run.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if not marker.exists():
-            shutil.rmtree(workdir.parent, ignore_errors=True)
-            workdir.mkdir(parents=True)
-            shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
-            shutil.copytree(REPO / "workflow", workdir / "workflow",
-                            ignore=shutil.ignore_patterns("__pycache__"))
-            (workdir / "config").mkdir()
-            (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG))
-            _folder_scene(workdir, "folder-b", seed=913)
-            done = _snakemake(workdir)
-            marker.write_text("ok" if done.returncode == 0 else
-                              done.stdout[-3000:] + done.stderr[-3000:])
-    status = marker.read_text()
-    assert status == "ok", status
-    return workdir
+    def run(workdir):
+        shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
+        shutil.copytree(REPO / "workflow", workdir / "workflow",
+                        ignore=shutil.ignore_patterns("__pycache__"))
+        (workdir / "config").mkdir()
+        (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG))
+        _folder_scene(workdir, "folder-b", seed=913)
+        return _snakemake(workdir)
+
+    return run_once(tmp_path_factory, "workflow-small-run", run)
 
 
 @pytest.fixture
