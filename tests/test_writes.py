@@ -421,3 +421,26 @@ def test_unwritable_output_path(tmp_path, ball, command, kind):
     assert err.startswith(f"dashpot {command}: error: {output}: cannot write the output ("), err
     assert not output.exists()
     assert _temporaries(tmp_path) == []
+
+
+def test_a_workflow_job_on_a_full_disk_fails_with_one_line(full_disk, tmp_path, ball):
+    """A workflow job whose output cannot be written logs one line naming the output (not
+    its temporary, not a traceback) and exits 1; the earlier result stays."""
+    from dashpot.analysis import analyze
+    from dashpot.joblog import job_log
+    from dashpot.store import write_scene_fit
+
+    _, table = ball
+    impacts, scene_fit = analyze(table, models=("Ib",))
+    output = _old_result(full_disk / "scene.h5")
+    _fill(full_disk)
+    log = tmp_path / "fit.log"
+    with pytest.raises(SystemExit) as stopped:
+        with job_log(log, "fit scene"):
+            write_scene_fit(output, scene_fit, impacts, input_path=table)
+    assert stopped.value.code == 1
+    errors = [line for line in log.read_text().splitlines() if " ERROR " in line]
+    assert len(errors) == 1 and "Traceback" not in log.read_text()
+    assert errors[0].endswith(f"{output}: No space left on device"), errors
+    assert output.read_bytes() == b"previous result"
+    assert _temporaries(full_disk) == []

@@ -53,7 +53,8 @@ def atomic_path(path):
     Notes
     -----
     On any exception (including KeyboardInterrupt) the temporary is removed and the
-    exception propagates; the destination is replaced only after the block returned.
+    exception propagates (an OSError naming no file or the temporary then names the
+    destination); the destination is replaced only after the block returned.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -65,6 +66,9 @@ def atomic_path(path):
         os.chmod(temporary, 0o666 & ~_umask())
         yield temporary
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as error:
         temporary.unlink(missing_ok=True)
+        if isinstance(error, OSError) and error.filename in (None, name, temporary):
+            # A failed write names no file, or the temporary: the user knows the output.
+            error.filename = str(path)
         raise

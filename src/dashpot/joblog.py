@@ -1,9 +1,9 @@
 """Logging for one workflow job: everything to the job's log file, errors in one clear line.
 
 Used by the thin scripts of ``workflow/scripts/``: a bad input (:class:`~dashpot.errors.InputError`)
-becomes one line naming the file in the log and on standard error, and the job fails
-(exit status 1) without a traceback; any other error is logged with its traceback and
-re-raised.
+and a failed read or write of a file (:class:`OSError`: a full disk, no permission) each
+become one line naming the file in the log and on standard error, and the job fails (exit
+status 1) without a traceback; any other error is logged with its traceback and re-raised.
 """
 
 from __future__ import annotations
@@ -44,7 +44,9 @@ def job_log(path, job):
     logger.info("%s", job)
     try:
         yield logger
-    except InputError as error:
+    except (InputError, OSError) as error:
+        if isinstance(error, OSError):
+            error = InputError(error.filename or "output", error.strerror or str(error))
         logger.error("%s", error)
         print(f"dashpot ({job}): error: {error}", file=sys.stderr)
         raise SystemExit(1) from None
