@@ -90,6 +90,10 @@ CASES = [
      "--bumper-position"),
     ("bumper_position_huge", ["impacts", "{motion}", "--bumper-position", "1e300"],
      "--bumper-position"),
+    # In range but where the cart never is: no impact can be timed, and an empty table with
+    # exit status 0 would look like a result.
+    ("bumper_position_off_the_track", ["impacts", "{motion}", "--bumper-position", "0.5"],
+     "{motion}"),
     ("contact_duration_longer_than_intervals",
      ["bounces", "{impacts}", "--contact-duration", "10"], "{impacts}"),
     ("contact_duration_negative", ["bounces", "{impacts}", "--contact-duration", "-0.001"],

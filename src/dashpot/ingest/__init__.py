@@ -58,8 +58,18 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     Raises
     ------
     InputError
-        The file does not exist, is not a supported recording, or its content is unusable.
+        The file does not exist, is not a supported recording, its content is unusable, or
+        it holds no impact (an empty table is never returned: its reader's notes say why).
     """
+    impacts = _read(path, kind, flag_length, gate_distance, unit, bumper_position)
+    if impacts.empty:
+        notes = "; ".join(impacts.attrs.get("notes", []))
+        raise InputError(path, "no impacts found" + (f" ({notes})" if notes else ""))
+    return impacts
+
+
+def _read(path, kind, flag_length, gate_distance, unit, bumper_position):
+    """The impact table of the reader `kind` chooses (see read_impacts)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
