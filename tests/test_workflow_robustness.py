@@ -120,6 +120,40 @@ def test_missing_recording_keeps_the_scenes_results(run_copy):
     assert (_summary(run_copy)["status"] == "ok").all()
 
 
+def test_a_failed_rerun_restores_the_scenes_results(run_copy):
+    """A recording replaced by an unreadable one reruns the fit, which fails: the earlier
+    results/<scene>.h5 is put back (and marked stale), never deleted."""
+    results = run_copy / "results"
+    result = results / "folder-b.h5"
+    before = _digest(result)
+    recording = run_copy / "scenes" / "folder-b" / "timestamps.csv"
+    original = recording.read_bytes()
+    recording.write_text("time\nnot a number\n")
+    done = _snakemake(run_copy, "--keep-going")
+    assert done.returncode != 0
+    assert _digest(result) == before
+    errors = _errors(results / "logs" / "fit" / "folder-b.log")
+    assert len(errors) == 1 and "timestamps.csv" in errors[0]
+    # The summary is rebuilt in a later run (it waited for the failing fit in this one); the
+    # fit is not tried again until the recording changes, and every run says so.
+    again = _snakemake(run_copy, "--keep-going")
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert f"results/folder-b.h5 is stale: its last fit failed: {errors[0]}" in again.stderr
+    assert _digest(result) == before
+    summary = _summary(run_copy)
+    assert summary.loc["folder-b", "status"] == "stale"
+    assert errors[0] in summary.loc["folder-b", "problem"]
+    assert summary.loc["folder-b", "model"] == "IIb"
+    assert summary.loc["table-a", "status"] == "ok"
+    # The recording mended, the scene is fitted again and is up to date.
+    recording.write_bytes(original)
+    mended = _snakemake(run_copy)
+    assert mended.returncode == 0, mended.stderr[-2000:]
+    assert "is stale" not in mended.stderr
+    assert (_summary(run_copy)["status"] == "ok").all()
+    assert _errors(results / "logs" / "fit" / "folder-b.log") == []
+
+
 BROKEN_SCENES = {
     "audio-without-recording": ("sensor: audio\n", "no recording given"),
     "recording-not-a-string": ("sensor: audio\nrecording: [a.wav, b.wav]\n", "invalid scene"),

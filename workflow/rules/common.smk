@@ -107,14 +107,15 @@ def _collect_scenes():
 def _last_fit_error(name, scene):
     """The error line of the scene's last fit if it failed and nothing changed since, or None.
 
-    A fit that fails at run time (an unreadable recording) leaves its log and no
-    results/<scene>.h5. Until the scene's inputs change, its fit is expected to fail again,
-    so the summary does not wait for it (see `summary_input`). A log without an ERROR line
-    (a killed job) is not a failure. The first line of a fit's log is "fit scene <name>"
+    A fit that fails at run time (an unreadable recording) leaves its log with an ERROR line
+    and either no results/<scene>.h5 or the earlier one, put back (see rule fit). Until the
+    scene's inputs change, its fit is expected to fail again, so the summary does not wait
+    for it (see `summary_input`). A log without an ERROR line (a killed job, or a fit that
+    succeeded) is not a failure. The first line of a fit's log is "fit scene <name>"
     (dashpot.joblog and workflow/scripts/fit.py).
     """
     log = Path(f"results/logs/fit/{name}.log")
-    if os.path.exists(f"results/{name}.h5") or not log.is_file():
+    if not log.is_file():
         return None
     inputs = [scene["scene_file"], scene["recording"]]
     if scene["source"] == "synthetic":
@@ -133,11 +134,24 @@ def _last_fit_error(name, scene):
     return f"its last fit failed: {errors[-1]}" if errors else None
 
 
+def earlier_result(name):
+    """A scene's results/<scene>.h5 from an earlier run, or "" (none, or the name is
+    reserved: results/summary.h5 is the summary's, not a scene's)."""
+    path = f"results/{name}.h5"
+    return path if name.lower() not in RESERVED_NAMES and os.path.exists(path) else ""
+
+
 SCENES = _collect_scenes()
 BROKEN_SCENES = {name: scene["problem"] for name, scene in SCENES.items() if scene["problem"]}
 RUNNABLE_SCENES = [name for name in SCENES if name not in BROKEN_SCENES]
 FAILED_FITS = {name: error for name in RUNNABLE_SCENES
                if (error := _last_fit_error(name, SCENES[name]))}
+for _name in FAILED_FITS:
+    # Its earlier result, put back after the failed fit, is newer than the inputs and so is
+    # not fitted again until they change: say so on every run, not only in the summary.
+    if earlier_result(_name):
+        print(f"dashpot: results/{_name}.h5 is stale: {FAILED_FITS[_name]} (kept from an "
+              f"earlier run until the scene's recording or scene.yaml changes)", file=sys.stderr)
 AUDIO_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["audio"]]
 SCENE_FIGURES = ["intervals", "restitution", "selection"]
 THEORY_FIGURES = ["contact_time", "restitution", "critical_speed", "restitution_vs_speed"]
@@ -182,25 +196,25 @@ def recording_input(wildcards):
 
 
 def summary_input(wildcards):
-    """The scene files the summary reads.
+    """The scene files the summary reads and waits for.
 
     Those of runnable scenes, which their fits make, except a scene whose last fit failed
     and whose inputs have not changed since: its fit runs again, but the summary does not
     wait for it, so that while one scene is broken the summary is still rebuilt for the
-    others (it lists that scene as failed). A broken scene's earlier file, if there is one,
-    is read as it is (no rule makes it). Only in the run where a fit fails for the first
-    time does the summary wait (and, with --keep-going, is left for the next run).
+    others (it lists that scene as failed, or as stale with its earlier results, which
+    `stale_results` passes on). A broken scene's earlier file, if there is one, is read as
+    it is (no rule makes it). Only in the run where a fit fails for the first time does the
+    summary wait (and, with --keep-going, is left for the next run).
     """
     names = [name for name in RUNNABLE_SCENES if name not in FAILED_FITS]
     names += [name for name in BROKEN_SCENES if earlier_result(name)]
     return [f"results/{name}.h5" for name in SCENES if name in names]
 
 
-def earlier_result(name):
-    """A broken scene's results/<scene>.h5 from an earlier run, or "" (none, or the name is
-    reserved: results/summary.h5 is the summary's, not a scene's)."""
-    path = f"results/{name}.h5"
-    return path if name.lower() not in RESERVED_NAMES and os.path.exists(path) else ""
+def stale_results(wildcards):
+    """The earlier results/<scene>.h5 of scenes whose last fit failed (read, not waited for:
+    as parameters, not inputs, since their fit job would make them)."""
+    return [path for name in FAILED_FITS if (path := earlier_result(name))]
 
 
 def summary_problems(wildcards):

@@ -1,9 +1,14 @@
 rule fit:
-    """Impacts of one scene's recording and every contact model fitted, to one HDF5 file."""
+    """Impacts of one scene's recording and every contact model fitted, to one HDF5 file.
+
+    The output is flagged update(): Snakemake keeps a copy of the earlier file while the job
+    runs and puts it back if the job fails, so a fit that fails on a rerun (an unreadable new
+    recording, a crash) never deletes the scene's earlier results.
+    """
     input:
         unpack(fit_input),
     output:
-        "results/{scene}.h5",
+        update("results/{scene}.h5"),
     params:
         mapping=config_scene,
     log:

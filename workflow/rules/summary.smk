@@ -16,6 +16,7 @@ rule summary:
         ),
     params:
         problems=summary_problems,
+        stale=stale_results,
     log:
         "results/logs/summary.log",
     benchmark:

@@ -12,7 +12,8 @@ from dashpot.summary import summary_from_files
 snakemake = globals()["snakemake"]  # injected by Snakemake's script directive
 
 with job_log(snakemake.log[0], "cross-scene summary") as log:
-    table = summary_from_files(list(snakemake.input), snakemake.params.problems)
+    table = summary_from_files([*snakemake.input, *snakemake.params.stale],
+                               snakemake.params.problems)
     marked = table[table["status"] != "ok"].drop_duplicates("scene")
     for row in marked.itertuples():
         log.warning("scene %s (%s): %s", row.scene, row.status, row.problem)
