@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 import dashpot
-from dashpot import fit as fit_module
+from dashpot.fit import accuracy as accuracy_module
 from dashpot.fit import fit_model, fit_scene, prepare_data
 from dashpot.scene import Scene
 from timing import best_cpu
@@ -45,7 +45,7 @@ def _impact_by_impact(model, zeta, vtilde0, count, *, start=None, **options):
     return _NEWTON_TRAINS(model, zeta, vtilde0, count, start=None, **options)
 
 
-_NEWTON_TRAINS = fit_module.impact_trains
+_NEWTON_TRAINS = accuracy_module.impact_trains
 
 
 def main():
@@ -62,13 +62,14 @@ def main():
     for model in dashpot.MODELS:
         seconds, fit = best_cpu(lambda model=model: fit_model(data, model, scene,
                                                              accuracy="exact"))
-        # The exact level's train solver is dashpot.fit's impact_trains (looked up per fit).
-        fit_module.impact_trains = _impact_by_impact
+        # The exact level's train solver is dashpot.fit.accuracy's impact_trains (looked up
+        # per fit).
+        accuracy_module.impact_trains = _impact_by_impact
         try:
             base_seconds, _ = best_cpu(
                 lambda model=model: fit_model(data, model, scene, accuracy="exact"), repeats=1)
         finally:
-            fit_module.impact_trains = _NEWTON_TRAINS
+            accuracy_module.impact_trains = _NEWTON_TRAINS
         beta = fit.estimates["beta"]
         pull = (beta.value - TRUTH["beta"]) / beta.stderr
         print(f"{model:7s} {seconds:8.3f} {fit.nfev:6d} {beta.value:10.4f} {beta.stderr:8.3f} "

@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import dashpot.fit
+import dashpot.fit.model_fit
 import dashpot.store
 from dashpot import __version__
 from dashpot.analysis import scene_impacts
@@ -314,14 +314,14 @@ def test_atomic_path(tmp_path):
 
 def _failing(monkeypatch, models):
     """Make the fits of `models` fail the way a numerical breakdown does."""
-    real = dashpot.fit._fit
+    real = dashpot.fit.model_fit._fit
 
     def fit(data, model, scene, notes, *args):
         if model in models:
             raise ArithmeticError(f"{model} blew up")
         return real(data, model, scene, notes, *args)
 
-    monkeypatch.setattr(dashpot.fit, "_fit", fit)
+    monkeypatch.setattr(dashpot.fit.model_fit, "_fit", fit)
 
 
 def test_failed_fit_is_stored_as_failed(written, tmp_path, monkeypatch):

@@ -1,0 +1,110 @@
+"""Impact data ready for fitting: times since the first impact, their uncertainties, the
+position of each impact in the predicted train and the measured speeds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from ..bounces import bounce_table
+from .results import FitData
+
+
+def prepare_data(impacts, scene):
+    """Impact times, uncertainties and train positions for fitting, from an impact table.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest` (``time`` in s, optional ``time_uncertainty``,
+        ``impact_speed``, ``rebound_speed``, ``speed_uncertainty``, ``run``).
+    scene : Scene
+
+    Returns
+    -------
+    FitData
+
+    Notes
+    -----
+    Where the recording gives no timing uncertainty the scene's timing resolution r gives
+    σ = r/√12 (uniform rounding); where neither is known σ is estimated from the scatter of
+    the fit (and the information criteria use the unknown-variance form). Where only some
+    uncertainties are zero or unknown, those are set to r/√12, or without r to the smallest
+    positive σ of the table, and the others kept (noted). Impacts the bounce
+    table flags as spurious are left out; an interval flagged as hiding a missed impact
+    shifts the later impacts by one place in the train. Only the first run of a multi-run
+    file is fitted.
+    """
+    table = impacts
+    notes = []
+    if "run" in table and table["run"].nunique() > 1:
+        first = table["run"].min()
+        notes.append(f"{table['run'].nunique()} runs in the file; fitted run {first} only")
+        table = table[table["run"] == first]
+    table = table.reset_index(drop=True)
+    times = table["time"].to_numpy(float)
+    if times.size < 3:
+        raise ValueError(f"fitting needs at least three impacts; got {times.size}")
+    sigma = table["time_uncertainty"].to_numpy(float) if "time_uncertainty" in table \
+        else np.full(times.size, np.nan)
+    usable = np.isfinite(sigma) & (sigma > 0)
+    sigma_known = bool(np.all(usable))
+    if usable.any() and not sigma_known:
+        # A few zero or unknown σ must not discard the others: fill in those few.
+        if scene.timing_resolution:
+            fill, source = scene.timing_resolution / math.sqrt(12.0), \
+                "the scene's timing resolution / sqrt(12)"
+        else:
+            fill, source = float(np.min(sigma[usable])), "the smallest timing uncertainty given"
+        notes.append(f"{int(np.sum(~usable))} of {times.size} timing uncertainties zero or "
+                     f"missing: set to {source} ({fill:.3g} s); the others kept")
+        sigma = np.where(usable, sigma, fill)
+        sigma_known = True
+    if not sigma_known:
+        if scene.timing_resolution:
+            sigma = np.full(times.size, scene.timing_resolution / math.sqrt(12.0))
+            sigma_known = True
+            notes.append("timing uncertainty from the scene's timing resolution / sqrt(12)")
+        else:
+            sigma = np.ones(times.size)
+            notes.append("no timing uncertainty given: estimated from the scatter of the fit")
+    g = scene.driving_acceleration
+    run = table["run"].to_numpy() if "run" in table else np.zeros(times.size, dtype=int)
+    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma, "run": run}),
+                           g=g)
+    flags = bounces["flag"].to_numpy()
+    # Interval n ends at impact n + 1: a "spurious" interval pair brackets one false impact.
+    spurious_impacts = np.flatnonzero((flags[:-1] == "spurious") & (flags[1:] == "spurious")) + 1
+    keep = np.ones(times.size, bool)
+    keep[spurious_impacts] = False
+    gaps = np.concatenate([[0], np.cumsum(flags == "missed")])
+    index = np.arange(times.size) + gaps
+    if spurious_impacts.size:
+        notes.append(f"left out {spurious_impacts.size} impact(s) flagged as spurious")
+    if np.any(flags == "missed"):
+        notes.append(f"{int(np.sum(flags == 'missed'))} missed impact(s) bridged in the train")
+    index = index[keep]
+    index = index - index[0]
+
+    def column(name):
+        if name in table:
+            return table[name].to_numpy(float)[keep]
+        return np.full(int(keep.sum()), np.nan)
+
+    speed_sigma = column("speed_uncertainty")
+    has_speed = np.isfinite(column("impact_speed")) & np.isfinite(speed_sigma) & (speed_sigma > 0)
+    if np.any(np.isfinite(column("impact_speed"))) and not np.any(has_speed):
+        notes.append("measured speeds have no uncertainty: not used in the fit")
+    rebound_speed = column("rebound_speed")
+    origin = float(times[0])  # t - origin is exact for t up to twice the origin (Sterbenz)
+    return FitData(times=times[keep] - origin, time_origin=origin, sigma=sigma[keep],
+                   index=index,
+                   impact_speed=np.where(has_speed, column("impact_speed"), np.nan),
+                   rebound_speed=np.where(has_speed & np.isfinite(rebound_speed),
+                                          rebound_speed, np.nan),
+                   speed_sigma=np.where(has_speed, speed_sigma, np.nan), g=g,
+                   sigma_known=sigma_known, excluded=np.flatnonzero(~keep), bounces=bounces,
+                   notes=notes)

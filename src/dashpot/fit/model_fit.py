@@ -1,0 +1,375 @@
+"""One contact model fitted to one scene's impacts: known quantities fixed or as priors, start
+values, the level's optimizer, a restart from the gravity-free limit, estimates with their
+intervals by the requested uncertainty methods, and a failed fit kept with its reason.
+
+References
+----------
+Numbered as in :mod:`dashpot.fit`.
+
+.. [3] K. P. Burnham and D. R. Anderson, *Model Selection and Multimodel Inference*, 2nd ed.,
+   Springer (2002), sec. 2.2 (AIC with known variance: χ² + 2K) and 2.9 (Akaike weights).
+.. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
+   Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors).
+.. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
+   (confidence regions from Δχ² = 1 and 4 for one parameter).
+.. [6] D. Foreman-Mackey et al., "emcee: The MCMC Hammer", PASP 125, 306 (2013).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+
+import lmfit
+import numpy as np
+
+from ..physics.models import GRAVITY_MODELS, MODELS
+from ..scene import Scene
+from .accuracy import _trains_solver, choose_accuracy
+from .covariance import _draws, _interval_row, _linear_estimate, _sampled
+from .identifiability import _identifiability_notes
+from .levenberg_marquardt import _levenberg_marquardt
+from .posterior import _posterior_beta
+from .profile_likelihood import _profile_beta
+from .residuals import _residual_rows, _residual_size
+from .results import FitResult
+from .settings import (INTERVAL_DRAWS, INTERVAL_SEED, METHOD, OPTIONS, PARAMETERS,
+                       UNCERTAINTY_METHODS)
+from .start import _start_values
+from .trains import _TrainPredictor, _restitution
+
+
+def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
+              seed=0, accuracy=None):
+    """Fit one contact model to a scene's impacts.
+
+    Parameters
+    ----------
+    data : FitData
+        From :func:`prepare_data`.
+    model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
+    scene : Scene, optional
+        What is known of the apparatus (default: nothing but standard gravity).
+    max_nfev : int, default 2000
+        Largest number of model evaluations.
+    uncertainty : sequence of {"covariance", "profile", "posterior"}
+        Methods for the intervals of β, at increasing cost: the Gaussian approximation from
+        the Jacobian (always computed; it fills ``estimates``), the profile likelihood (χ²
+        minimised over the other parameters at fixed β; intervals where it rises by 1 and 4
+        [5]_), and posterior sampling with emcee (flat priors, seeded by `seed`) [6]_. Each
+        method's intervals of β (1/s) and its CPU time go to ``intervals``.
+    seed : int, default 0
+        Seed of the posterior sampler.
+    accuracy : {"auto", "fast", "standard", "exact"}, optional
+        Numerical accuracy of the predicted trains (default: the scene's); see
+        :func:`choose_accuracy`. The level, its solver and the error it guarantees are
+        recorded in ``accuracy``, ``notes`` and ``numerical_tolerance``.
+
+    Returns
+    -------
+    FitResult
+        ``estimates`` holds ``zeta`` (1), ``omega0`` (rad/s), ``beta`` (1/s), ``v0`` (m/s),
+        ``t0`` (s), ``v_star`` (m/s), and with a known mass ``k`` (N/m) and ``gamma``
+        (kg/s), each with its 1σ error by linear propagation [4]_ and central 68.27 % and
+        95.45 % intervals: Gaussian for the fitted ζ, v*, v0 and t0, and for the derived ones
+        the quantiles of seeded draws from that Gaussian (ω0 = g/v* is unbounded above where
+        v* = 0 is inside). ``predicted`` holds the model's train (impact ``times`` in s,
+        ``speeds`` m/s, ``restitution``, ``contact_durations`` s) and ``at_data`` (predicted
+        times of the observed impacts); ``eps_curve`` ε against impact speed (m/s) over the
+        predicted range. Information criteria follow [3]_: with known timing errors AIC =
+        χ² + 2K and BIC = χ² + K ln N; otherwise N ln(χ²/N) + 2K and N ln(χ²/N) + K ln N.
+    """
+    scene = scene or Scene()
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
+    unknown = set(uncertainty) - set(UNCERTAINTY_METHODS)
+    if unknown:
+        raise ValueError(f"unknown uncertainty method {sorted(unknown)[0]!r}; use "
+                         f"{', '.join(UNCERTAINTY_METHODS)}")
+    notes = list(data.notes)
+    try:
+        return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed, accuracy)
+    except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
+        return _failed(model, f"fit failed: {error}", notes, data)
+
+
+def _failed(model, message, notes, data):
+    """A fit that could not be made: kept in the output with its reason, same layout."""
+    empty = np.full(data.times.size, np.nan)
+    nothing = np.zeros(0)
+    return FitResult(model=model, success=False, message=message, estimates={}, varied=(),
+                     correlation=np.zeros((0, 0)), chisqr=math.inf, redchi=math.inf,
+                     aic=math.inf, bic=math.inf, ndata=int(data.times.size), nvarys=0, nfev=0,
+                     time_residuals=empty, normalized_residuals=empty,
+                     predicted={"times": nothing, "speeds": nothing, "restitution": nothing,
+                                "contact_durations": nothing, "at_data": empty},
+                     eps_curve={"speed": nothing, "eps": nothing,
+                                "captured": np.zeros(0, bool)},
+                     notes=notes + [message], numerical_tolerance=math.nan,
+                     error_bound=math.nan)
+
+
+def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
+    mass = scene.mass
+    known_v0 = scene.known_impact_speed
+    stiffness = scene.stiffness
+    if stiffness is not None and mass is None:
+        notes.append("stiffness known but mass not: omega0 = sqrt(k/m) needs both; omega0 fitted")
+        stiffness = None
+    fixed_omega0 = (math.sqrt(stiffness.value / mass.value)
+                    if stiffness is not None and stiffness.uncertainty is None
+                    and mass.uncertainty is None else None)
+    fixed_v0 = known_v0.value if known_v0 is not None and known_v0.uncertainty is None else None
+    unknowns = 2 + (fixed_omega0 is None) + (fixed_v0 is None)
+    measured = data.times.size + int(np.isfinite(data.impact_speed).sum()
+                                     + np.isfinite(data.rebound_speed).sum())
+    if measured <= unknowns:
+        return _failed(model, f"fit failed: {measured} measured values cannot determine "
+                              f"{unknowns} unknowns (zeta, t0"
+                              + (", omega0" if fixed_omega0 is None else "")
+                              + (", v0" if fixed_v0 is None else "")
+                              + "); give more impacts or known quantities in the scene",
+                       notes, data)
+    level, trains_solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
+    notes.append(f"accuracy {reason}")
+    known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
+    start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
+                               known_omega0, fit_v0=fixed_v0 is None,
+                               trains_solver=trains_solver,
+                               level=level)
+    if start is None:
+        return _failed(model, f"fit failed: {how}", notes, data)
+    notes.append(how)
+
+    # Fitted as ζ and the characteristic speed v* = g/ω0: gravity's effect on ε grows like
+    # v*/v and the contact time like 1/ω0 ∝ v*, so the misfit valley is nearly straight in
+    # (ζ, v*); in (ln ζ, ln ω0) it is a banana along which Levenberg–Marquardt crawls.
+    g = data.g
+    params = lmfit.Parameters()
+    # No bounds: lmfit maps bounded parameters through sqrt or sine transforms, which bend the
+    # valley again (ζ ≈ u²/2 near 0). A step to a non-physical value is rejected instead, by
+    # the residual function returning an enormous misfit there.
+    params.add("zeta", value=start["zeta"])
+    params.add("v_star", value=g / start["omega0"], vary=fixed_omega0 is None)
+    params.add("v0", value=start["v0"], vary=fixed_v0 is None)
+    params.add("t0", value=start["t0"])
+    fixed = {}
+    if fixed_omega0 is not None:
+        fixed["omega0"] = "stiffness and mass known exactly: omega0 = sqrt(k/m)"
+    if fixed_v0 is not None:
+        fixed["v0"] = ("first impact speed known" if scene.first_impact_speed is not None
+                       else "drop height known: v0 = sqrt(2 g_eff h)")
+    priors = []
+    if stiffness is not None and fixed_omega0 is None:
+        sd = math.hypot(stiffness.uncertainty or 0.0,
+                        stiffness.value * (mass.uncertainty or 0.0) / mass.value)
+        prior_v_star = g / math.sqrt(stiffness.value / mass.value)
+        priors.append(("v_star", prior_v_star, prior_v_star * 0.5 * sd / stiffness.value))
+        notes.append("prior on omega0 from the known stiffness and mass")
+    if known_v0 is not None and fixed_v0 is None:
+        priors.append(("v0", known_v0.value, known_v0.uncertainty))
+        notes.append("prior on v0 from the scene")
+
+    # Each train is that of the level's map to machine precision (Newton's method, or the
+    # compiled impact-by-impact pass over the surrogate tables): the finite-difference
+    # Jacobians difference trains whose parameters differ by ~1e-8 to 1e-5.
+    predictor = _TrainPredictor(model, data.g, data.count, trains_solver)
+    predictor.start = start["ratios"]
+    # What the fitted times can be off by, relative to the span of the train.
+    tolerance = bound * data.count
+    residual_rows = functools.partial(_residual_rows, data=data, predictor=predictor,
+                                      priors=priors)
+
+    def residual(p):
+        """lmfit's residual function: one parameter set."""
+        values = p.valuesdict()
+        return residual_rows(np.array([[values[name] for name in PARAMETERS]]))[0]
+
+    # ∂r/∂t0: the time offset enters linearly, only the impact-time rows.
+    t0_column = np.zeros(_residual_size(data, priors))
+    t0_column[: data.times.size] = -1.0 / data.sigma
+
+    def minimize(start):
+        if level == "fast":
+            return _levenberg_marquardt(residual_rows, start, {"t0": t0_column},
+                                        max_nfev=max_nfev, sigma_known=data.sigma_known)
+        return lmfit.minimize(residual, start, method=METHOD, max_nfev=max_nfev, **OPTIONS,
+                              scale_covar=not data.sigma_known)
+
+    def captures(fitted):
+        """True if the fitted train ends in capture before the last observed impact."""
+        values = fitted.params.valuesdict()
+        if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
+            return True
+        trains, *_ = predictor(values["zeta"], g / values["v_star"], values["v0"])
+        return int(trains.impacts[0]) < data.count
+
+    result = minimize(params)
+    if model in GRAVITY_MODELS and fixed_omega0 is None and captures(result):
+        # Ended where the model captures the ball before the data end: a local minimum, as
+        # every gravity model reaches the gravity-free one when ω0 grows. Start again from
+        # there (ṽ ≈ 1e4 at the slowest impact, ω0 held until the rest has settled).
+        notes.append("first fit ended in capture; restarted from the gravity-free limit")
+        restart = params.copy()  # the fast optimizer updates its start in place
+        restart["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
+        limit = minimize(restart)
+        limit.params["v_star"].set(vary=True)
+        retry = minimize(limit.params)
+        if retry.chisqr < result.chisqr or captures(result):
+            result = retry
+    values = result.params.valuesdict()
+    if not np.all(np.isfinite(result.residual)):
+        return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
+    zeta, v_star = values["zeta"], values["v_star"]
+    omega0 = g / v_star
+    trains, times, speeds, _ = predictor(zeta, omega0, values["v0"])
+    impacts = int(trains.impacts[0])
+    times, speeds = times[0], speeds[0]
+    message = result.message
+    success = bool(result.success)
+    if impacts < data.count:
+        success = False
+        message = (f"the model captures the ball after {impacts} impacts but the "
+                   f"data have {data.count}")
+
+    varied = tuple(name for name in result.var_names)
+    cov = result.covar
+    if cov is None:
+        cov = np.full((len(varied), len(varied)), np.inf)
+        notes.append("covariance not available (singular Jacobian): the data do not determine "
+                     "every parameter; errors reported as infinite")
+    dof = max(int(result.nfree), 1)
+    # χ² is divided by this wherever it measures likelihood (the covariance carries it
+    # already): the fit's χ²/ν where σ is unknown, or where the model misses the data.
+    chisqr_scale = 1.0 if data.sigma_known else float(result.redchi)
+    if data.sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
+        # χ² far beyond its distribution (> 3σ): the model does not describe the data within
+        # their uncertainties. Errors are scaled by √(χ²/ν) (the Birge ratio) so that they
+        # at least reflect the actual scatter.
+        cov = cov * result.redchi
+        chisqr_scale = float(result.redchi)
+        notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
+                     f"the model misses the data by more than their uncertainties; errors "
+                     f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
+    for name, centre, spread in priors:
+        value = result.params[name].value
+        if abs(value - centre) > 3.0 * spread:
+            label = "omega0" if name == "v_star" else name
+            shown = (g / value, g / centre) if name == "v_star" else (value, centre)
+            notes.append(f"fitted {label} = {shown[0]:.4g} disagrees with the scene's "
+                         f"{shown[1]:.4g} by more than 3 sigma of the prior")
+    sd = {name: float(math.sqrt(cov[i, i])) if np.isfinite(cov[i, i]) and cov[i, i] >= 0
+          else math.inf for i, name in enumerate(varied)}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.sqrt(np.diag(cov))
+        correlation = cov / np.outer(scale, scale)
+    correlation = np.where(np.isfinite(correlation), correlation, np.nan)
+
+    def log_sd(*weights_by_name):
+        """sd of ln q from the covariance, given ∂ln q/∂p per parameter (fixed ones add 0)."""
+        vector = np.zeros(len(varied))
+        for name, weight in weights_by_name:
+            if name in varied:
+                vector[varied.index(name)] = weight
+        if not vector.any():
+            return 0.0
+        used = vector != 0
+        block = cov[np.ix_(used, used)]
+        if not np.all(np.isfinite(block)):
+            return math.inf
+        variance = vector[used] @ block @ vector[used]
+        return float(math.sqrt(variance)) if np.isfinite(variance) and variance >= 0 else math.inf
+
+    def status(name, prior_name=None):
+        if name in varied:
+            return ("prior" if any(p[0] == (prior_name or name) for p in priors) else "fitted"), ""
+        return "fixed", fixed.get({"v_star": "omega0"}.get(name, name), "")
+
+    estimates = {}
+    # Standard errors by linear propagation; intervals of the derived quantities from draws
+    # of the Gaussian approximation in the fitted coordinates (ζ, v*, v0, t0), where the
+    # likelihood is closest to Gaussian. ω0 = g/v* is unbounded above when v* = 0 (the
+    # gravity-free limit) lies inside the interval, and the intervals say so.
+    d_zeta, d_v_star = ("zeta", 1.0 / zeta), ("v_star", -1.0 / v_star)
+    draws = _draws(values, varied, cov, INTERVAL_DRAWS[level])
+    mass_draws = (1.0 if mass is None else mass.value + (mass.uncertainty or 0.0)
+                  * np.random.default_rng(INTERVAL_SEED + 1).standard_normal(
+                      INTERVAL_DRAWS[level]))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        omega_draws = np.where(draws["v_star"] > 0, g / draws["v_star"], np.inf)
+        beta_draws = np.where(draws["zeta"] > 0, np.maximum(draws["zeta"], 0) * omega_draws,
+                              0.0)
+    st, why = status("zeta")
+    estimates["zeta"] = _sampled(zeta, log_sd(d_zeta) * zeta, draws["zeta"], "1", st, why)
+    st, why = status("v_star")
+    estimates["omega0"] = _sampled(omega0, log_sd(d_v_star) * omega0, omega_draws, "rad/s",
+                                   st, why)
+    estimates["v_star"] = _linear_estimate(v_star, sd.get("v_star", 0.0), "m/s", st,
+                                           why or "characteristic speed g/omega0")
+    estimates["beta"] = _sampled(zeta * omega0, log_sd(d_zeta, d_v_star) * zeta * omega0,
+                                 beta_draws, "1/s", "derived", "beta = zeta * omega0")
+    st, why = status("v0")
+    estimates["v0"] = _linear_estimate(values["v0"], sd.get("v0", 0.0), "m/s", st, why)
+    # Times on output are on the table's clock again.
+    estimates["t0"] = _linear_estimate(data.time_origin + values["t0"], sd.get("t0", 0.0), "s",
+                                       "fitted")
+    if mass is not None:
+        mass_sd = (mass.uncertainty or 0.0) / mass.value
+        k = mass.value * omega0 ** 2
+        k_sd = math.hypot(log_sd(("v_star", -2.0 / v_star)), mass_sd) * k
+        with np.errstate(over="ignore", invalid="ignore"):
+            estimates["k"] = _sampled(k, k_sd, mass_draws * omega_draws ** 2, "N/m", "derived",
+                                      "k = m * omega0^2")
+            gamma = 2.0 * mass.value * zeta * omega0
+            gamma_sd = math.hypot(log_sd(d_zeta, d_v_star), mass_sd) * gamma
+            estimates["gamma"] = _sampled(gamma, gamma_sd, 2.0 * mass_draws * beta_draws,
+                                          "kg/s", "derived", "gamma = 2 m beta")
+    notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
+
+    nvarys = len(varied)
+    ndata = int(result.ndata)
+    chisqr = float(result.chisqr)
+    if data.sigma_known:
+        aic, bic = chisqr + 2 * nvarys, chisqr + nvarys * math.log(ndata)
+    else:
+        aic, bic = float(result.aic), float(result.bic)
+    predicted_at_data = values["t0"] + times[data.index]  # since the origin
+    intervals = {"covariance": _interval_row(estimates["beta"])}
+    for method in uncertainty:
+        if method in ("profile", "posterior") and success:
+            started = time.process_time()
+            if method == "profile":
+                intervals[method] = _profile_beta(residual, result, g, chisqr_scale)
+            else:
+                # The sampler runs on the fast level's trains, whatever the fit's level.
+                sampled = _TrainPredictor(model, g, data.count,
+                                          _trains_solver("fast", model)[0])
+                sampled.start = predictor.start
+                intervals[method] = _posterior_beta(
+                    functools.partial(_residual_rows, data=data, predictor=sampled,
+                                      priors=priors), result, g, seed, chisqr_scale)
+                if not intervals[method]["converged"]:
+                    notes.append("posterior chain shorter than 50 autocorrelation times: its "
+                                 "intervals are rough")
+            intervals[method]["cpu_seconds"] = time.process_time() - started
+    v_star = data.g / omega0
+    top = float(np.max(speeds))
+    bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
+    curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
+    curve_eps, curve_captured = _restitution(trains_solver, model, zeta,
+                                             curve_speed / v_star)
+    return FitResult(
+        model=model, success=success, message=message, estimates=estimates, varied=varied,
+        correlation=correlation, chisqr=chisqr, redchi=float(result.redchi), aic=aic, bic=bic,
+        ndata=ndata, nvarys=nvarys, nfev=int(result.nfev),
+        time_residuals=data.times - predicted_at_data,
+        normalized_residuals=np.asarray(result.residual, float),
+        predicted={"times": data.time_origin + (values["t0"] + times[:impacts]),
+                   "speeds": speeds[:impacts],
+                   "restitution": trains.restitution[0, :impacts],
+                   "contact_durations": trains.contact_times[0, :impacts] / omega0,
+                   "at_data": data.time_origin + predicted_at_data},
+        eps_curve={"speed": curve_speed, "eps": curve_eps, "captured": curve_captured},
+        notes=notes, numerical_tolerance=tolerance, error_bound=predictor.error_bound,
+        intervals=intervals, accuracy=level)

@@ -1,0 +1,44 @@
+"""The fit's likelihood: normalized residuals of impact times, measured speeds and Gaussian
+priors, many parameter sets at once (χ² is their sum of squares).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .settings import OMEGA0_RANGE, PARAMETERS, REJECTED
+
+
+def _residual_rows(values, *, data, predictor, priors):
+    """Normalized residuals, one row per parameter set (columns as in PARAMETERS).
+
+    Impact-time misfits over their σ, then the measured impact and rebound speeds' misfits
+    over theirs, then one row per Gaussian prior (name, centre, sd). A set outside the
+    physical range (ζ < 0, ω0 above OMEGA0_RANGE, v0 <= 0) gets REJECTED everywhere.
+    """
+    g = data.g
+    zeta, v_star, v0, t0 = values.T
+    impact_rows = np.isfinite(data.impact_speed)
+    rebound_rows = np.isfinite(data.rebound_speed)
+    valid = (zeta >= 0.0) & (v_star > g / OMEGA0_RANGE[1]) & (v0 > 0.0)
+    out = np.full((values.shape[0], _residual_size(data, priors)), REJECTED)
+    if not valid.any():
+        return out
+    _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid])
+    parts = [(data.times - t0[valid, None] - times[:, data.index]) / data.sigma]
+    if impact_rows.any():
+        parts.append((data.impact_speed[impact_rows] - speeds[:, data.index[impact_rows]])
+                     / data.speed_sigma[impact_rows])
+    if rebound_rows.any():
+        parts.append((data.rebound_speed[rebound_rows] - rebound[:, data.index[rebound_rows]])
+                     / data.speed_sigma[rebound_rows])
+    for name, centre, sd in priors:
+        parts.append((values[valid, PARAMETERS.index(name), None] - centre) / sd)
+    out[valid] = np.concatenate(parts, axis=1)
+    return out
+
+
+def _residual_size(data, priors):
+    """Number of residuals of :func:`_residual_rows`."""
+    return (data.times.size + int(np.isfinite(data.impact_speed).sum())
+            + int(np.isfinite(data.rebound_speed).sum()) + len(priors))

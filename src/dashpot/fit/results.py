@@ -1,0 +1,128 @@
+"""What a fit takes and gives: the prepared impact data, estimates with their intervals, one
+model's fit and a scene's fits. Types only; the fit's modules build them.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..scene import Scene
+
+
+@dataclass(frozen=True)
+class FitData:
+    """Impact data ready for fitting (SI units).
+
+    Attributes
+    ----------
+    times : ndarray
+        Impact times used in s, counted from `time_origin`.
+    sigma : ndarray
+        1σ uncertainty of each time in s.
+    index : ndarray of int
+        Position of each used impact in the predicted train (an impact missed by the sensor
+        leaves a gap).
+    impact_speed, rebound_speed, speed_sigma : ndarray
+        Measured speeds in m/s and their 1σ (NaN where not measured).
+    g : float
+        Driving acceleration in m/s².
+    sigma_known : bool
+        Whether the timing uncertainties are known (else estimated from the fit's scatter).
+    excluded : ndarray of int
+        Rows of the impact table not used (spurious impacts).
+    bounces : pandas.DataFrame
+        The bounce table of :func:`dashpot.bounces.bounce_table` with its flags.
+    notes : list of str
+    time_origin : float
+        Time of the first impact of the table in s, subtracted from `times`: the fit works
+        with times since the first impact, so that a clock far from zero (Unix-epoch times
+        near 1.7e9 s resolve only 0.24 µs) costs no precision in its arithmetic.
+    """
+
+    times: np.ndarray
+    sigma: np.ndarray
+    index: np.ndarray
+    impact_speed: np.ndarray
+    rebound_speed: np.ndarray
+    speed_sigma: np.ndarray
+    g: float
+    sigma_known: bool
+    excluded: np.ndarray
+    bounces: pd.DataFrame
+    notes: list = field(default_factory=list)
+    time_origin: float = 0.0
+
+    @property
+    def count(self):
+        """Number of impacts the predicted train must have."""
+        return int(self.index[-1]) + 1
+
+    @property
+    def has_speeds(self):
+        return bool(np.any(np.isfinite(self.impact_speed)))
+
+    @functools.cached_property
+    def interval_flags(self):
+        """The bounce table's flag of each interval (read once: every model's fit uses it)."""
+        return self.bounces["flag"].to_numpy()
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A fitted or derived quantity with its 1σ error and central 68.27 % / 95.45 % intervals.
+
+    ``status`` is "fitted", "fixed", "prior" or "derived"; ``note`` says why.
+    """
+
+    value: float
+    stderr: float
+    low68: float
+    high68: float
+    low95: float
+    high95: float
+    unit: str
+    status: str
+    note: str = ""
+
+
+@dataclass
+class FitResult:
+    """One model fitted to one scene. See :func:`fit_model`."""
+
+    model: str
+    success: bool
+    message: str
+    estimates: dict
+    varied: tuple
+    correlation: np.ndarray
+    chisqr: float
+    redchi: float
+    aic: float
+    bic: float
+    ndata: int
+    nvarys: int
+    nfev: int
+    time_residuals: np.ndarray
+    normalized_residuals: np.ndarray
+    predicted: dict
+    eps_curve: dict
+    notes: list
+    numerical_tolerance: float
+    error_bound: float
+    intervals: dict = field(default_factory=dict)
+    accuracy: str = ""
+
+
+@dataclass
+class SceneFit:
+    """Every requested model fitted to one scene, with the model-selection table."""
+
+    scene: Scene
+    data: FitData
+    results: dict
+    selection: pd.DataFrame
+    verdict: str
