@@ -9,7 +9,7 @@ sign, then Chandrupatla's bracketing root finder on the event function at σ, ev
 integrating from the start of that step to σ (vectorized over points).
 
 The integration window H of each point comes from the linear analysis (half a damped period
-past the compression or force minimum, see ``models``); where the linear analysis says the contact
+past the compression or force minimum, see ``brackets``); where the linear analysis says the contact
 never ends (capture), the window is a few natural periods, after which the ODE route reports
 capture if it has seen no event. Near the critical speed the event is a near tangency and the
 route is only as good as the step sequence that brackets it.
@@ -28,8 +28,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import elementwise
 
+from .brackets import GRAVITY_MODELS, _iia_contact_time, _iib_bracket, _ib_bracket
 from .contact import Damping
-from .models import GRAVITY_MODELS, _iia_contact_time, _iib_bracket, _ib_bracket
 
 __all__ = ["integrate_collision"]
 
