@@ -26,3 +26,16 @@ from .flight import (  # noqa: E402
 
 __all__ += ["Flight", "drag_constant", "drag_flight", "effective_gravity", "gravity_flight",
             "incline_flight"]
+from .laws import (  # noqa: E402
+    LADDER,
+    LAWS,
+    LawParameter,
+    Restitution,
+    RestitutionLaw,
+    dashpot_contact_time,
+    hunt_crossley_restitution,
+    restitution,
+)
+
+__all__ += ["LADDER", "LAWS", "LawParameter", "Restitution", "RestitutionLaw",
+            "dashpot_contact_time", "hunt_crossley_restitution", "restitution"]

@@ -1,0 +1,550 @@
+"""A ladder of restitution laws ε(v), beside the five dashpot models, as rebound maps.
+
+Each law gives the coefficient of restitution ε at the impact speed v and its speed slope, and
+a ``rebound`` adapter turns it into the rebound speed R(v) = ε(v)·v with dR/dv, the form
+:class:`dashpot.likelihood.TrainModel` takes. The registry :data:`LAWS` lists every law with its
+parameters' names, units, fit bounds and start values, so that a new law is one function plus
+one registry entry.
+
+==================  ===========================================  ======================  =====
+law                 ε(v)                                         parameters              ref.
+==================  ===========================================  ======================  =====
+constant            e                                            e                       —
+linear              e0 − α·v                                     e0, α (s/m)             —
+power               a·v^(−b)  (v in m/s)                         a, b                    —
+quadratic           e0 − c·v²                                    e0, c (s²/m²)           —
+viscoelastic-hertz  1 − C1·δ + C2·δ²,  δ = κ·v^(1/5)             κ (s^(1/5)/m^(1/5))     [1]_
+hunt-crossley       root of ln((1 + d)/(1 − dε)) = d(1 + ε),     χ = λ/k (s/m)           [2]_
+                    d = χ·v
+Ia … hybrid         dashpot model at ṽ = v/v*                     ζ, v* = g/ω0 (m/s)      [3]_
+==================  ===========================================  ======================  =====
+
+Domain. A law never returns ε outside [0, 1] silently: where its formula leaves [0, 1] (a
+constant above 1, a linear law past v = e0/α, a power law below the speed where a·v^(−b) = 1)
+ε is clipped to the bound, its slope set to 0 and the point flagged in
+:attr:`Restitution.outside`; the same flag marks the viscoelastic series beyond the range where
+its truncation is accurate (below). A fit should keep the flagged points out (or note them):
+clipping is what keeps the train simulations NaN-free, not a physical statement.
+
+Viscoelastic Hertz. The contact m·ξ'' = −k·ξ^(3/2) − (3/2)·A·k·ξ^(1/2)·ξ' [4]_, ending where
+ξ returns to 0, scales with ξ = L·x, t = (L/v)·s, L = (m v²/k)^(2/5) into
+x'' = −x^(3/2) − δ·x^(1/2)·x' with the single number δ = (3/2)·A·(k/m)^(2/5)·v^(1/5) = κ·v^(1/5).
+Ramírez et al. [1]_ give 1 − ε = C1·δ − C2·δ² + …, C1 = 1.15344, C2 = 0.79826 (= 3C1²/5). The
+series is used truncated at second order: its error against the integrated contact is about
+0.5·δ³ (4e-6 at δ = 0.02, 6e-5 at 0.05, 5e-4 at 0.1, 3.7e-3 at 0.2), so points with
+δ > VISCOELASTIC_DELTA_MAX = 0.1 (ε below about 0.89) are flagged as outside; beyond δ = C1/2C2
+the truncated series would rise again and ε is held at its minimum 1 − C1²/4C2 ≈ 0.583.
+
+Hunt–Crossley. The contact m·ξ'' = −k·ξ^n − λ·ξ^n·ξ' [2]_ has a first integral: with y = ξ',
+y·dy/dξ = −(k/m)ξ^n(1 + χy), so y/χ − ln(1 + χy)/χ² + (k/m)ξ^(n+1)/(n + 1) is conserved.
+Between ξ = 0 at impact (y = v) and at separation (y = −εv) it gives the implicit relation in
+the table, exact for every exponent n. It is solved as ε² = ψ(d)/ψ(−dε) with
+ψ(x) = (ln(1 + x) − x)/x² (a series near 0, so nothing cancels for nearly elastic contacts)
+for d <= 1, and in u = −ln(1 − dε) above, where 1 − dε is exponentially small, both by
+safeguarded Newton steps (:func:`hunt_crossley_restitution`); for small d, 1 − ε ≈ 2d/3.
+
+Dashpot models: ε from :func:`dashpot.physics.models.collide` (exact method) at ṽ = v/v*. The
+slope dε/dṽ is analytic: the rebound state w at the end condition τ(ṽ) is differentiated
+implicitly, with the trajectory's sensitivity to ṽ equal to −S(t) (the fundamental solution of
+:mod:`dashpot.physics.contact`): Ib: dτ/dṽ = S/w, dw/dṽ = −(1 + 2ζw)·S/w − S'; IIb (released
+at F = 0 with ξ'' = −1): dτ/dṽ = (S + 2ζS')/(w − 2ζ), dw/dṽ = −dτ/dṽ − S'; hybrid:
+v1 = √(w² − 4ζw), dv1/dṽ = (w − 2ζ)/v1·dw/dṽ, climbing for w − v1 more; Ia, IIa: ε does not
+depend on ṽ. All evaluated at τ, S' = C − ζS. :func:`dashpot_contact_time` gives the contact
+duration in s with its slope, for ``TrainModel.contact_time``.
+
+References
+----------
+.. [1] R. Ramírez, T. Pöschel, N. V. Brilliantov and T. Schwager, "Coefficient of restitution
+   of colliding viscoelastic spheres", Phys. Rev. E 60, 4465-4472 (1999).
+.. [2] K. H. Hunt and F. R. E. Crossley, "Coefficient of restitution interpreted as damping in
+   vibroimpact", J. Appl. Mech. 42, 440-445 (1975).
+.. [3] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface",
+   sections 3-4 (models Ia, Ib, IIa, IIb, hybrid).
+.. [4] N. V. Brilliantov, F. Spahn, J.-M. Hertzsch and T. Pöschel, "Model for collisions in
+   granular gases", Phys. Rev. E 53, 5382-5392 (1996).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import check_nonnegative
+from .contact import Damping, basis
+from .models import MODELS, collide
+
+__all__ = ["LADDER", "LAWS", "LawParameter", "Restitution", "RestitutionLaw",
+           "dashpot_contact_time", "hunt_crossley_restitution", "restitution"]
+
+VISCOELASTIC_C1 = 1.15344
+"""First coefficient of the viscoelastic series, Ramírez et al. (1999), eq. for γ1."""
+VISCOELASTIC_C2 = 0.79826
+"""Second coefficient of the viscoelastic series, Ramírez et al. (1999) (= 3C1²/5)."""
+VISCOELASTIC_DELTA_MAX = 0.1
+"""Largest δ = κv^(1/5) where the second-order series is trusted: truncation error ≤ 5e-4."""
+_DELTA_TURN = VISCOELASTIC_C1 / (2.0 * VISCOELASTIC_C2)  # the truncated series' minimum
+
+# |x| below which ψ(x) = (ln(1 + x) − x)/x² is summed as a series: 13 terms leave an error
+# below |x|¹³/15 < 1e-17 there; above, the direct form loses at most ulp/|x| ≈ 5e-15.
+_SERIES_LIMIT = 0.05
+_SERIES_TERMS = 13
+
+
+@dataclass(frozen=True)
+class LawParameter:
+    """One parameter of a restitution law, with what a fit needs to know of it.
+
+    Attributes
+    ----------
+    name : str
+        Name as fitted (an lmfit Parameter name).
+    unit : str
+        SI unit ("" if dimensionless).
+    lower, upper : float
+        Default fit bounds.
+    start : float
+        Default start value, inside the bounds.
+    description : str
+        What it is, in a few words.
+    """
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    start: float
+    description: str
+
+
+@dataclass(frozen=True)
+class Restitution:
+    """ε of a law at each impact speed (arrays of the broadcast shape).
+
+    Attributes
+    ----------
+    eps : ndarray
+        Coefficient of restitution, in [0, 1].
+    speed_slope : ndarray
+        v·dε/dv (dimensionless; finite at v = 0, unlike dε/dv for the viscoelastic law); 0 where
+        ε is clipped.
+    outside : ndarray of bool
+        Where the law's formula left [0, 1] and ε was clipped, or (viscoelastic Hertz) where the
+        truncated series is beyond its accurate range.
+    """
+
+    eps: np.ndarray
+    speed_slope: np.ndarray
+    outside: np.ndarray
+
+    def slope(self, speed):
+        """dε/dv in s/m at `speed` (m/s); ±inf where v = 0 with a nonzero speed slope."""
+        speed = np.asarray(speed, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.speed_slope == 0.0, 0.0, self.speed_slope / speed)
+
+
+@dataclass(frozen=True)
+class RestitutionLaw:
+    """A restitution law of the ladder: ε(v; params) with its metadata.
+
+    Attributes
+    ----------
+    name : str
+        Registry key.
+    formula : str
+        ε(v) in one line, for reports.
+    parameters : tuple of LawParameter
+        In the order the law function takes them.
+    function : callable
+        ``function(speed, *params) -> (eps, speed_slope, outside)`` on broadcast arrays, ε not
+        yet clipped to [0, 1] (``outside`` marks the law's own domain limits).
+    reference : str
+        Where the law comes from.
+    """
+
+    name: str
+    formula: str
+    parameters: tuple[LawParameter, ...]
+    function: Callable
+    reference: str
+
+    @property
+    def parameter_names(self):
+        """Names of the parameters, in call order."""
+        return tuple(p.name for p in self.parameters)
+
+    def __call__(self, speed, *params):
+        """ε at impact speed(s) `speed` in m/s (>= 0) under parameters `params`.
+
+        Returns
+        -------
+        Restitution
+            ε clipped to [0, 1], v·dε/dv, and where clipping (or the law's domain) applied.
+
+        Raises
+        ------
+        ValueError
+            Wrong number of parameters, a speed negative or non-finite, a parameter non-finite
+            or outside the law's physical domain (named in the message).
+        """
+        if len(params) != len(self.parameters):
+            raise ValueError(f"restitution law {self.name!r} takes {len(self.parameters)} "
+                             f"parameters ({', '.join(self.parameter_names)}); "
+                             f"got {len(params)}")
+        speed = check_nonnegative("speed", speed)
+        params = [_finite(p.name, value) for p, value in zip(self.parameters, params)]
+        arrays = np.broadcast_arrays(speed, *params)
+        eps, speed_slope, outside = self.function(*arrays)
+        below, above = eps < 0.0, eps > 1.0
+        clipped = below | above
+        return Restitution(eps=np.clip(eps, 0.0, 1.0),
+                           speed_slope=np.where(clipped, 0.0, speed_slope),
+                           outside=clipped | outside)
+
+    def rebound(self, speed, *params):
+        """Rebound speed R(v) = ε(v)·v in m/s and dR/dv, for :class:`TrainModel`.
+
+        Parameters
+        ----------
+        speed : array_like
+            Impact speed v in m/s, >= 0.
+        *params : array_like
+            The law's parameters (see :attr:`parameters`), broadcast against `speed`.
+
+        Returns
+        -------
+        rebound, slope : ndarray
+            ε·v in m/s and dR/dv = ε + v·dε/dv (dimensionless).
+        """
+        law = self(speed, *params)
+        return law.eps * np.asarray(speed, dtype=float), law.eps + law.speed_slope
+
+    def bind(self, *params):
+        """The rebound map at fixed parameters: ``u -> (R(u), dR/du)`` (``TrainModel.rebound``)."""
+        return lambda speed: self.rebound(speed, *params)
+
+
+def _finite(name, value):
+    array = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite; got {value!r}")
+    return array
+
+
+# --- one-line laws ----------------------------------------------------------------------------
+
+def _no_flag(shape):
+    return np.zeros(shape, bool)
+
+
+def constant(speed, e):
+    """ε = e at every speed."""
+    return e.copy(), np.zeros(speed.shape), _no_flag(speed.shape)
+
+
+def linear(speed, e0, alpha):
+    """ε = e0 − α·v (α in s/m)."""
+    return e0 - alpha * speed, -alpha * speed, _no_flag(speed.shape)
+
+
+def quadratic(speed, e0, c):
+    """ε = e0 − c·v² (c in s²/m²)."""
+    term = c * speed * speed
+    return e0 - term, -2.0 * term, _no_flag(speed.shape)
+
+
+def power(speed, a, b):
+    """ε = a·v^(−b) with v in m/s (a is ε at 1 m/s), v·dε/dv = −b·ε.
+
+    Evaluated in logarithms and capped at e > 1 before the exponential, so v → 0 gives no
+    overflow: there ε is clipped to 1 (b > 0) or tends to 0 (b < 0).
+    """
+    tiny = np.finfo(float).tiny
+    with np.errstate(divide="ignore"):
+        log_eps = np.log(np.maximum(a, 0.0)) - b * np.log(np.maximum(speed, tiny))
+    eps = np.exp(np.minimum(log_eps, 1.0))
+    # A negative a gives no real power law: ε < 0 is clipped (and flagged) by the caller.
+    eps = np.where(a < 0.0, -1.0, eps)
+    return eps, -b * eps, _no_flag(speed.shape)
+
+
+def viscoelastic_hertz(speed, kappa):
+    """1 − ε = C1·δ − C2·δ², δ = κ·v^(1/5), truncated second-order series (module notes)."""
+    if np.any(kappa < 0.0):
+        raise ValueError(f"kappa must be >= 0 (no energy gain in contact); got {kappa!r}")
+    delta = kappa * speed ** 0.2
+    outside = delta > VISCOELASTIC_DELTA_MAX
+    held = np.minimum(delta, _DELTA_TURN)
+    eps = 1.0 - VISCOELASTIC_C1 * held + VISCOELASTIC_C2 * held * held
+    # v·dε/dv = (δ/5)·dε/dδ.
+    speed_slope = np.where(delta < _DELTA_TURN,
+                           0.2 * delta * (2.0 * VISCOELASTIC_C2 * delta - VISCOELASTIC_C1), 0.0)
+    return eps, speed_slope, outside
+
+
+# --- Hunt–Crossley ----------------------------------------------------------------------------
+
+def _psi(x):
+    """ψ(x) = (ln(1 + x) − x)/x² and ψ'(x), for x > −1 (series where |x| is small)."""
+    small = np.abs(x) < _SERIES_LIMIT
+    xs = np.where(small, x, 0.0)
+    value = np.zeros(x.shape)
+    slope = np.zeros(x.shape)
+    # ψ = Σ_k (−1)^(k+1) x^k/(k + 2), ψ' = Σ_k (−1)^(k+1) k x^(k−1)/(k + 2), by Horner.
+    for k in range(_SERIES_TERMS - 1, -1, -1):
+        sign = -1.0 if k % 2 == 0 else 1.0
+        value = value * xs + sign / (k + 2)
+        if k >= 1:
+            slope = slope * xs + sign * k / (k + 2)
+    xl = np.where(small, 1.0, x)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        direct = (np.log1p(xl) - xl) / (xl * xl)
+        direct_slope = -1.0 / (xl * (1.0 + xl)) - 2.0 * direct / xl
+    return np.where(small, value, direct), np.where(small, slope, direct_slope)
+
+
+def _newton_in_bracket(value_and_slope, lower, upper, start, args, max_iter=100):
+    """Root of an increasing function on [lower, upper] by Newton steps kept in the bracket.
+
+    A step that leaves the current bracket is replaced by bisection, so the iteration always
+    converges; it stops at a step below 4 ulp of the iterate or a closed bracket.
+    """
+    root = start.copy()
+    tiny = np.finfo(float).eps
+    active = np.arange(root.size)
+    x, lo, hi = start, lower, upper
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        value, slope = value_and_slope(x, *args)
+        lo, hi = np.where(value < 0.0, x, lo), np.where(value > 0.0, x, hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            candidate = x - value / slope
+        inside = (candidate >= lo) & (candidate <= hi) & np.isfinite(candidate)
+        new = np.where(inside, candidate, 0.5 * (lo + hi))
+        done = ((value == 0.0) | (np.abs(new - x) <= 4.0 * tiny * np.abs(x))
+                | (hi - lo <= 4.0 * tiny * np.abs(hi)))
+        root[active[done]] = new[done]
+        keep = ~done
+        active, x, lo, hi = active[keep], new[keep], lo[keep], hi[keep]
+        args = tuple(a[keep] for a in args)
+    root[active] = x
+    return root
+
+
+def _psi_mismatch(eps, damping, psi_d):
+    """ψ(d) − ε²ψ(−dε) (increasing in ε) and its ε-slope, for 0 < d <= 1."""
+    psi_e, dpsi_e = _psi(-damping * eps)
+    return psi_d - eps * eps * psi_e, damping * eps * eps * dpsi_e - 2.0 * eps * psi_e
+
+
+def _log_gap_mismatch(u, excess):
+    """u + e^(−u) − 1 − (d − ln(1 + d)) and its u-slope, with u = −ln(1 − dε)."""
+    return u + np.expm1(-u) - excess, -np.expm1(-u)
+
+
+def hunt_crossley_restitution(damping):
+    """ε of the Hunt–Crossley contact and dε/dd, at the dimensionless damping d = χ·v.
+
+    Parameters
+    ----------
+    damping : array_like
+        d = (λ/k)·v >= 0, finite.
+
+    Returns
+    -------
+    eps, slope : ndarray
+        ε(d) in (0, 1] solving ln((1 + d)/(1 − dε)) = d(1 + ε), and dε/dd.
+
+    Notes
+    -----
+    For d <= 1 the root is found as ε² = ψ(d)/ψ(−dε) on ε ∈ [0, 1] (no cancellation as d → 0),
+    starting from 1 − 2d/3. For d > 1, 1 − dε is exponentially small (e^(−d) roughly) and would
+    be lost to rounding: there the unknown is u = −ln(1 − dε), which solves the convex
+    u + e^(−u) − 1 = d − ln(1 + d) on [0, d − ln(1 + d) + 1], and ε = (1 − e^(−u))/d. Both by
+    safeguarded Newton steps (5-8 evaluations).
+    """
+    d = check_nonnegative("damping", damping).astype(float)
+    shape = d.shape
+    d = d.ravel()
+    eps, slope = np.ones(d.shape), np.full(d.shape, -2.0 / 3.0)
+    mild = (d > 0.0) & (d <= 1.0)
+    dm = d[mild]
+    if dm.size:
+        psi_d, dpsi_d = _psi(dm)
+        eps_m = _newton_in_bracket(_psi_mismatch, np.zeros(dm.shape), np.ones(dm.shape),
+                                   1.0 - 2.0 * dm / 3.0, (dm, psi_d))
+        psi_e, dpsi_e = _psi(-dm * eps_m)
+        # Implicit slope of G(ε, d) = ε²ψ(−dε) − ψ(d) = 0.
+        g_eps = 2.0 * eps_m * psi_e - dm * eps_m * eps_m * dpsi_e
+        g_d = -eps_m ** 3 * dpsi_e - dpsi_d
+        eps[mild], slope[mild] = eps_m, -g_d / g_eps
+    strong = d > 1.0
+    ds = d[strong]
+    if ds.size:
+        excess = ds - np.log1p(ds)
+        u = _newton_in_bracket(_log_gap_mismatch, np.zeros(ds.shape), excess + 1.0,
+                               excess + 1.0, (excess,))
+        gap = -np.expm1(-u)  # 1 − e^(−u) = dε
+        # du/dd = (d/(1 + d))/(1 − e^(−u)); ε = (1 − e^(−u))/d.
+        du = ds / (1.0 + ds) / gap
+        eps[strong] = gap / ds
+        slope[strong] = (np.exp(-u) * du - gap / ds) / ds
+    return eps.reshape(shape), slope.reshape(shape)
+
+
+def hunt_crossley(speed, chi):
+    """ε of the Hunt–Crossley law at d = χ·v (χ = λ/k in s/m)."""
+    if np.any(chi < 0.0):
+        raise ValueError(f"chi must be >= 0 (no energy gain in contact); got {chi!r}")
+    damping = chi * speed
+    eps, slope = hunt_crossley_restitution(damping)
+    return eps, damping * slope, _no_flag(speed.shape)
+
+
+# --- dashpot models ---------------------------------------------------------------------------
+
+def _dashpot_state(model, zeta, vtilde):
+    """ε, dw/dṽ (w = εṽ), contact time ω0τ and dτ/dṽ of a dashpot model (dimensionless)."""
+    vtilde = np.maximum(vtilde, np.finfo(float).tiny)  # ṽ = 0: the limit, captured or not
+    hit = collide(model, zeta, vtilde)
+    eps, tau = hit.eps, hit.contact_time
+    w_slope = eps.copy()
+    tau_slope = np.zeros(eps.shape)
+    rebound = ~hit.captured
+    if model in ("Ib", "IIb", "hybrid") and np.any(rebound):
+        z, v = zeta[rebound], vtilde[rebound]
+        vf = hit.release_speed[rebound]
+        t = tau[rebound]
+        if model == "hybrid":
+            v1 = eps[rebound] * v
+            t = t - (vf - v1)  # the climb from the release depth takes vf − v1 (g = 1)
+        c, s = basis(Damping(z), t)
+        s_slope = c - z * s
+        if model == "Ib":
+            dt = s / vf
+            dw = -(1.0 + 2.0 * z * vf) * dt - s_slope
+        else:
+            dt = (s + 2.0 * z * s_slope) / (vf - 2.0 * z)
+            dw = -dt - s_slope
+        if model == "hybrid":
+            dv1 = (vf - 2.0 * z) / v1 * dw
+            dt, dw = dt + dw - dv1, dv1
+        w_slope[rebound], tau_slope[rebound] = dw, dt
+    w_slope = np.where(rebound, w_slope, 0.0)
+    tau_slope = np.where(rebound, tau_slope, 0.0)
+    return eps, w_slope, tau, tau_slope
+
+
+def _dashpot_law(model):
+    def function(speed, zeta, v_star):
+        if np.any(zeta < 0.0) or np.any(v_star <= 0.0):
+            raise ValueError(f"model {model}: zeta must be >= 0 and v_star > 0; got "
+                             f"zeta={zeta!r}, v_star={v_star!r}")
+        shape = speed.shape
+        eps, w_slope, _, _ = _dashpot_state(model, zeta.ravel(), (speed / v_star).ravel())
+        # ṽ·dε/dṽ = dw/dṽ − ε.
+        return eps.reshape(shape), (w_slope - eps).reshape(shape), _no_flag(shape)
+
+    function.__name__ = f"dashpot_{model}"
+    function.__doc__ = f"ε of dashpot model {model} at ṽ = v/v* (exact, analytic slope)."
+    return function
+
+
+def dashpot_contact_time(model, speed, zeta, v_star, g):
+    """Contact duration of a dashpot model in s and its slope, for ``TrainModel.contact_time``.
+
+    Parameters
+    ----------
+    model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
+    speed : array_like
+        Impact speed v in m/s, >= 0.
+    zeta : array_like
+        Damping ratio ζ = β/ω0.
+    v_star : array_like
+        v* = g/ω0 in m/s, > 0.
+    g : float or array_like
+        Acceleration g (g_eff) in m/s², > 0.
+
+    Returns
+    -------
+    duration, slope : ndarray
+        τ in s (inf where captured) and dτ/dv in s²/m (0 where captured).
+    """
+    speed = check_nonnegative("speed", speed)
+    speed, zeta, v_star, g = np.broadcast_arrays(speed, _finite("zeta", zeta),
+                                                 _finite("v_star", v_star), _finite("g", g))
+    if np.any(v_star <= 0.0) or np.any(g <= 0.0):
+        raise ValueError(f"v_star and g must be > 0; got v_star={v_star!r}, g={g!r}")
+    shape = speed.shape
+    _, _, tau, tau_slope = _dashpot_state(model, zeta.ravel(), (speed / v_star).ravel())
+    omega0 = g.ravel() / v_star.ravel()
+    # τ = (ω0τ)/ω0 and dτ/dv = (dω0τ/dṽ)·(1/ω0)·(1/v*) = (dω0τ/dṽ)/g.
+    return (tau / omega0).reshape(shape), (tau_slope / g.ravel()).reshape(shape)
+
+
+# --- the registry -----------------------------------------------------------------------------
+
+def _parameter(name, unit, lower, upper, start, description):
+    return LawParameter(name, unit, float(lower), float(upper), float(start), description)
+
+
+_E0 = ("e0", "", 0.0, 1.0, 0.9, "restitution extrapolated to v = 0")
+
+LAWS = {
+    "constant": RestitutionLaw(
+        "constant", "ε = e", (_parameter("e", "", 0.0, 1.0, 0.9, "coefficient of restitution"),),
+        constant, "—"),
+    "linear": RestitutionLaw(
+        "linear", "ε = e0 − α·v",
+        (_parameter(*_E0), _parameter("alpha", "s/m", -0.2, 0.2, 0.0,
+                                      "fall of ε per unit impact speed")),
+        linear, "—"),
+    "power": RestitutionLaw(
+        "power", "ε = a·(v / 1 m/s)^(−b)",
+        (_parameter("a", "", 0.0, 1.5, 0.9, "ε at 1 m/s"),
+         _parameter("b", "", -0.3, 0.3, 0.0, "exponent of the fall of ε with speed")),
+        power, "—"),
+    "quadratic": RestitutionLaw(
+        "quadratic", "ε = e0 − c·v²",
+        (_parameter(*_E0), _parameter("c", "s²/m²", -0.1, 0.1, 0.0,
+                                      "fall of ε per squared impact speed")),
+        quadratic, "—"),
+    "viscoelastic-hertz": RestitutionLaw(
+        "viscoelastic-hertz", "ε = 1 − C1·κv^(1/5) + C2·κ²v^(2/5)",
+        (_parameter("kappa", "s^(1/5)/m^(1/5)", 0.0, 0.2, 0.03,
+                    "(3/2)·A·(k/m)^(2/5): viscoelastic damping of a Hertz contact"),),
+        viscoelastic_hertz, "Ramírez, Pöschel, Brilliantov, Schwager, PRE 60, 4465 (1999)"),
+    "hunt-crossley": RestitutionLaw(
+        "hunt-crossley", "ln((1 + χv)/(1 − χvε)) = χv(1 + ε)",
+        (_parameter("chi", "s/m", 0.0, 10.0, 0.05, "λ/k: Hunt–Crossley damping per stiffness"),),
+        hunt_crossley, "Hunt & Crossley, J. Appl. Mech. 42, 440 (1975)"),
+}
+"""Every restitution law by name: the ladder's rungs, then the five dashpot models."""
+
+LADDER = tuple(LAWS)
+"""Names of the ladder's rungs, simplest first (the dashpot models follow in :data:`LAWS`)."""
+
+for _model in MODELS:
+    LAWS[_model] = RestitutionLaw(
+        _model, f"ε of dashpot model {_model} at ṽ = v/v*",
+        (_parameter("zeta", "", 0.0, 10.0, 0.1, "damping ratio β/ω0"),
+         _parameter("v_star", "m/s", 1e-6, 100.0, 1e-3, "speed unit g/ω0")),
+        _dashpot_law(_model), "Bartz, sections 3-4")
+del _model
+
+
+def restitution(name, speed, *params):
+    """ε of the law `name` at `speed` (m/s): ``LAWS[name](speed, *params)``.
+
+    Raises
+    ------
+    ValueError
+        Unknown law (the message lists the known ones) or bad arguments.
+    """
+    if name not in LAWS:
+        raise ValueError(f"restitution law must be one of {', '.join(map(repr, LAWS))}; "
+                         f"got {name!r}")
+    return LAWS[name](speed, *params)
