@@ -79,3 +79,23 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, table_scene, case):
     assert err.startswith("dashpot analyze: error: ") and str(named) in err
     if case != "output-is-file":
         assert not out.exists()
+
+
+def test_says_which_file_it_analysed_when_the_scene_names_another(table_scene, tmp_path):
+    """`analyze REC --scene S` where S's `recording:` is another file: REC is analysed, and
+    the printed notes and the HDF5 provenance say so."""
+    import h5py
+
+    recording, scene = table_scene
+    other = tmp_path / "scene.yaml"
+    other.write_text(scene.read_text() + "recording: another-drop.csv\n")
+    out = tmp_path / "out"
+    status, printed, err = run_cli(["analyze", str(recording), "--scene", str(other), "-o",
+                                    str(out)])
+    assert status == 0, err
+    notes = [line for line in printed.splitlines() if "another-drop.csv" in line]
+    assert len(notes) == 1 and notes[0].startswith("  note: ")
+    assert f"fitted {recording}" in notes[0] and "not read" in notes[0]
+    with h5py.File(out / "my-ball.h5", "r") as source:
+        assert source.attrs["input_file"] == recording.name
+        assert not source.attrs["input_is_scene_recording"]

@@ -95,9 +95,7 @@ def _fit(args):
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
-    for note in [recording_note(args.impacts, scene), *scene_fit.data.notes]:
-        if note:
-            print(f"  note: {note}")
+    _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes])
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")
         state = (f"beta = {beta.value:.4g} ± {beta.stderr:.2g} 1/s" if fit.success and beta
@@ -113,7 +111,7 @@ def _analyze(args):
     from tqdm import tqdm
 
     from .figures import load_record, save_scene_figures
-    from .analysis import analyze
+    from .analysis import analyze, recording_note
     from .pipeline import is_audio
     from .scene import Scene, load_scene
     from .store import write_scene_fit
@@ -167,6 +165,8 @@ def _analyze(args):
             if created:
                 _remove_if_empty(out)
     _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
+    _print_notes([recording_note(recording, scene if args.scene else None),
+                  *scene_fit.data.notes])
 
 
 def _move_into_place(staging, out):
@@ -190,6 +190,13 @@ def _remove_if_empty(folder):
         folder.rmdir()
     except OSError:
         pass
+
+
+def _print_notes(notes):
+    """One indented line per note (None and empty notes skipped)."""
+    for note in notes:
+        if note:
+            print(f"  note: {note}")
 
 
 def _print_summary(recording, impacts, scene_fit, h5, figures):
