@@ -67,7 +67,8 @@ def _bounces(args):
 
     impacts = read_impact_table(args.impacts)
     try:
-        table = bounce_table(impacts, g=args.g, contact_duration=args.contact_duration)
+        table = bounce_table(impacts, g=args.g, contact_duration=args.contact_duration,
+                             drag_constant=args.drag_constant)
     except ValueError as error:
         raise InputError(args.impacts, str(error)) from None
     _write_csv_atomically(table, args.output, [args.impacts])
@@ -275,6 +276,12 @@ def build_parser():
                          type=_number(0.0, math.inf, unit="s", low_inclusive=True), default=0.0,
                          help="contact duration in s, if known; shorter than every interval "
                               "(default 0)")
+    # A ping-pong ball has k_d ≈ 0.13 1/m; 100 1/m is a balloon-like ball slower than 0.3 m/s.
+    bounces.add_argument("--drag-constant", type=_number(0.0, 100.0, unit="1/m",
+                                                         low_inclusive=True),
+                         help="air drag constant k_d = ρ C_d A/(2 m_eff) in 1/m, in [0, 100], "
+                              "of a light ball (--g is then its effective gravity): speeds "
+                              "from the drag flight and a drag-corrected ε column")
     bounces.set_defaults(run=_bounces)
     fit = commands.add_parser("fit", help="fit β and k under every contact model; HDF5 out")
     fit.add_argument("impacts", help="impact table from `dashpot impacts`, or a recording")

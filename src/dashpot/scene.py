@@ -6,10 +6,21 @@ a ``scene.yaml`` (documented in ``config/README.md``) or built from a mapping; b
 against the JSON schema shipped with the package, and a bad file gives one
 :class:`~dashpot.errors.InputError` line naming it.
 
+Air drag is modelled only for a scene that gives the ball's mass and diameter: quadratic drag
+k_d·v² with k_d = ρ C_d A/(2 m_eff), and gravity lowered by buoyancy and added mass
+(:mod:`dashpot.physics.flight`). Without both, drag and a speed-dependent ε cannot be told apart
+from impact times alone, and nothing is modelled.
+
 References
 ----------
 .. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface":
    the cart on an incline, g_eff = g·sin θ along the track.
+.. [2] H. Schlichting, *Boundary-Layer Theory*, McGraw-Hill (1955 and later editions), the
+   drag coefficient of a smooth sphere against the Reynolds number (the standard drag curve):
+   C_d ≈ 0.48 at Re = 10³, 0.39-0.41 at Re = 3·10³-10⁴, 0.44-0.48 at 1.5·10⁴-10⁵; fitted in
+   F. A. Morrison, "Data correlation for drag coefficient for sphere", Michigan Technological
+   University (2010). A ping-pong ball at 0.5-3 m/s has Re = vd/ν ≈ 1.3·10³-8·10³.
+.. [3] ISO 2533:1975, Standard Atmosphere: dry air at 20 °C and 101 325 Pa has ρ = 1.204 kg/m³.
 """
 
 from __future__ import annotations
@@ -19,11 +30,15 @@ from dataclasses import dataclass, field, fields, replace
 from importlib.resources import files
 from pathlib import Path
 
+import numpy as np
+
 from .errors import InputError
+from .physics.flight import drag_constant, effective_gravity
 from .physics.models import MODELS
 from .safe_yaml import load_yaml
 
-__all__ = ["Known", "Scene", "load_scene", "scene_from_mapping", "STANDARD_GRAVITY"]
+__all__ = ["AirDrag", "Known", "Scene", "load_scene", "scene_from_mapping", "STANDARD_GRAVITY",
+           "DEFAULT_AIR_DENSITY", "DEFAULT_DRAG_COEFFICIENT"]
 
 STANDARD_GRAVITY = 9.80665  # m/s², conventional value (CGPM 1901)
 MIN_DRIVING_ACCELERATION = 1e-3  # m/s², as the schema's g_eff: a track level to 1e-4 rad
@@ -38,6 +53,74 @@ class Known:
 
     value: float
     uncertainty: float | None = None
+
+
+DEFAULT_AIR_DENSITY = Known(1.204)
+"""Density of dry air at 20 °C and sea-level pressure in kg/m³ [3]_, taken as exact."""
+DEFAULT_DRAG_COEFFICIENT = Known(0.45, 0.05)
+"""Drag coefficient prior of a smooth sphere at Re ≈ 10³-10⁴ [2]_."""
+
+
+@dataclass(frozen=True)
+class AirDrag:
+    """Quadratic air drag on a scene's ball, with 1σ uncertainties from the scene's priors.
+
+    Attributes
+    ----------
+    drag_constant : Known
+        k_d = ρ C_d A/(2 m_eff) in 1/m: the drag deceleration is k_d·v².
+    effective_gravity : Known
+        g_eff in m/s²: the scene's driving acceleration lowered by buoyancy and added mass
+        (or the scene's measured ``g_eff``, taken as it is).
+    correlation : float
+        Correlation of the two (both depend on the mass, diameter and air density); 0 where
+        either is exact.
+    """
+
+    drag_constant: Known
+    effective_gravity: Known
+    correlation: float = 0.0
+
+    @property
+    def terminal_speed(self):
+        """Terminal speed √(g_eff/k_d) in m/s."""
+        return math.sqrt(self.effective_gravity.value / self.drag_constant.value)
+
+
+def _propagate(function, knowns):
+    """Values of ``function(*values)`` and their covariance, to first order in the priors.
+
+    Parameters
+    ----------
+    function : callable
+        Maps the values of `knowns` (floats) to a sequence of floats.
+    knowns : sequence of Known
+        Inputs; exact ones (uncertainty None) do not contribute.
+
+    Returns
+    -------
+    values : ndarray
+    covariance : ndarray
+        J·diag(σ²)·Jᵀ with the Jacobian J from central differences (step 10⁻⁶ of each value,
+        relative error about 10⁻¹⁰, far below what an uncertainty needs).
+    """
+    centre = [known.value for known in knowns]
+    values = np.asarray(function(*centre), dtype=float)
+    covariance = np.zeros((values.size, values.size))
+    for index, known in enumerate(knowns):
+        if not known.uncertainty:
+            continue
+        step = 1e-6 * known.value
+        high, low = list(centre), list(centre)
+        high[index] += step
+        low[index] -= step
+        slope = (np.asarray(function(*high)) - np.asarray(function(*low))) / (2.0 * step)
+        covariance += np.outer(slope, slope) * known.uncertainty ** 2
+    return values, covariance
+
+
+def _known(value, variance):
+    return Known(float(value), float(math.sqrt(variance)) if variance > 0 else None)
 
 
 @dataclass(frozen=True)
@@ -77,6 +160,12 @@ class Scene:
         Options for the reader (flag_length, gate_distance, bumper_position, unit).
     accuracy : str
         Numerical accuracy level of the fits ("auto", "fast", "standard", "exact").
+    diameter : Known or None
+        Diameter of the ball in m; with ``mass`` it turns on air drag (:attr:`drag`).
+    air_density : Known or None
+        Density of the air in kg/m³ (None: :data:`DEFAULT_AIR_DENSITY` where drag is modelled).
+    drag_coefficient : Known or None
+        Drag coefficient C_d of the ball (None: the prior :data:`DEFAULT_DRAG_COEFFICIENT`).
     """
 
     name: str = "scene"
@@ -93,10 +182,13 @@ class Scene:
     timing_resolution: float | None = None
     reader: dict = field(default_factory=dict)
     accuracy: str = "auto"
+    diameter: Known | None = None
+    air_density: Known | None = None
+    drag_coefficient: Known | None = None
 
     @property
-    def driving_acceleration(self):
-        """Acceleration back towards the surface in m/s²: g_eff, else g·sin θ, else g [1]_."""
+    def _acceleration_without_air(self):
+        """g_eff as given, else g·sin θ, else g [1]_, in m/s² (no buoyancy)."""
         if self.g_eff is not None:
             return self.g_eff
         if self.incline_angle is not None:
@@ -104,23 +196,85 @@ class Scene:
         return self.gravity
 
     @property
+    def driving_acceleration(self):
+        """Acceleration back towards the surface in m/s²: g_eff, else g·sin θ, else g [1]_;
+        lowered by buoyancy and added mass where the scene models drag (unless g_eff is
+        given: a measured g_eff already holds them)."""
+        if self.g_eff is None and self.needs_drag:
+            return self._drag_values(*(known.value for known in self._drag_inputs()))[1]
+        return self._acceleration_without_air
+
+    @property
+    def needs_drag(self):
+        """Whether air drag is modelled: only when the scene gives the ball's mass and
+        diameter."""
+        return self.mass is not None and self.diameter is not None
+
+    def _drag_inputs(self):
+        return (self.mass, self.diameter, self.drag_coefficient or DEFAULT_DRAG_COEFFICIENT,
+                self.air_density or DEFAULT_AIR_DENSITY)
+
+    def _drag_values(self, mass, diameter, drag_coefficient, air_density):
+        """(k_d in 1/m, g_eff in m/s²) of a ball, from :mod:`dashpot.physics.flight`."""
+        k_d = drag_constant(mass, diameter, drag_coefficient, air_density)
+        if self.g_eff is not None:  # measured: buoyancy and added mass are in it
+            return float(k_d), self.g_eff
+        g = effective_gravity(self._acceleration_without_air, mass, diameter, air_density)
+        return float(k_d), float(g)
+
+    @property
+    def drag(self):
+        """Air drag on the ball (:class:`AirDrag`), or None if the scene does not model it.
+
+        k_d = ρ C_d A/(2(m + ρV/2)) and g_eff = g(m − ρV)/(m + ρV/2) (buoyancy and added mass
+        of a sphere, :mod:`dashpot.physics.flight`), with 1σ uncertainties carried to first
+        order from the priors of the mass, diameter, drag coefficient (default 0.45 ± 0.05
+        [2]_) and air density (default 1.204 kg/m³ [3]_).
+        """
+        if not self.needs_drag:
+            return None
+        values, covariance = _propagate(self._drag_values, self._drag_inputs())
+        spread = np.sqrt(np.diag(covariance))
+        correlation = (covariance[0, 1] / (spread[0] * spread[1]) if np.all(spread > 0)
+                       else 0.0)
+        return AirDrag(drag_constant=_known(values[0], covariance[0, 0]),
+                       effective_gravity=_known(values[1], covariance[1, 1]),
+                       correlation=float(correlation))
+
+    @property
     def known_impact_speed(self):
-        """Known first impact speed (m/s) from the scene, or None: √(2 g_eff h) for a drop."""
+        """Known first impact speed (m/s) from the scene, or None: √(2 g_eff h) for a drop,
+        √((g_eff/k_d)(1 − e^(−2 k_d h))) with air drag."""
         if self.first_impact_speed is not None:
             return self.first_impact_speed
-        if self.drop_height is not None:
-            g = self.driving_acceleration
-            speed = math.sqrt(2.0 * g * self.drop_height.value)
-            spread = self.drop_height.uncertainty
-            # dv/dh = g/v: the height's uncertainty carried to the speed.
-            return Known(speed, None if spread is None else g * spread / speed)
-        return None
+        if self.drop_height is None:
+            return None
+        if self.needs_drag:
+            # Falling from rest, v² = v_t²(1 − e^(−2 k_d h)); the priors of the drop height and
+            # of the ball's drag all carry to the speed.
+            def speed_of(height, *ball):
+                k_d, g = self._drag_values(*ball)
+                return [math.sqrt(-g / k_d * math.expm1(-2.0 * k_d * height))]
+
+            values, covariance = _propagate(speed_of, (self.drop_height, *self._drag_inputs()))
+            return _known(values[0], covariance[0, 0])
+        g = self.driving_acceleration
+        speed = math.sqrt(2.0 * g * self.drop_height.value)
+        spread = self.drop_height.uncertainty
+        # dv/dh = g/v: the height's uncertainty carried to the speed.
+        return Known(speed, None if spread is None else g * spread / speed)
 
     def as_dict(self):
-        """Plain mapping of the scene (for provenance records)."""
+        """Plain mapping of the scene (for provenance records); the drag keys and ``drag``
+        (k_d, g_eff) only where the scene models drag."""
         out = {}
         for item in fields(self):
             value = getattr(self, item.name)
+            if item.name in _DRAG_KEYS:
+                if not self.needs_drag:
+                    continue
+                value = value or {"air_density": DEFAULT_AIR_DENSITY,
+                                  "drag_coefficient": DEFAULT_DRAG_COEFFICIENT}[item.name]
             if isinstance(value, Known):
                 value = {"value": value.value, "uncertainty": value.uncertainty}
             elif isinstance(value, Path):
@@ -129,10 +283,16 @@ class Scene:
                 value = list(value)
             out[item.name] = value
         out["driving_acceleration"] = self.driving_acceleration
+        drag = self.drag
+        if drag is not None:
+            out["drag"] = {name: {"value": known.value, "uncertainty": known.uncertainty}
+                           for name, known in (("drag_constant", drag.drag_constant),
+                                               ("effective_gravity", drag.effective_gravity))}
         return out
 
 
-_KNOWN_KEYS = ("mass", "stiffness", "first_impact_speed", "drop_height")
+_DRAG_KEYS = ("diameter", "air_density", "drag_coefficient")
+_KNOWN_KEYS = ("mass", "stiffness", "first_impact_speed", "drop_height") + _DRAG_KEYS
 
 
 def _schema():
@@ -215,6 +375,7 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                   timing_resolution=mapping.get("timing_resolution"),
                   reader=dict(mapping.get("reader", {})),
                   accuracy=mapping.get("accuracy", "auto"), **kwargs)
+    _check_drag(scene, source)
     if scene.incline_angle is not None and scene.g_eff is None and \
             scene.driving_acceleration < MIN_DRIVING_ACCELERATION:
         # The schema bounds g_eff itself; a nearly flat incline can undercut it.
@@ -222,6 +383,26 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                                  f"{scene.driving_acceleration:.3g} m/s² is less than the "
                                  f"minimum of {MIN_DRIVING_ACCELERATION:g} m/s²)")
     return scene
+
+
+def _check_drag(scene, source):
+    """One InputError line naming the key where the drag keys cannot be used."""
+    if not scene.needs_drag:
+        for key in _DRAG_KEYS:
+            if getattr(scene, key) is not None:
+                missing = " and ".join(f"apparatus.{name}" for name in ("mass", "diameter")
+                                       if getattr(scene, name) is None)
+                raise InputError(source, f"invalid scene (apparatus/{key}: air drag is "
+                                         f"modelled only for a ball of known mass and diameter; "
+                                         f"{missing} missing)")
+        return
+    air = (scene.air_density or DEFAULT_AIR_DENSITY).value
+    density = scene.mass.value / (math.pi / 6.0 * scene.diameter.value ** 3)
+    if density <= air:
+        raise InputError(source, f"invalid scene (apparatus/diameter: a ball of "
+                                 f"{scene.mass.value:g} kg and {scene.diameter.value:g} m is "
+                                 f"no denser ({density:.3g} kg/m³) than the air ({air:g} "
+                                 f"kg/m³): it would not fall back)")
 
 
 def load_scene(path):

@@ -4,6 +4,10 @@ One call draws the train from :func:`dashpot.bounce_sequence`, writes the record
 kind with the writers of :mod:`dashpot.synth.audio` and :mod:`dashpot.synth.tables`, and writes a
 sidecar ``truth.json`` with the generating parameters and the true impact times, so that the
 readers and the fits can be checked against the truth. Deterministic for a given seed.
+
+A light ball can bounce in air (a drag constant, or its mass and diameter): the train then has
+drag-true flights (:func:`dashpot.synth.train.drag_bounce_sequence`) and ``truth.json`` records
+the drag. Without drag the files are those of the gravity-only train, byte for byte.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from .tables import (
     write_photogate,
     write_timestamps,
 )
+from .train import air_drag, drag_bounce_sequence
 
 __all__ = ["SCENE_KINDS", "write_scene"]
 
@@ -45,7 +50,7 @@ def _jsonable(value):
 
 
 def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=60, v_min=0.0,
-                seed=0, **options):
+                seed=0, drag=None, ball=None, **options):
     """Write one synthetic recording of a bounce train and its ``truth.json`` sidecar.
 
     Parameters
@@ -61,13 +66,20 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
     omega0 : float
         Undamped angular frequency ω0 of the contact in rad/s.
     g : float
-        Acceleration towards the surface in m/s² (g·sin θ for a cart on an incline).
+        Acceleration towards the surface in m/s² (g·sin θ for a cart on an incline); with
+        `ball`, the local gravity (buoyancy and added mass lower it).
     v0 : float
         First impact speed in m/s.
     n_max, v_min : optional
         Stopping rule of the train (see :func:`dashpot.bounce_sequence`).
     seed : int, default 0
         Seed of every random draw (noise), for reproducible files.
+    drag : float, optional
+        Air drag constant k_d in 1/m of a ball flying under `g` (audio, phyphox, timestamps).
+    ball : dict, optional
+        Instead of `drag`: the ball's ``mass`` (kg), ``diameter`` (m), ``drag_coefficient``
+        (default 0.45) and ``air_density`` (kg/m³, default 1.204), see
+        :func:`dashpot.synth.train.air_drag`.
     **options
         Passed to the writer of `kind` (e.g. ``snr_db``, ``echo_delay`` for audio,
         ``flag_length`` for a photogate).
@@ -79,10 +91,21 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
     """
     if kind not in SCENE_KINDS:
         raise ValueError(f"kind must be one of {', '.join(SCENE_KINDS)}; got {kind!r}")
+    drag_truth = air_drag(g, drag=drag, ball=ball)
+    if drag_truth is None:
+        sequence = bounce_sequence(model, beta=beta, omega0=omega0, g=g, v0=v0, n_max=n_max,
+                                   v_min=v_min)
+    elif kind in ("motion_sensor", "photogate"):
+        # Their writers draw a cart's motion between impacts under constant acceleration.
+        raise ValueError(f"air drag is modelled for a bouncing ball (audio, phyphox, "
+                         f"timestamps), not for a {kind} recording of a cart")
+    else:
+        sequence = drag_bounce_sequence(model, beta=beta, omega0=omega0,
+                                        g=drag_truth["effective_gravity"],
+                                        drag=drag_truth["drag_constant"], v0=v0, n_max=n_max,
+                                        v_min=v_min)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    sequence = bounce_sequence(model, beta=beta, omega0=omega0, g=g, v0=v0, n_max=n_max,
-                               v_min=v_min)
     recording = directory / RECORDING_NAMES[kind]
     if kind == "audio":
         sample_rate = options.pop("sample_rate", 44100)
@@ -109,6 +132,12 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
                      "restitution": sequence.restitution, "stop_reason": sequence.stop_reason},
         "recording": {"file": recording.name, **written},
     }
+    if drag_truth is not None:
+        # Only with drag: the sidecar of a gravity-only train stays as it was.
+        truth["drag"] = drag_truth
+        truth["units"].update(drag_constant="1/m", effective_gravity="m/s^2",
+                              terminal_speed="m/s", gravity="m/s^2", mass="kg", diameter="m",
+                              air_density="kg/m^3")
     sidecar = directory / "truth.json"
     with atomic_path(sidecar) as temporary:
         temporary.write_text(json.dumps(_jsonable(truth), indent=1, allow_nan=True))
