@@ -330,3 +330,19 @@ def test_cli_bounces_with_a_drag_constant(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "--drag-constant" in error
     assert not (tmp_path / "bad.csv").exists()
+
+
+def test_a_drag_scene_is_fitted_with_a_note_that_drag_is_left_out():
+    """Until the train solvers model drag, a scene that gives mass and diameter is fitted
+    under g_eff alone, and the fit says so instead of ignoring the drag silently."""
+    from dashpot.fit import prepare_data
+
+    times = np.cumsum(np.r_[0.0, 0.3 * 0.95 ** np.arange(12)])
+    impacts = pd.DataFrame({"time": times, "time_uncertainty": np.full(times.size, 1e-5)})
+    apparatus = {"mass": 0.0027, "diameter": 0.04}
+    scene = scene_from_mapping({"apparatus": apparatus}, source="scene.yaml", base=".")
+    notes = [note for note in prepare_data(impacts, scene).notes if "air drag" in note]
+    assert len(notes) == 1 and "left out" in notes[0]
+    assert f"{scene.drag.drag_constant.value:.3g} 1/m" in notes[0]
+    plain = scene_from_mapping({"apparatus": {"mass": 0.0027}}, source="scene.yaml", base=".")
+    assert not [note for note in prepare_data(impacts, plain).notes if "drag" in note]

@@ -72,6 +72,12 @@ def prepare_data(impacts, scene):
             sigma = np.ones(times.size)
             notes.append("no timing uncertainty given: estimated from the scatter of the fit")
     g = scene.driving_acceleration
+    if scene.needs_drag:
+        # The trains the fits solve have no drag yet: say so rather than fit it silently.
+        notes.append(f"the scene gives the ball's mass and diameter, but the fits do not model "
+                     f"air drag yet: flights under g_eff = {g:.6g} m/s² alone (buoyancy and "
+                     f"added mass included, drag constant "
+                     f"{scene.drag.drag_constant.value:.3g} 1/m left out)")
     run = table["run"].to_numpy() if "run" in table else np.zeros(times.size, dtype=int)
     bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma, "run": run}),
                            g=g)
