@@ -17,6 +17,7 @@ import pytest
 import dashpot
 from dashpot.fit import fit_model, fit_scene, prepare_data
 from dashpot.ingest import read_impacts
+from dashpot.physics.models import GRAVITY_MODELS, collide
 from dashpot.scene import Known, Scene
 from dashpot.synth.scene import write_scene
 
@@ -52,29 +53,60 @@ def test_noise_free_train_gives_back_its_parameters(model):
         assert estimate.stderr > 0 or estimate.status == "fixed"
 
 
+COVERAGE_SCENE = dict(beta=5.0, omega0=500.0, v0=1.0, count=20, sigma=2e-5)
+MASS, MASS_SD = 0.01, 3e-4  # kg: the ball's true mass and the 1σ of its weighing
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("model", dashpot.MODELS)
-def test_intervals_cover_the_true_beta_at_their_stated_rates(model, capsys):
-    """100 seeded trials: a realistic audio scene (σ = 20 µs, 20 impacts, ṽ0 ≈ 51).
+def test_intervals_of_every_reported_parameter_cover_the_truth_at_their_stated_rates(
+        model, capsys):
+    """100 seeded trials: a realistic audio scene (σ = 20 µs, 20 impacts, ṽ0 ≈ 51), the mass
+    weighed with a 3 % error (drawn anew in each trial), so k = m·ω0² and γ = 2mβ are reported.
 
     With 100 trials the observed rate scatters by √(p(1−p)/100) (4.7 % at 68 %, 2.1 % at 95 %);
-    the test allows 2.5 of those.
+    the test allows 2.5 of those. Coverage alone passes intervals that are too wide at 95 %
+    (a 95.45 % interval 1.25× too wide still covers 98.7 %, inside 95.45 ± 5.2 %), so their width
+    is checked too: the mean half-width of the 68.27 % interval and the mean standard error
+    must match the spread of the estimates over the trials within [0.8, 1.25] (the sample
+    standard deviation of 100 estimates scatters by about 7 %).
     """
-    beta, trials = 5.0, 100
-    inside68 = inside95 = 0
+    beta, omega0 = COVERAGE_SCENE["beta"], COVERAGE_SCENE["omega0"]
+    truth = {"zeta": beta / omega0, "omega0": omega0, "v_star": G / omega0, "beta": beta,
+             "v0": COVERAGE_SCENE["v0"], "t0": 0.25, "k": MASS * omega0 ** 2,
+             "gamma": 2.0 * MASS * beta}
+    fields = ("value", "stderr", "low68", "high68", "low95", "high95")
+    trials = 100
+    found = {name: {field: np.zeros(trials) for field in fields} for name in truth}
     for seed in range(trials):
-        impacts = noisy_impacts(model, beta=beta, omega0=500.0, v0=1.0, count=20, sigma=2e-5,
-                                seed=seed)
-        fit = fit_model(prepare_data(impacts, Scene()), model, Scene())
+        impacts = noisy_impacts(model, seed=seed, **COVERAGE_SCENE)
+        weighed = np.random.default_rng([seed, 1]).normal(MASS, MASS_SD)
+        scene = Scene(mass=Known(weighed, MASS_SD))
+        fit = fit_model(prepare_data(impacts, scene), model, scene)
         assert fit.success, (seed, fit.message)
-        estimate = fit.estimates["beta"]
-        inside68 += estimate.low68 <= beta <= estimate.high68
-        inside95 += estimate.low95 <= beta <= estimate.high95
+        for name in truth:
+            for field in fields:
+                found[name][field][seed] = getattr(fit.estimates[name], field)
+    failures, lines = [], []
+    for name, true in truth.items():
+        row = found[name]
+        spread = np.std(row["value"], ddof=1)
+        measured = {
+            "68.27 %": np.mean((row["low68"] <= true) & (true <= row["high68"])),
+            "95.45 %": np.mean((row["low95"] <= true) & (true <= row["high95"])),
+            "half-width/spread": np.mean(row["high68"] - row["low68"]) / 2.0 / spread,
+            "stderr/spread": np.mean(row["stderr"]) / spread}
+        lines.append(f"  {name:>6}: " + ", ".join(f"{key} {value:.3f}"
+                                                   for key, value in measured.items()))
+        for key, level in (("68.27 %", 0.6827), ("95.45 %", 0.9545)):
+            if abs(measured[key] - level) > 2.5 * math.sqrt(level * (1.0 - level) / trials):
+                failures.append(f"{name} inside its {key} interval in {measured[key]:.2f}")
+        for key in ("half-width/spread", "stderr/spread"):
+            if not 0.8 <= measured[key] <= 1.25:
+                failures.append(f"{name}: {key} = {measured[key]:.3f}")
     with capsys.disabled():  # the measured rates, shown with `pytest -n 0 -s`
-        print(f"\n{model}: beta inside its 68.27 % interval in {inside68 / trials:.2f}, "
-              f"inside its 95.45 % interval in {inside95 / trials:.2f} of {trials} trials")
-    assert abs(inside68 / trials - 0.6827) <= 2.5 * math.sqrt(0.6827 * 0.3173 / trials)
-    assert abs(inside95 / trials - 0.9545) <= 2.5 * math.sqrt(0.9545 * 0.0455 / trials)
+        print(f"\n{model}, {trials} trials:\n" + "\n".join(lines))
+    assert not failures, failures
 
 
 SELECTION_SCENE = dict(beta=3.0, omega0=150.0, v0=0.8, count=12, sigma=5e-6)
@@ -106,6 +138,87 @@ def test_generating_model_wins_wherever_the_models_differ(generator):
             assert table.loc[rival, "aic"] > table.loc[generator, "aic"], (seed, rival)
         if rivals:
             assert table["akaike_weight"].idxmax() == generator
+
+
+# Soft contact (ζ = 0.04, ω0 = 150 rad/s), where gravity in contact changes ε along the train:
+# with the stiffness and mass known, as for the paper's cart, from ṽ = vω0/g = 30 down to 12;
+# with ω0 fitted, down to ṽ ≈ 1.4 near capture. With ω0 free, gravity's leading effect on ε
+# (a rebound speed lowered by a constant ∝ v*) only shifts every interval by a constant, which
+# a gravity-free model's free contact time absorbs: at ṽ 5-30 it cannot be seen there at all.
+# The timing noise puts the gravity-free models' misses at about 8-10σ (IIb changes ε less).
+OBSERVABLE = {
+    "known": dict(vtilde0=30.0, count=8, sigma={"Ib": 1e-4, "IIb": 5e-5, "hybrid": 1e-4}),
+    "fitted": dict(vtilde0=7.6, count=10, sigma={"Ib": 2e-5, "IIb": 1e-5, "hybrid": 2e-5}),
+}
+SOFT_ZETA, SOFT_OMEGA0 = 0.04, 150.0
+DECISIVE = 10.0  # ΔAIC beyond which a rival has essentially no support (Burnham & Anderson)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stiffness", sorted(OBSERVABLE))
+@pytest.mark.parametrize("generator", GRAVITY_MODELS)
+def test_gravity_model_beats_the_gravity_free_ones_where_gravity_in_contact_is_observable(
+        generator, stiffness, capsys):
+    """Where the gravity-free models miss the noise-free train by ≥ 5σ, the generating gravity
+    model beats both by ΔAIC ≥ 10 in ≥ 90 % of 30 seeded noisy trials."""
+    setting = OBSERVABLE[stiffness]
+    sigma, count = setting["sigma"][generator], setting["count"]
+    train = dict(beta=SOFT_ZETA * SOFT_OMEGA0, omega0=SOFT_OMEGA0,
+                 v0=setting["vtilde0"] * G / SOFT_OMEGA0, count=count, sigma=sigma)
+    scene = (Scene(mass=Known(MASS), stiffness=Known(MASS * SOFT_OMEGA0 ** 2))
+             if stiffness == "known" else Scene())
+    # Observable: (1) ε(v) of the generator (dashpot.physics.collide) differs from the best
+    # gravity-free fit's constant ε by ≥ 5σ of what the timing noise resolves, summed over the
+    # train; per interval that is gσ/(√2 v) (a flight 2εv/g between two impacts, σ each).
+    # (2) The best gravity-free train misses the noise-free times by χ² ≥ 25, i.e. ≥ 5σ once
+    # its other parameters have absorbed what they can (with ω0 free (1) alone overstates it).
+    sequence = dashpot.bounce_sequence(generator, beta=train["beta"], omega0=SOFT_OMEGA0, g=G,
+                                       v0=train["v0"], n_max=count)
+    clean = noisy_impacts(generator, seed=0, **train)
+    clean["time"] = 0.25 + sequence.impact_times
+    data = prepare_data(clean, scene)
+    free = min((fit_model(data, model, scene) for model in ("Ia", "IIa")),
+               key=lambda fit: fit.chisqr)
+    speeds = sequence.impact_speeds[:-1]
+    eps_generator = collide(generator, SOFT_ZETA, speeds * SOFT_OMEGA0 / G).eps
+    eps_free = collide(free.model, free.estimates["zeta"].value, 1.0).eps
+    resolved = G * sigma / (math.sqrt(2.0) * speeds)
+    assert math.sqrt(np.sum(((eps_generator - eps_free) / resolved) ** 2)) >= 5.0
+    assert free.chisqr >= 25.0
+
+    margin, winners = [], []
+    for seed in range(500, 530):
+        table = fit_scene(noisy_impacts(generator, seed=seed, **train), scene).selection
+        table = table.set_index("model")
+        margin.append(table.loc[["Ia", "IIa"], "delta_aic"].min()
+                      - table.loc[generator, "delta_aic"])
+        winners.append(table.index[table["rank"] == 1][0])
+    decisive = np.mean(np.array(margin) >= DECISIVE)
+    ranked_first = pd.Series(winners).value_counts()
+    with capsys.disabled():  # the measured rates, shown with `pytest -n 0 -s`
+        print(f"\n{generator}, stiffness {stiffness}: gravity-free miss chi2 = "
+              f"{free.chisqr:.0f}; beats Ia and IIa by dAIC >= {DECISIVE:g} in {decisive:.2f} "
+              f"of {len(margin)} trials (median {np.median(margin):.0f}); ranked first of all "
+              f"five: {', '.join(f'{model} {n}' for model, n in ranked_first.items())}")
+    assert decisive >= 0.9
+    # Ib and the hybrid can hardly be told apart here; either way a gravity model comes first.
+    assert ranked_first.reindex(GRAVITY_MODELS, fill_value=0).sum() >= 0.9 * len(winners)
+
+
+@pytest.mark.parametrize("generator, seed", [("Ib", 20009), ("hybrid", 20010)])
+def test_gravity_fit_leaves_the_local_minimum_above_the_capture_edge(generator, seed):
+    # Trains whose slowest impacts come near capture (ṽ ≈ 1.4 at ω0 = 150 rad/s): the misfit
+    # has local minima in ω0 just above where the model would capture; from the coarse start
+    # grid (ω0 ≈ 370 rad/s) the fit used to stop in one at ω0 ≈ 115-122 rad/s with χ² in the
+    # thousands or more, reported as a success.
+    train = dict(beta=SOFT_ZETA * SOFT_OMEGA0, omega0=SOFT_OMEGA0, v0=7.6 * G / SOFT_OMEGA0,
+                 count=10, sigma=2e-5)
+    impacts = noisy_impacts(generator, seed=seed, **train)
+    fit = fit_model(prepare_data(impacts, Scene()), generator, Scene())
+    assert fit.success, fit.message
+    assert fit.chisqr < 6 + 3 * math.sqrt(2 * 6)  # within 3σ of its χ² distribution (ν = 6)
+    omega0 = fit.estimates["omega0"]
+    assert abs(omega0.value - SOFT_OMEGA0) < 3 * omega0.stderr
 
 
 def test_selection_table_and_verdict():

@@ -13,6 +13,10 @@ import numpy as np
 Z68, Z95 = 1.0, 2.0  # normal quantiles of the central 68.27 % and 95.45 % intervals
 OMEGA0_RANGE = (0.1, 1e7)  # rad/s searched and allowed for ω0
 PROFILE_POINTS = 9
+# A gravity model's start grid of ω0 spans a factor GRAVITY_OMEGA0_SPREAD either side of its
+# centre in PROFILE_POINTS steps of COARSE_OMEGA0_STEP (about 4.2).
+GRAVITY_OMEGA0_SPREAD = 1e5 ** 0.5
+COARSE_OMEGA0_STEP = GRAVITY_OMEGA0_SPREAD ** (2.0 / (PROFILE_POINTS - 1))
 REJECTED = 1e12  # residual of a step outside the physical range
 INTERVAL_SEED = 20261122
 # Draws for the intervals of derived values, per level: the Monte Carlo error of a 95.45 %

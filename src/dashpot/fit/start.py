@@ -13,8 +13,8 @@ from ..physics.models import GRAVITY_MODELS, collide
 from ..physics.train import impact_trains
 from ..physics.units import _zeta_for_restitution
 from .levenberg_marquardt import _solve_normal
-from .settings import (FAST_PROFILE_ITERATIONS, OMEGA0_RANGE, PROFILE_POINTS, ZETA_ELASTIC_GRID,
-                       ZETA_START_GRID)
+from .settings import (FAST_PROFILE_ITERATIONS, GRAVITY_OMEGA0_SPREAD, OMEGA0_RANGE,
+                       PROFILE_POINTS, ZETA_ELASTIC_GRID, ZETA_START_GRID)
 from .trains import _restitution, _train_times
 
 
@@ -127,7 +127,7 @@ def _zeta_on_grid(model, eps, vtilde, trains_solver, grid=None):
 
 
 def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
-                  trains_solver=impact_trains, level="exact"):
+                  trains_solver=impact_trains, level="exact", omega0_spread=1.0):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -137,6 +137,8 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     give T_n = εT_{n−1} + τ(1 − ε), a straight line whose intercept gives τ and so the grid's
     centre. The fast level finds ζ on a grid
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
+    With `known_omega0` the grid is that one value, or with `omega0_spread` > 1 the grid from
+    `known_omega0` / `omega0_spread` to `known_omega0` · `omega0_spread` (rad/s).
     """
     if level == "fast":
         zeta_for = functools.partial(_zeta_on_grid, trains_solver=trains_solver)
@@ -160,11 +162,11 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
         # Rebound speed after the first impact from its flight, g·T/2, divided by ε.
         v0 = 0.5 * g * intervals[0] / eps
     if known_omega0 is not None:
-        centre, spread = known_omega0, 1.0
+        centre, spread = known_omega0, omega0_spread
     elif model in GRAVITY_MODELS:
         # Gravity matters from the capture speed (ṽ ~ 1) up to ṽ ~ 1e5 at the slowest impact.
         slowest = 0.5 * g * intervals[-1]
-        centre, spread = math.sqrt(1e5) * g / slowest, math.sqrt(1e5)
+        centre, spread = GRAVITY_OMEGA0_SPREAD * g / slowest, GRAVITY_OMEGA0_SPREAD
     else:
         if intervals.size >= 3:
             slope, intercept = np.polyfit(intervals[:-1], intervals[1:], 1)
