@@ -1,6 +1,7 @@
 """One contact model fitted to one scene's impacts: known quantities fixed or as priors, start
-values, the level's optimizer, a restart from the gravity-free limit, estimates with their
-intervals by the requested uncertainty methods, and a failed fit kept with its reason.
+values, the level's optimizer, restarts (from the gravity-free limit after a capture, from a
+finer grid of ω0 after a misfit), estimates with their intervals by the requested
+uncertainty methods, and a failed fit kept with its reason.
 
 References
 ----------
