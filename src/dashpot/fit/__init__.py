@@ -61,6 +61,7 @@ from .accuracy import choose_accuracy
 from .data import prepare_data
 from .levenberg_marquardt import _levenberg_marquardt  # noqa: F401 (used by the tests)
 from .model_fit import fit_model
+from .noise_fit import NoiseFitResult, fit_noise_model, fit_noise_models  # noqa: F401
 from .results import Estimate, FitData, FitResult, SceneFit
 from .scene_fit import fit_scene
 from .settings import (ACCURACY_LEVELS, FAST_STEP_SE, PARAMETERS,  # noqa: F401
