@@ -35,7 +35,7 @@ def test_writes_the_scene_file_figures_and_a_summary(table_scene, tmp_path):
             assert (out / "my-ball" / f"{name}.{ext}").stat().st_size > 0
     assert not (out / "my-ball" / "detection.png").exists()  # not a sound recording
     assert "β = " in printed and "k = " in printed and "ε " in printed
-    assert "preferred:" in printed
+    assert "selection:" in printed
     assert not list(out.rglob("*.partial")) and not list(out.rglob(".*"))
 
 

@@ -220,7 +220,7 @@ def _print_summary(recording, impacts, scene_fit, h5, figures):
         if eps.size:
             parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
         print(f"  {model:>6}: " + ", ".join(parts))
-    print(f"  preferred: {scene_fit.verdict}")
+    print(f"  selection: {scene_fit.verdict}")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -142,9 +142,19 @@ def scene_figures(record):
         "restitution": plots.restitution_speed_figure(speed, eps, _finite_or_none(speed_sigma),
                                                       _finite_or_none(eps_sigma),
                                                       _eps_curves(record)),
-        "selection": plots.selection_figure(selection["model"].tolist(), weights,
-                                            selection["delta_aic"].to_numpy(float)),
+        "selection": _selection_figure(selection, weights),
     }
+
+
+def _selection_figure(selection, weights):
+    """The selection figure on ΔQAIC where the models share a misfit (files written before
+    ΔQAIC was stored show ΔAIC)."""
+    delta_aic = selection["delta_aic"].to_numpy(float)
+    delta = (selection["delta_qaic"].to_numpy(float) if "delta_qaic" in selection
+             else delta_aic)
+    scaled = bool(np.any(np.isfinite(delta) & (delta != delta_aic)))
+    return plots.selection_figure(selection["model"].tolist(), weights, delta,
+                                  criterion="QAIC" if scaled else "AIC")
 
 
 def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000):

@@ -701,18 +701,21 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     return fig
 
 
-def selection_figure(models, akaike_weights, delta_aic):
-    """Akaike weight of each model as a bar, with its ΔAIC written above it.
+def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC"):
+    """Akaike weight of each model as a bar, with its ΔAIC (or ΔQAIC) written above it.
 
     Parameters
     ----------
     models : sequence of str
         Model names, in the order to show.
     akaike_weights : array_like
-        Akaike weight w_i = exp(−ΔAIC_i/2)/Σ_j exp(−ΔAIC_j/2) of each model (dimensionless,
+        Akaike weight w_i = exp(−Δ_i/2)/Σ_j exp(−Δ_j/2) of each model (dimensionless,
         0 to 1). NaN for a failed fit: no bar, "fit failed" written instead.
     delta_aic : array_like
-        AIC_i − min AIC of each model (dimensionless).
+        Δ_i, the criterion of each model less the smallest (dimensionless).
+    criterion : {"AIC", "QAIC"}, default "AIC"
+        What Δ and the weights were computed from: "QAIC" where the models share a misfit
+        and ΔAIC was divided by the best model's reduced χ² (:mod:`dashpot.select`).
 
     Returns
     -------
@@ -736,9 +739,9 @@ def selection_figure(models, akaike_weights, delta_aic):
         if not good:
             text = "fit failed"
         elif np.isfinite(d):
-            text = rf"$\Delta$AIC = {d:.1f}" f"\nw = {weight:.2f}"
+            text = rf"$\Delta${criterion} = {d:.1f}" f"\nw = {weight:.2f}"
         else:
-            text = r"$\Delta$AIC = ∞" f"\nw = {weight:.2f}"
+            text = rf"$\Delta${criterion} = ∞" f"\nw = {weight:.2f}"
         ax.annotate(text, xy=(bar.get_x() + bar.get_width() / 2, bar.get_height()),
                     xytext=(0, 3), textcoords="offset points", ha="center", va="bottom",
                     fontsize="small")
@@ -747,7 +750,9 @@ def selection_figure(models, akaike_weights, delta_aic):
     ax.set_xlim(-0.6, len(models) - 0.4)
     ax.set_xlabel("contact model")
     ax.set_ylabel("Akaike weight (dimensionless)")
-    ax.set_title("Model selection: Akaike weights")
+    ax.set_title("Model selection: Akaike weights" + (
+        "\non the misfit's scale (QAIC): no model describes the data" if criterion == "QAIC"
+        else ""))
     ax.grid(axis="y", alpha=0.3)
     return fig
 

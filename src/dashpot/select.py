@@ -3,8 +3,10 @@
 References
 ----------
 .. [1] K. P. Burnham and D. R. Anderson, *Model Selection and Multimodel Inference*, 2nd ed.,
-   Springer (2002): Akaike weights w_i = exp(−Δ_i/2)/Σ exp(−Δ_j/2) (sec. 2.9) and the rule of
-   thumb Δ < 2 substantial support, 4–7 considerably less, > 10 essentially none (sec. 2.6).
+   Springer (2002): Akaike weights w_i = exp(−Δ_i/2)/Σ exp(−Δ_j/2) (sec. 2.9), the rule of
+   thumb Δ < 2 substantial support, 4–7 considerably less, > 10 essentially none (sec. 2.6),
+   and QAIC = χ²/ĉ + 2K for data scattered ĉ times more than their stated errors allow
+   (sec. 2.5), so that ΔQAIC = ΔAIC/ĉ between models with the same number of parameters.
 """
 
 from __future__ import annotations
@@ -17,26 +19,42 @@ import pandas as pd
 __all__ = ["selection_table", "summary_table", "SELECTION_COLUMNS"]
 
 SELECTION_COLUMNS = ("model", "success", "nvarys", "ndata", "chisqr", "redchi", "aic", "bic",
-                     "delta_aic", "delta_bic", "akaike_weight", "rank")
+                     "delta_aic", "delta_bic", "delta_qaic", "akaike_weight", "rank")
 
 
-def _verdict(rows, sigma_known):
+def _misfit_scale(rows, sigma_known):
+    """ĉ, the factor by which the best model's χ² exceeds what the stated errors allow, or 1.
+
+    ĉ is the best model's reduced χ² when the timing errors are known and its χ² lies beyond
+    3σ of its χ² distribution (ν + 3√(2ν)); otherwise 1 (the errors are fitted, or the fit
+    describes the data) [1]_.
+    """
+    usable = np.flatnonzero(rows["success"])
+    if not sigma_known or usable.size == 0:
+        return 1.0
+    best = usable[np.argmin(rows["aic"][usable])]
+    dof = max(int(rows["ndata"][best] - rows["nvarys"][best]), 1)
+    redchi = float(rows["redchi"][best])
+    return redchi if redchi * dof > dof + 3.0 * math.sqrt(2.0 * dof) else 1.0
+
+
+def _verdict(rows, c_hat):
     """Plain-words reading of a selection table (Burnham & Anderson's thresholds [1]_).
 
-    `rows` are the table's columns as arrays (dict), in the table's order.
+    `rows` are the table's columns as arrays (dict), in the table's order; `c_hat` the misfit
+    scale of :func:`_misfit_scale`. Where the best model misfits (ĉ > 1) the reading is on
+    ΔQAIC and never calls a model preferred: the data say which model misfits least, not
+    which describes them.
     """
     usable = np.flatnonzero(rows["success"])
     if usable.size == 0:
         return "no model could be fitted to these data"
     usable = usable[np.argsort(rows["aic"][usable], kind="stable")]
-    verdict = _preference(rows, usable)
-    best = usable[0]
-    dof = max(int(rows["ndata"][best] - rows["nvarys"][best]), 1)
-    redchi = rows["redchi"][best]
-    if sigma_known and redchi * dof > dof + 3.0 * math.sqrt(2.0 * dof):
-        verdict += (f"; but none describes the data within their uncertainties (best reduced "
-                    f"chi-square {redchi:.3g}): effects the models leave out dominate")
-    return verdict
+    if c_hat == 1.0:
+        return _preference(rows, usable)
+    return (f"not selectable: none describes the data within their uncertainties (best "
+            f"reduced chi-square {c_hat:.3g}): effects the models leave out dominate; on the "
+            f"scale of that misfit (QAIC) {_least_misfit(rows, usable)}")
 
 
 def _preference(rows, usable):
@@ -62,6 +80,20 @@ def _preference(rows, usable):
             f"(ΔAIC = {gap:.1f})")
 
 
+def _least_misfit(rows, usable):
+    """Which model misfits least on the QAIC scale (`usable`: fitted rows, best first)."""
+    model, delta = rows["model"], rows["delta_qaic"]
+    best = usable[0]
+    if usable.size == 1:
+        return f"only {model[best]} could be fitted"
+    close = [model[i] for i in usable if delta[i] < 2]
+    if len(close) > 1:
+        return f"the data do not distinguish {', '.join(close)} (ΔQAIC < 2)"
+    runner = usable[1]
+    return (f"{model[best]} misfits least (next {model[runner]} has "
+            f"ΔQAIC = {delta[runner]:.1f})")
+
+
 def selection_table(results, *, sigma_known=True):
     """ΔAIC, ΔBIC and Akaike weights of the models fitted to one scene.
 
@@ -76,7 +108,10 @@ def selection_table(results, *, sigma_known=True):
     -------
     table : pandas.DataFrame
         One row per model, columns ``SELECTION_COLUMNS``; failed fits have ΔAIC = inf,
-        weight 0 and no rank (0).
+        weight 0 and no rank (0). ``delta_qaic`` is ΔAIC/ĉ, where ĉ is the best model's
+        reduced χ² if the timing errors are known and that χ² lies beyond 3σ of its
+        distribution, else 1 (then ΔQAIC = ΔAIC); the Akaike weights are computed from it, so
+        a misfit the models share does not make one of them look certain [1]_.
     verdict : str
         Plain-words reading of the table.
     """
@@ -95,8 +130,10 @@ def selection_table(results, *, sigma_known=True):
         rows[criterion] = values
         with np.errstate(invalid="ignore"):  # inf − inf where no model was fitted
             rows[f"delta_{criterion}"] = np.where(finite, values - best, math.inf)
-    finite = np.isfinite(rows["delta_aic"])
-    relative = np.where(finite, np.exp(-0.5 * np.where(finite, rows["delta_aic"], 0.0)), 0.0)
+    c_hat = _misfit_scale(rows, sigma_known)
+    rows["delta_qaic"] = rows["delta_aic"] / c_hat
+    finite = np.isfinite(rows["delta_qaic"])
+    relative = np.where(finite, np.exp(-0.5 * np.where(finite, rows["delta_qaic"], 0.0)), 0.0)
     total = relative.sum()
     rows["akaike_weight"] = relative / total if total > 0 else np.zeros(len(fits))
     # Rank 1 = lowest AIC (ties in the table's order); failed fits 0.
@@ -105,7 +142,7 @@ def selection_table(results, *, sigma_known=True):
     rank[order] = np.arange(1, len(fits) + 1)
     rows["rank"] = np.where(np.isfinite(rows["aic"]), rank, 0)
     table = pd.DataFrame({name: rows[name] for name in SELECTION_COLUMNS})
-    return table, _verdict(rows, sigma_known)
+    return table, _verdict(rows, c_hat)
 
 
 def summary_table(scene_fits):

@@ -36,7 +36,7 @@ BOUNCE_UNITS = {"run": "1", "bounce": "1", "start_time": "s", "interval": "s",
                 "rebound_speed_uncertainty": "m/s", "restitution": "1",
                 "restitution_uncertainty": "1", "flag": "1", "restitution_flag": "1"}
 SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "chisqr": "1",
-                   "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1",
+                   "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1", "delta_qaic": "1",
                    "akaike_weight": "1", "rank": "1"}
 SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
