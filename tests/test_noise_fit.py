@@ -129,6 +129,22 @@ def test_hybrid_dashpot_with_scatter():
     assert result.estimates["beta"].status == "derived"
 
 
+def test_a_dashpot_model_where_gravity_in_contact_is_unseen():
+    """v* = 1e-5 m/s (ω0 ≈ 1e6 rad/s): gravity's effect on ε, about v*/v ≈ 1e-5, is far
+    below the scatter. v* is then bounded above only, down to the gravity-free limit, and
+    ω0 bounded below only; ζ is still determined."""
+    zeta = 0.015
+    result = fit_noise_model(simulated_data("hybrid", (zeta, 1e-5), seed=6101)[0], "hybrid")
+    assert result.success
+    v_star, omega0 = result.estimates["v_star"], result.estimates["omega0"]
+    assert v_star.low95 == LAWS["hybrid"].parameters[1].lower  # the bound: not excluded
+    assert v_star.high95 < 0.1  # ...but the data bound it above
+    assert omega0.low95 == pytest.approx(G / v_star.high95)
+    assert omega0.high95 == pytest.approx(G / v_star.low95)
+    assert_covers(result.estimates["zeta"], zeta)
+    assert_covers(result.estimates["sigma_eps"], SCATTER)
+
+
 def test_an_outlying_impact_is_flagged_and_kept():
     data = simulated_data("constant", (0.93,), seed=2718)[0]
     times = data.times.copy()

@@ -32,8 +32,11 @@ at a time (Nelder–Mead: hundreds to thousands of calls), so the minimization i
 method with central-difference gradient and Hessian, all the stencil's points in one batch, and
 several starts of the noise parameters at once (from one start a fit can stop where σ_t → 0,
 on the flat part of the likelihood); lmfit Parameters carry the names, bounds, values and
-errors of the result (``NoiseFitResult.params``), as in the other fits. Coordinates are rescaled every iteration to the current standard errors, so one step
-size fits laws whose parameters differ by orders of magnitude. σ_ε is fitted as ln σ_ε, and
+errors of the result (``NoiseFitResult.params``), as in the other fits. Coordinates are
+rescaled every iteration to the current standard errors, so one step size fits laws whose
+parameters differ by orders of magnitude; a law's parameter the data do not determine (no
+curvature: v* near the gravity-free limit) is left out of the covariance and gets its
+interval from its profile alone, followed out to its bounds. σ_ε is fitted as ln σ_ε, and
 again with σ_ε = 0 exactly (the deterministic train, a fit of its own): where that is as good,
 σ_ε is reported at 0 with a note. Trains of several data sets are fitted in one batch
 (:func:`fit_noise_models`), which is what makes coverage checks by simulation cheap.
@@ -99,6 +102,7 @@ STEP = 0.02  # finite-difference step in standard errors
 NEWTON_ITERATIONS, PROFILE_ITERATIONS = 80, 40
 CONVERGED = 1e-6  # in −2 ln L: a Newton step predicted to gain less than this ends the fit
 FAR = 50.0  # −2 ln L this far above the best fit is outside every interval reported
+SOFT_UNIT_MAX = 3.0  # largest unit of ln σ: a flat direction must not send the steps afar
 # Profile grid, in standard errors of the profiled coordinate either side of the best fit.
 PROFILE_OFFSETS = np.array([0.75, 1.5, 2.25, 3.0, 4.5])
 # Profile grids of a noise parameter at (or near) 0, where its curvature says nothing.
@@ -225,6 +229,16 @@ class _Problem:
         bounds += [(0.0, math.inf), (math.log(SIGMA_EPS_FLOOR), math.log(0.5)),
                    (math.log(SIGMA_J_FLOOR), 0.0)]
         self.lower, self.upper = (np.array(b, float) for b in zip(*bounds))
+        # Columns whose bounds limit the steps only (the objective is defined beyond them).
+        self.soft = (self.index("sigma_eps"), self.index("sigma_j"))
+        # Steps and starts keep a margin inside the law's and v0's bounds, so that the
+        # difference stencil around them is inside too: 1e-3 of a positive lower bound (v* of
+        # the dashpot models, on a log-like scale), else 1e-9 of the span.
+        span = np.where(np.isfinite(self.upper - self.lower), self.upper - self.lower, 0.0)
+        margin = np.where(self.lower > 0.0, 1e-3 * self.lower, 1e-9 * span)
+        soft = np.isin(np.arange(len(self.names)), self.soft)
+        self.step_lower = np.where(soft, self.lower, self.lower + margin)
+        self.step_upper = np.where(soft, self.upper, self.upper - 1e-9 * span)
 
     # --- layout ---------------------------------------------------------------------------
 
@@ -406,8 +420,10 @@ class _Problem:
             for i, value in zip(varied_noise, values):
                 starts[:, k, i] = math.log(value)
         free = self.free()
+        starts[..., free] = np.clip(starts[..., free], self.step_lower[free],
+                                    self.step_upper[free])
         fits = _newton(self.objective, starts, free, self.units(starts)[..., free], trains,
-                       self.lower, self.upper, NEWTON_ITERATIONS)
+                       self.step_lower, self.step_upper, NEWTON_ITERATIONS, soft=self.soft)
         best = _pick(fits, trains, np.argmin(fits.value, axis=1))
         # The deterministic train (σ_ε = 0 exactly), started from the best fit.
         zero = None
@@ -416,8 +432,9 @@ class _Problem:
             start[:, i_eps] = -math.inf
             columns = [free.index(f) for f in free if f != i_eps]
             zero = _newton(self.objective, start[:, None, :], self.free("sigma_eps"),
-                           best.units[:, None, columns], trains, self.lower, self.upper,
-                           NEWTON_ITERATIONS, reference=best.value)
+                           best.units[:, None, columns], trains, self.step_lower,
+                           self.step_upper, NEWTON_ITERATIONS, reference=best.value,
+                           soft=self.soft)
             zero = _pick(zero, trains, np.zeros(trains.size, int))
         profiles = self.profiles(best, zero, trains) if profile else {}
         # Likelihood evaluations per train (each batch row is one).
@@ -440,15 +457,22 @@ class _Problem:
             (trains,) or None)}.
         """
         out = {}
-        covariance = best.covariance
         free = self.free()
+        covariance = np.stack([self.covariance(best.hessian[t], best.params[t], free)[0]
+                               for t in range(trains.size)])
         for name in self.profiled_names():
             i = self.index(name)
             k = free.index(i)
             sd = np.sqrt(np.maximum(covariance[:, k, k], 0.0))
             centre = best.params[:, i]
             offsets = np.concatenate([-PROFILE_OFFSETS[::-1], PROFILE_OFFSETS])
-            grid = centre[:, None] + offsets[None, :] * sd[:, None]
+            with np.errstate(invalid="ignore"):
+                grid = centre[:, None] + offsets[None, :] * sd[:, None]
+            undetermined = ~np.isfinite(sd)
+            if undetermined.any() and name not in ("sigma_eps", "sigma_j"):
+                # No curvature: the profile is followed out to the law's bounds.
+                grid[undetermined] = _span(centre[undetermined], self.lower[i],
+                                           self.upper[i], PROFILE_OFFSETS.size)
             if name in ("sigma_eps", "sigma_j"):
                 # At (or near) σ = 0 the curvature in ln σ says nothing: a fixed grid.
                 floor = SIGMA_EPS_FLOOR if name == "sigma_eps" else SIGMA_J_FLOOR
@@ -463,8 +487,9 @@ class _Problem:
             # The others start at their conditional optimum given the fit's covariance,
             # Δothers = Σ_oi/Σ_ii·Δp, and after that along the path found so far.
             with np.errstate(invalid="ignore", divide="ignore"):
-                slope = np.nan_to_num(covariance[:, [free.index(f) for f in others], k]
-                                      / covariance[:, k, k, None])
+                slope = covariance[:, [free.index(f) for f in others], k] / covariance[
+                    :, k, k, None]
+            slope = np.where(np.isfinite(slope), slope, 0.0)
             if name in ("sigma_eps", "sigma_j"):
                 # The noise parameters' profiles are smooth: every point at once.
                 fitted = self._profile_points(best.params[:, None, :], grid, i, others,
@@ -541,10 +566,12 @@ class _Problem:
         start = np.array(np.broadcast_to(previous, targets.shape + previous.shape[-1:]))
         shift = targets - start[..., i]
         start[..., others] += path * shift[..., None]
-        start[..., others] = np.clip(start[..., others], self.lower[others], self.upper[others])
+        start[..., others] = np.clip(start[..., others], self.step_lower[others],
+                                     self.step_upper[others])
         start[..., i] = targets
-        return _newton(self.objective, start, others, units[:, None, :], trains, self.lower,
-                       self.upper, PROFILE_ITERATIONS, reference=reference)
+        return _newton(self.objective, start, others, units[:, None, :], trains,
+                       self.step_lower, self.step_upper, PROFILE_ITERATIONS,
+                       reference=reference, soft=self.soft)
 
     def result(self, t, best, zero, profiles, evaluations):
         data = self.datasets[t]
@@ -576,20 +603,12 @@ class _Problem:
         if outliers.size:
             notes.append(f"{outliers.size} innovation(s) with |z| > {OUTLIER_Z:g} at impact(s) "
                          f"{', '.join(map(str, outliers))} (kept in the fit)")
-        # Covariance 2H⁻¹ of the parameters not at a floor: a noise parameter at its floor
-        # has no curvature in ln σ (its interval comes from its profile alone).
-        floors = {i_eps: SIGMA_EPS_FLOOR, self.index("sigma_j"): SIGMA_J_FLOOR}
-        at_floor = {f for f in fit_free if f in floors
-                    and params_row[f] <= math.log(floors[f]) + 1.0}
-        keep = [k for k, f in enumerate(fit_free) if f not in at_floor]
-        block = fit.hessian[t][np.ix_(keep, keep)]
-        hessian_ok = bool(np.all(np.isfinite(block))
-                          and np.all(np.linalg.eigvalsh(block) > 0)) if keep else True
-        cov = 2.0 * np.linalg.inv(block) if hessian_ok and keep else np.full(
-            (len(keep), len(keep)), np.inf)
-        if not hessian_ok:
-            notes.append("the Hessian is not positive definite at the best fit: errors from it "
-                         "reported as infinite")
+        full, keep, dropped = self.covariance(fit.hessian[t], params_row, fit_free)
+        cov = full[np.ix_(keep, keep)]
+        hessian_ok = bool(keep) or not fit_free
+        for f in dropped:
+            notes.append(f"{self.names[f]}: no curvature of the likelihood at the best fit, not "
+                         f"determined by these data (its interval from the profile alone)")
         sd = np.sqrt(np.abs(np.diag(cov)))
         sd_of = {self.names[fit_free[k]]: float(s) for k, s in zip(keep, sd)}
         estimates = {}
@@ -689,6 +708,42 @@ class _Problem:
             neg2_log_likelihood=value, params=params, outliers=outliers,
             timing_sigma=timing_sigma)
 
+    def covariance(self, hessian, row, free):
+        """Covariance 2H⁻¹ of the parameters the data determine, from −2 ln L's Hessian in
+        the `free` columns (natural coordinates) at parameter row `row`.
+
+        A noise parameter at its floor has no curvature in ln σ; a law's parameter may have
+        none where the data do not see it (v* of a dashpot model near the gravity-free
+        limit). Those are left out, the least curved first (in units of its own value or
+        step), until the rest has a positive-definite Hessian; their rows and columns are
+        inf (their intervals come from their profiles).
+
+        Returns
+        -------
+        covariance : ndarray, shape (free, free)
+        keep : list of int
+            Positions in `free` of the parameters kept.
+        dropped : list of int
+            Columns (parameter indices) left out other than noise parameters at their floor.
+        """
+        floors = {self.index("sigma_eps"): SIGMA_EPS_FLOOR, self.index("sigma_j"): SIGMA_J_FLOOR}
+        keep = [k for k, f in enumerate(free)
+                if not (f in floors and row[f] <= math.log(floors[f]) + 1.0)]
+        dropped = []
+        # Curvature per squared unit of each parameter's own scale: comparable across them.
+        scale = np.array([abs(row[f]) if f < self.index("sigma_eps") and row[f] != 0.0
+                          else 1.0 for f in free])
+        while keep:
+            block = hessian[np.ix_(keep, keep)]
+            if np.all(np.isfinite(block)) and np.all(np.linalg.eigvalsh(block) > 0):
+                break
+            curvature = np.nan_to_num(np.diag(block) * scale[keep] ** 2, nan=-np.inf)
+            dropped.append(free[keep.pop(int(np.argmin(curvature)))])
+        covariance = np.full((len(free), len(free)), np.inf)
+        if keep:
+            covariance[np.ix_(keep, keep)] = 2.0 * np.linalg.inv(hessian[np.ix_(keep, keep)])
+        return covariance, keep, dropped
+
     def profile_interval(self, name, t, profile, at_zero):
         """68.27 % and 95.45 % bounds from a profile: where the signed root of the rise
         crosses ±1 and ±2, interpolated linearly between grid points.
@@ -732,25 +787,41 @@ class _Problem:
         lower, upper = self.lower[self.index(name)], self.upper[self.index(name)]
         return tuple(float(np.clip(b, lower, upper)) for b in (low68, high68, low95, high95))
 
-    def derived(self, estimates, row, cov, free):
-        """ω0 = g/v* and β = ζω0 of a dashpot model, by linear propagation."""
+    def derived(self, estimates, row, cov, kept):
+        """ω0 = g/v* and β = ζω0 of a dashpot model.
+
+        ω0's intervals are v*'s mapped through g/v* (a monotone map keeps a profile
+        likelihood's intervals); its standard error and β's by linear propagation from the
+        covariance of the determined parameters `kept`. A fitted ζ or v* the data do not
+        determine makes them inf (β's intervals [0, inf]).
+        """
         zeta, v_star = row[0], row[1]
         omega0 = self.g / v_star
-        gradient_omega = np.zeros(len(free))
-        gradient_beta = np.zeros(len(free))
-        if 1 in free:
-            gradient_omega[free.index(1)] = -omega0 / v_star
-            gradient_beta[free.index(1)] = -zeta * omega0 / v_star
-        if 0 in free:
-            gradient_beta[free.index(0)] = omega0
-        for name, value, gradient, unit, note in (
-                ("omega0", omega0, gradient_omega, "rad/s", "omega0 = g/v_star"),
-                ("beta", zeta * omega0, gradient_beta, "1/s", "beta = zeta * omega0")):
-            variance = gradient @ cov @ gradient
-            sd = math.sqrt(variance) if np.isfinite(variance) and variance >= 0 else math.inf
-            estimates[name] = Estimate(value, sd, value - Z68 * sd, value + Z68 * sd,
-                                       value - Z95 * sd, value + Z95 * sd, unit, "derived",
-                                       note + " (linear propagation)")
+        undetermined = [i for i in (0, 1) if self.names[i] not in self.fixed and i not in kept]
+        gradients = {"omega0": np.zeros(len(kept)), "beta": np.zeros(len(kept))}
+        if 1 in kept:
+            gradients["omega0"][kept.index(1)] = -omega0 / v_star
+            gradients["beta"][kept.index(1)] = -zeta * omega0 / v_star
+        if 0 in kept:
+            gradients["beta"][kept.index(0)] = omega0
+        sd = {}
+        for name, gradient in gradients.items():
+            variance = gradient @ cov @ gradient if np.all(np.isfinite(cov)) else math.inf
+            sd[name] = (math.sqrt(variance) if np.isfinite(variance) and variance >= 0
+                        and not (undetermined if name == "beta" else 1 in undetermined)
+                        else math.inf)
+        star = estimates["v_star"]
+        with np.errstate(divide="ignore"):
+            bounds = [float(self.g / np.float64(v)) if v > 0 else math.inf
+                      for v in (star.high68, star.low68, star.high95, star.low95)]
+        estimates["omega0"] = Estimate(omega0, sd["omega0"], *bounds, "rad/s", "derived",
+                                       "omega0 = g/v_star (intervals from v_star's)")
+        beta, spread = zeta * omega0, sd["beta"]
+        low = (lambda z: max(beta - z * spread, 0.0)) if math.isfinite(spread) else (
+            lambda z: 0.0)
+        estimates["beta"] = Estimate(beta, spread, low(Z68), beta + Z68 * spread, low(Z95),
+                                     beta + Z95 * spread, "1/s", "derived",
+                                     "beta = zeta * omega0 (linear propagation)")
 
     def failed(self, t, message, notes):
         data = self.datasets[t]
@@ -765,6 +836,19 @@ class _Problem:
                        "contact_durations": nothing, "at_data": empty},
             eps_curve={"speed": nothing, "eps": nothing, "captured": np.zeros(0, bool)},
             notes=notes + [message], numerical_tolerance=math.nan, error_bound=math.nan)
+
+
+def _span(centre, lower, upper, count):
+    """Grids (rows, 2·count) from each centre out to both bounds, sorted, centre excluded:
+    geometric where the bounds are positive, else linear."""
+    fractions = np.arange(1, count + 1) / count
+    out = []
+    for bound in (lower, upper):
+        if lower > 0.0:
+            out.append(centre[:, None] * (bound / centre[:, None]) ** fractions)
+        else:
+            out.append(centre[:, None] + (bound - centre[:, None]) * fractions)
+    return np.concatenate([out[0][:, ::-1], out[1]], axis=1)
 
 
 def _crossing(xs, roots, level, side):
@@ -822,7 +906,8 @@ def _derivatives(values, count, pairs):
     return centre, gradient, hessian
 
 
-def _newton(objective, start, free, units, trains, lower, upper, iterations, reference=None):
+def _newton(objective, start, free, units, trains, lower, upper, iterations, reference=None,
+            soft=()):
     """Minimize `objective` over the `free` columns for every (train, start) row at once.
 
     Damped Newton steps (H + λ·diag|H|) with central differences, all rows' stencils in one
@@ -847,6 +932,10 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
         −2 ln L of each train's best fit: a row far above it (a constrained fit that misses,
         such as σ_ε = 0 on a scattered train) needs less precision, CONVERGED plus 1e-3 of
         its excess.
+    soft : sequence of int
+        Columns whose bounds limit the steps but not the objective (ln σ). The others' units
+        are kept small enough for the stencil to stay inside their bounds; the soft ones' at
+        most SOFT_UNIT_MAX.
 
     Returns
     -------
@@ -860,6 +949,16 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
     damping = np.ones(shape)
     evaluations = 0
     low, high = lower[free], upper[free]
+    hard = np.array([f not in soft for f in free])
+
+    def capped(units, params):
+        """Units with which the stencil (±STEP units) stays inside hard bounds."""
+        inside = np.minimum(params[..., free] - low, high - params[..., free])
+        limit = np.maximum(inside, 1e-12 * np.maximum(np.abs(params[..., free]), 1.0)) / (
+            2.0 * STEP)
+        return np.where(hard, np.minimum(units, limit), np.minimum(units, SOFT_UNIT_MAX))
+
+    units = capped(units, params)
 
     def evaluate(params, units):
         """Objective at the stencil's points around every row: (trains, starts, points)."""
@@ -904,7 +1003,7 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             marginal = np.diagonal(np.linalg.inv(np.where(definite[..., None, None], safe,
                                                           np.eye(count))), axis1=-2, axis2=-1)
             factor = np.where(definite[..., None], np.sqrt(2.0 * np.abs(marginal)), factor)
-            units = units * np.clip(factor, 0.01, 100.0)
+            units = capped(units * np.clip(factor, 0.01, 100.0), params)
             # Done where no step gains more than the tolerance, or no step is accepted at all.
             tolerance = CONVERGED if reference is None else CONVERGED + 1e-3 * np.maximum(
                 centre - reference[:, None], 0.0)
