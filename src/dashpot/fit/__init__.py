@@ -32,6 +32,8 @@ others):
 ``identifiability``        notes where the data do not determine a parameter
 ``model_fit``              :func:`fit_model`: one model fitted to one scene
 ``scene_fit``              :func:`fit_scene`: every model fitted, and the selection table
+``noise_fit``              a law or model fitted under bounce-to-bounce scatter and timing
+                           jitter (:mod:`dashpot.likelihood`); not yet used by ``fit_scene``
 =========================  ===================================================================
 
 References
