@@ -16,8 +16,10 @@ def table_scene(tmp_path_factory):
     folder = tmp_path_factory.mktemp("analyze") / "ball"
     recording = write_scene(folder, "timestamps", seed=3, uncertainty=2e-5, **BALL)
     scene = folder / "scene.yaml"
+    # Ten bounces do not determine ω0 = 3000 rad/s; the contact time (π/ω0 ≈ 1 ms) does.
     scene.write_text("name: my-ball\nsensor: timestamps\nmodels: [IIb, hybrid]\n"
-                     "apparatus: {mass: {value: 0.0027, uncertainty: 0.0001}}\n")
+                     "apparatus: {mass: {value: 0.0027, uncertainty: 0.0001},\n"
+                     "            contact_time: {value: 0.001, uncertainty: 0.0003}}\n")
     return recording, scene
 
 

@@ -36,7 +36,8 @@ def test_fit_writes_the_file_and_prints_the_verdict(fitted):
     assert list(stored["selection"]["model"]) == ["Ia", "IIb"]
     assert set(stored["fits"]) == {"Ia", "IIb"}
     verdict = stored["attrs"]["verdict"]
-    lines = fitted["out"].splitlines()
+    lines = [line for line in fitted["out"].splitlines()
+             if not line.startswith("  note: ")]  # the data notes, tested elsewhere
     assert lines[0] == f"{fitted['table']}: 15 impacts; {verdict} -> {fitted['output']}"
     assert [line.split(":")[0].strip() for line in lines[1:]] == ["Ia", "IIb"]
     # Each model's line reports the stored fit (the quality of the fit is tested elsewhere).

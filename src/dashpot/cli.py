@@ -99,8 +99,10 @@ def _fit(args):
     _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes])
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")
-        state = (f"beta = {beta.value:.4g} ± {beta.stderr:.2g} 1/s" if fit.success and beta
-                 else f"failed: {fit.message}")
+        if fit.success and beta:
+            state = _contact_text(fit.estimates, "beta", "beta", "1/s")
+        else:
+            state = f"failed: {fit.message}"
         print(f"  {model:>6}: {state}")
 
 
@@ -200,6 +202,18 @@ def _print_notes(notes):
             print(f"  note: {note}")
 
 
+def _contact_text(estimates, key, label, unit):
+    """'β = value ± error unit', or 'β not determined (reason)' where the data do not
+    determine ω0 (:func:`dashpot.fit.observability.not_determined`)."""
+    from .fit.observability import not_determined
+
+    reason = not_determined(estimates).get(key)
+    if reason:
+        return f"{label} {reason}"
+    estimate = estimates[key]
+    return f"{label} = {estimate.value:.4g} ± {estimate.stderr:.2g} {unit}"
+
+
 def _print_summary(recording, impacts, scene_fit, h5, figures):
     """β, k and the ε range per model, and the preferred model, in a few lines."""
     import numpy as np
@@ -209,12 +223,9 @@ def _print_summary(recording, impacts, scene_fit, h5, figures):
         if not fit.success:
             print(f"  {model:>6}: failed: {fit.message}")
             continue
-        parts = []
-        for key, unit in (("beta", "1/s"), ("k", "N/m")):
-            estimate = fit.estimates.get(key)
-            if estimate is not None:
-                parts.append(f"{'β' if key == 'beta' else 'k'} = {estimate.value:.4g} "
-                             f"± {estimate.stderr:.2g} {unit}")
+        parts = [_contact_text(fit.estimates, key, label, unit)
+                 for key, label, unit in (("beta", "β", "1/s"), ("k", "k", "N/m"))
+                 if key in fit.estimates]
         eps = np.asarray(fit.predicted.get("restitution", []), dtype=float)
         eps = eps[np.isfinite(eps) & (eps > 0)]
         if eps.size:

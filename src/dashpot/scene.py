@@ -166,6 +166,9 @@ class Scene:
         Density of the air in kg/m³ (None: :data:`DEFAULT_AIR_DENSITY` where drag is modelled).
     drag_coefficient : Known or None
         Drag coefficient C_d of the ball (None: the prior :data:`DEFAULT_DRAG_COEFFICIENT`).
+    contact_time : Known or None
+        Duration of the first contact in s (e.g. 0.7 ± 0.3 ms for a table-tennis ball): a
+        prior on ω0 = π/τ in the fits (:func:`dashpot.fit.fit_model`).
     """
 
     name: str = "scene"
@@ -185,6 +188,7 @@ class Scene:
     diameter: Known | None = None
     air_density: Known | None = None
     drag_coefficient: Known | None = None
+    contact_time: Known | None = None
 
     @property
     def _acceleration_without_air(self):
@@ -292,7 +296,8 @@ class Scene:
 
 
 _DRAG_KEYS = ("diameter", "air_density", "drag_coefficient")
-_KNOWN_KEYS = ("mass", "stiffness", "first_impact_speed", "drop_height") + _DRAG_KEYS
+_KNOWN_KEYS = ("mass", "stiffness", "first_impact_speed", "drop_height",
+               "contact_time") + _DRAG_KEYS
 
 
 def _schema():
@@ -366,6 +371,9 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
     if "first_impact_speed" in kwargs and "drop_height" in kwargs:
         raise InputError(source, "give either apparatus.first_impact_speed or "
                                  "apparatus.drop_height, not both")
+    if "contact_time" in kwargs and "stiffness" in kwargs:
+        raise InputError(source, "give either apparatus.contact_time or apparatus.stiffness "
+                                 "(both set omega0), not both")
     recording = mapping.get("recording")
     if recording is not None:
         recording = Path(base or ".") / recording

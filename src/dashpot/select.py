@@ -159,8 +159,13 @@ def summary_table(scene_fits):
         Columns ``scene``, ``model``, ``success``, ``selected``, ``akaike_weight``,
         ``delta_aic``, ``delta_bic``, ``redchi``, and for each of ``beta`` (1/s), ``k`` (N/m),
         ``omega0`` (rad/s), ``zeta``, ``v0`` (m/s) its value and ``*_stderr`` (NaN where the
-        scene does not give it, e.g. k without a mass), plus ``verdict``.
+        scene does not give it, e.g. k without a mass), ``beta_note`` and ``k_note`` (empty,
+        or why β or k is NaN although fitted: "not determined (<the data's 95 % bound>;
+        <why>)" where the data do not determine ω0, see
+        :func:`dashpot.fit.observability.not_determined`), plus ``verdict``.
     """
+    from .fit.observability import not_determined
+
     rows = []
     for name, scene_fit in scene_fits.items():
         selection = scene_fit.selection.set_index("model")
@@ -170,10 +175,14 @@ def summary_table(scene_fits):
                    "akaike_weight": selection.loc[model, "akaike_weight"],
                    "delta_aic": selection.loc[model, "delta_aic"],
                    "delta_bic": selection.loc[model, "delta_bic"], "redchi": fit.redchi}
+            undetermined = not_determined(fit.estimates) if fit.success else {}
             for key in ("beta", "k", "omega0", "zeta", "v0"):
                 estimate = fit.estimates.get(key)
-                row[key] = estimate.value if estimate else math.nan
-                row[f"{key}_stderr"] = estimate.stderr if estimate else math.nan
+                shown = estimate is not None and key not in undetermined
+                row[key] = estimate.value if shown else math.nan
+                row[f"{key}_stderr"] = estimate.stderr if shown else math.nan
+                if key in ("beta", "k"):
+                    row[f"{key}_note"] = undetermined.get(key, "")
             row["verdict"] = scene_fit.verdict
             rows.append(row)
     return pd.DataFrame(rows)

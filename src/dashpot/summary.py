@@ -27,7 +27,8 @@ __all__ = ["SUMMARY_COLUMNS", "STATUSES", "summary_from_records", "summary_from_
            "scene_file_problem"]
 
 SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "delta_aic",
-                   "delta_bic", "redchi", "beta", "beta_stderr", "k", "k_stderr", "omega0",
+                   "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
+                   "k_note", "omega0",
                    "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
                    "status", "problem")
 """Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`)."""
@@ -40,14 +41,16 @@ STATUSES = {
 }
 """Values of the ``status`` column and what each means."""
 
-_TEXT_COLUMNS = ("scene", "model", "verdict", "status", "problem")
+_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "status", "problem")
 # h5py raises all of these for a damaged or foreign file, depending on where the damage is.
 _READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 
 
 def _fit_view(fit):
     """What summary_table reads of a FitResult, from one ``read_fit()['fits'][model]``."""
-    estimates = {name: SimpleNamespace(value=float(row["value"]), stderr=float(row["stderr"]))
+    estimates = {name: SimpleNamespace(value=float(row["value"]), stderr=float(row["stderr"]),
+                                       low95=float(row["low95"]), high95=float(row["high95"]),
+                                       status=str(row["status"]))
                  for name, row in fit["parameters"].iterrows()}
     attrs = fit["attrs"]
     redchi = float(attrs.get("redchi", math.nan))
@@ -77,7 +80,8 @@ def summary_from_records(records):
         Columns :data:`SUMMARY_COLUMNS` (as :func:`dashpot.select.summary_table`): scene,
         model, success, selected (rank 1 by AIC), akaike_weight, delta_aic, delta_bic,
         redchi, β (1/s), k (N/m, NaN without a mass), ω0 (rad/s), ζ, v0 (m/s) each with its
-        ``*_stderr``, and the scene's verdict. No scenes give an empty table with these
+        ``*_stderr``, ``beta_note`` and ``k_note`` (why β or k is empty although fitted: not
+        determined by the data), and the scene's verdict. No scenes give an empty table with these
         columns.
     """
     table = summary_table({name: _scene_view(record) for name, record in records.items()})
@@ -123,8 +127,8 @@ def _one_line(error):
 
 def _scene_row(scene, status, problem):
     row = {column: math.nan for column in SUMMARY_COLUMNS}
-    row.update(scene=scene, model="", success=False, selected=False, verdict="", status=status,
-               problem=problem)
+    row.update(scene=scene, model="", success=False, selected=False, beta_note="", k_note="",
+               verdict="", status=status, problem=problem)
     return row
 
 

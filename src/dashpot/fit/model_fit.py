@@ -14,6 +14,10 @@ Numbered as in :mod:`dashpot.fit`.
 .. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
    (confidence regions from Δχ² = 1 and 4 for one parameter).
 .. [6] D. Foreman-Mackey et al., "emcee: The MCMC Hammer", PASP 125, 306 (2013).
+.. [10] J. Schäfer, S. Dippel and D. E. Wolf, "Force schemes in simulations of granular
+   materials", J. Phys. I France 6, 5 (1996) (linear spring-dashpot: contact time π/ω_d).
+.. [11] T. Schwager and T. Pöschel, "Coefficient of restitution and linear-dashpot model
+   revisited", Granular Matter 9, 465 (2007) (the contact ends where the force vanishes).
 """
 
 from __future__ import annotations
@@ -51,7 +55,10 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
         From :func:`prepare_data`.
     model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
     scene : Scene, optional
-        What is known of the apparatus (default: nothing but standard gravity).
+        What is known of the apparatus (default: nothing but standard gravity). Its stiffness
+        and mass fix ω0 or give it a prior; else its contact time τ does, through the
+        gravity-free relation τ = π/ω_d ≈ π/ω0 [10]_ (a Gaussian prior on τ is one on v* =
+        gτ/π).
     max_nfev : int, default 2000
         Largest number of model evaluations.
     uncertainty : sequence of {"covariance", "profile", "posterior"}
@@ -128,6 +135,12 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     fixed_omega0 = (math.sqrt(stiffness.value / mass.value)
                     if stiffness is not None and stiffness.uncertainty is None
                     and mass.uncertainty is None else None)
+    contact_time = scene.contact_time
+    if contact_time is not None and stiffness is not None:
+        notes.append("contact time and stiffness both known: omega0 from the stiffness")
+        contact_time = None
+    if contact_time is not None and contact_time.uncertainty is None:
+        fixed_omega0 = math.pi / contact_time.value
     fixed_v0 = known_v0.value if known_v0 is not None and known_v0.uncertainty is None else None
     unknowns = 2 + (fixed_omega0 is None) + (fixed_v0 is None)
     measured = data.times.size + int(np.isfinite(data.impact_speed).sum()
@@ -141,7 +154,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                        notes, data)
     level, trains_solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
     notes.append(f"accuracy {reason}")
-    known_omega0 = None if stiffness is None else math.sqrt(stiffness.value / mass.value)
+    known_omega0 = (math.sqrt(stiffness.value / mass.value) if stiffness is not None
+                    else None if contact_time is None else math.pi / contact_time.value)
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
                                known_omega0, fit_v0=fixed_v0 is None,
                                trains_solver=trains_solver,
@@ -164,7 +178,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     params.add("t0", value=start["t0"])
     fixed = {}
     if fixed_omega0 is not None:
-        fixed["omega0"] = "stiffness and mass known exactly: omega0 = sqrt(k/m)"
+        fixed["omega0"] = ("stiffness and mass known exactly: omega0 = sqrt(k/m)"
+                           if contact_time is None else
+                           "contact time known exactly: omega0 = pi/tau")
     if fixed_v0 is not None:
         fixed["v0"] = ("first impact speed known" if scene.first_impact_speed is not None
                        else "drop height known: v0 = sqrt(2 g_eff h)")
@@ -175,6 +191,14 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         prior_v_star = g / math.sqrt(stiffness.value / mass.value)
         priors.append(("v_star", prior_v_star, prior_v_star * 0.5 * sd / stiffness.value))
         notes.append("prior on omega0 from the known stiffness and mass")
+    if contact_time is not None and fixed_omega0 is None:
+        # The gravity-free contact duration τ = π/ω_d ≈ π/ω0 [10]_, so v* = g/ω0 = gτ/π: a
+        # Gaussian prior on τ is one on v*, exactly. It is the duration of Ia's contact; IIa's
+        # (and IIb's, the hybrid's) ends where the force vanishes, shorter by about 2ζ/ω0 [11]_,
+        # and gravity changes every one by O(v*/v): both far inside a prior of tens of %.
+        priors.append(("v_star", g * contact_time.value / math.pi,
+                       g * contact_time.uncertainty / math.pi))
+        notes.append("prior on omega0 = pi/tau from the scene's contact time")
     if known_v0 is not None and fixed_v0 is None:
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
         notes.append("prior on v0 from the scene")
@@ -247,6 +271,19 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
                 result = retry
                 notes.append("first fit ended in a local minimum of the misfit; restarted "
                              "from a finer grid of omega0")
+    stated_priors = list(priors)
+    if (any(name == "v_star" for name, *_ in priors) and data.sigma_known
+            and result.chisqr > _misfit_bound(result.nfree)):
+        # Under a misfit the errors are scaled by the Birge ratio √ĉ (below), so the data weigh
+        # as χ²/ĉ: a prior on ω0 weighed against the raw χ² would be swamped and ω0 wander as
+        # without it. Its sd shrunk by √ĉ gives it its stated weight against χ²/ĉ (and, after
+        # the scaling, its stated sd in the covariance); refitted from where the fit ended.
+        c_hat = float(result.redchi)
+        priors[:] = [(name, centre, spread / math.sqrt(c_hat) if name == "v_star" else spread)
+                     for name, centre, spread in priors]
+        result = minimize(result.params)
+        notes.append(f"prior on omega0 weighed against chi-square / {c_hat:.3g} (the fit "
+                     f"misses the data by more than their uncertainties)")
     values = result.params.valuesdict()
     if not np.all(np.isfinite(result.residual)):
         return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
@@ -281,7 +318,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
                      f"the model misses the data by more than their uncertainties; errors "
                      f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
-    for name, centre, spread in priors:
+    for name, centre, spread in stated_priors:
         value = result.params[name].value
         if abs(value - centre) > 3.0 * spread:
             label = "omega0" if name == "v_star" else name

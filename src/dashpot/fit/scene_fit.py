@@ -6,6 +6,7 @@ from __future__ import annotations
 from ..scene import Scene
 from .data import prepare_data
 from .model_fit import fit_model
+from .observability import GRAVITY_FREE_COUNTERPART, gravity_effect_note
 from .results import SceneFit
 
 
@@ -25,6 +26,9 @@ def fit_scene(impacts, scene=None, models=None, *, progress=None):
     Returns
     -------
     SceneFit
+        The note of :func:`~dashpot.fit.observability.gravity_effect_note` (gravity in contact
+        against the bounce-to-bounce scatter) is added to the data's notes and to those of each
+        gravity model fitted.
     """
     from ..select import selection_table
 
@@ -36,6 +40,13 @@ def fit_scene(impacts, scene=None, models=None, *, progress=None):
         results[model] = fit_model(data, model, scene)
         if progress is not None:
             progress(model)
+    # Said once for the scene (printed with its notes) and kept with each gravity model's fit.
+    note = gravity_effect_note(data, results)
+    if note:
+        data.notes.append(note)
+        for model, fit in results.items():
+            if model in GRAVITY_FREE_COUNTERPART and fit.success:
+                fit.notes.append(note)
     selection, verdict = selection_table(results, sigma_known=data.sigma_known)
     return SceneFit(scene=scene, data=data, results=results, selection=selection,
                     verdict=verdict)
