@@ -11,8 +11,9 @@ and the size of gravity's effect in contact against the bounce-to-bounce scatter
   alone is a 97.7 % one-sided bound).
 * Gravity in contact changes ε by O(v*/v) [1]_: :func:`gravity_effect_note` compares, for each
   gravity model fitted, |ε_model − ε_gravity-free| at the slowest fitted impact with the
-  robust scatter of the interval ratios about their trend (:func:`dashpot.plausibility.ratio_trend`),
-  and says in plain words when the data cannot see it.
+  robust scatter of the interval ratios about their trend
+  (:func:`dashpot.plausibility.ratio_trend`), and says in plain words when the data cannot see
+  it, or that a size the fits imply is no evidence where every fit misses the data.
 
 References
 ----------
@@ -137,8 +138,9 @@ def gravity_effect_note(data, results):
         its effect on ε at the slowest bounce (<v> m/s), X (model), ..., is below the
         bounce-to-bounce scatter, Y" when every model's effect is below the scatter Y of the
         interval ratios (ln-ratio scatter times the ratio at the slowest bounces), else the same
-        numbers with "gravity in contact is visible in these data"; with fewer than eight
-        impacts (six ratios) the effects alone, and that the scatter cannot be measured. Where
+        numbers with "gravity in contact is visible in these data" (or, where every fit misses
+        the data by more than 3σ of its χ², that this is no evidence of it); with fewer than
+        eight impacts (six ratios) the effects alone, and that the scatter cannot be measured. Where
         no gravity model's ω0 is determined: "the data cannot see gravity in contact: <models>
         fit as well in the gravity-free limit (omega0 not determined)".
     """
@@ -180,5 +182,23 @@ def gravity_effect_note(data, results):
     if max(effects.values()) < scatter:
         return (f"the data cannot see gravity in contact: its effect on ε {where}, {sizes}, "
                 f"is below the bounce-to-bounce scatter, {scatter:.2g}{free_limit}")
+    misfit = _shared_misfit(data, results)
+    if misfit:
+        # ζ and v* of fits that miss the data are what the misfit drove them to.
+        return (f"gravity in contact would change ε {where} by {sizes} at the fitted "
+                f"parameters, above the bounce-to-bounce scatter, {scatter:.2g}; but every fit "
+                f"misses the data (reduced chi-square >= {misfit:.3g}), so this is no evidence "
+                f"of it{free_limit}")
     return (f"gravity in contact is visible in these data: its effect on ε {where}, {sizes}, "
             f"against a bounce-to-bounce scatter of {scatter:.2g}{free_limit}")
+
+
+def _shared_misfit(data, results):
+    """The smallest reduced χ² of the successful fits if every one lies beyond 3σ of its χ²
+    distribution (timing errors known), else 0."""
+    if not data.sigma_known:
+        return 0.0
+    fits = [fit for fit in results.values() if fit.success]
+    beyond = [fit.chisqr > (dof := max(fit.ndata - fit.nvarys, 1)) + 3.0 * math.sqrt(2.0 * dof)
+              for fit in fits]
+    return min(fit.redchi for fit in fits) if fits and all(beyond) else 0.0
