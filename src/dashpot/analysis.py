@@ -70,7 +70,7 @@ def recording_note(path, scene):
             f"file records {Path(path).name} as input_file)")
 
 
-def analyze(path, scene=None, *, models=None, progress=None):
+def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     """Impacts and every requested model fitted, for one recording.
 
     Parameters
@@ -81,7 +81,10 @@ def analyze(path, scene=None, *, models=None, progress=None):
     models : sequence of str, optional
     progress : callable, optional
         Called as ``progress(step, total, text)`` after reading the impacts and after each
-        model's fit (``total`` = 1 + number of models).
+        model's fit (``total`` = 1 + number of models, and of the noise fits where made).
+    noise : bool, optional
+        Also fit under the noise model (:func:`dashpot.fit.fit_scene`); default the scene's
+        ``noise`` key.
 
     Returns
     -------
@@ -94,21 +97,24 @@ def analyze(path, scene=None, *, models=None, progress=None):
         The recording cannot be read or holds too few impacts to fit.
     """
     from .fit import fit_scene
+    from .fit.settings import NOISE_LAWS
 
     impacts = scene_impacts(path, scene)
     if len(impacts) < 3:
         raise InputError(path, f"only {len(impacts)} impact(s) found; fitting needs three")
     check_bounce_train(impacts, path)  # random clicks or times are not fitted as bounces
     models = tuple(models or (scene or Scene()).models)
+    noise = (scene or Scene()).noise if noise is None else noise
+    steps = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)
     report = None
     if progress is not None:
-        done = iter(range(2, 2 + len(models)))
-        progress(1, 1 + len(models), f"{len(impacts)} impacts")
+        done = iter(range(2, 2 + steps))
+        progress(1, 1 + steps, f"{len(impacts)} impacts")
 
         def report(model):
-            progress(next(done), 1 + len(models), f"fitted {model}")
+            progress(next(done), 1 + steps, f"fitted {model}")
     try:
-        scene_fit = fit_scene(impacts, scene, models, progress=report)
+        scene_fit = fit_scene(impacts, scene, models, progress=report, noise=noise)
     except ValueError as error:
         raise InputError(path, str(error)) from None
     return impacts, scene_fit

@@ -16,6 +16,10 @@ from pathlib import Path
 from .errors import InputError
 from .physics.models import MODELS
 
+NOISE_HELP = ("also fit the restitution-law ladder and the models under bounce-to-bounce "
+              "scatter and timing jitter, with their own selection (as the scene key "
+              "noise: true; slower)")
+
 
 def _cannot_write(path, error):
     """InputError for an output that could not be written (full disk, no permission, ...).
@@ -80,6 +84,7 @@ def _bounces(args):
 
 def _fit(args):
     from .analysis import analyze, recording_note
+    from .fit.data import drag_left_out_note
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -89,14 +94,16 @@ def _fit(args):
         raise InputError(args.output, "refusing to overwrite the input with the output")
     if Path(args.output).is_dir():
         raise InputError(args.output, "is a folder; give the HDF5 file to write")
-    impacts, scene_fit = analyze(args.impacts, scene, models=args.models)
+    impacts, scene_fit = analyze(args.impacts, scene, models=args.models,
+                                 noise=args.noise or None)
     try:
         write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
-                        config={"models": list(scene_fit.results)})
+                        config=_config(scene_fit))
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
-    _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes])
+    _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes,
+                  drag_left_out_note(scene)])
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")
         if fit.success and beta:
@@ -104,6 +111,7 @@ def _fit(args):
         else:
             state = f"failed: {fit.message}"
         print(f"  {model:>6}: {state}")
+    _print_noise(scene_fit)
 
 
 def _analyze(args):
@@ -115,6 +123,7 @@ def _analyze(args):
 
     from .figures import load_record, save_scene_figures
     from .analysis import analyze, recording_note
+    from .fit.data import drag_left_out_note
     from .pipeline import is_audio
     from .scene import Scene, load_scene
     from .store import write_scene_fit
@@ -131,11 +140,13 @@ def _analyze(args):
     with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
               disable=None) as bar:
         def progress(step, total, text):
+            bar.total = total + 2  # the fits (noise fits among them), then writing, figures
             bar.set_postfix_str(text)
             bar.update(step - bar.n)
 
         bar.set_postfix_str("finding impacts")
-        impacts, scene_fit = analyze(recording, scene, models=models, progress=progress)
+        impacts, scene_fit = analyze(recording, scene, models=models, progress=progress,
+                                     noise=args.noise or None)
         bar.set_postfix_str("writing")
         created = not out.exists()
         try:
@@ -149,7 +160,7 @@ def _analyze(args):
             h5 = staging / f"{name}.h5"
             try:
                 write_scene_fit(h5, scene_fit, impacts, input_path=recording,
-                                config={"models": list(scene_fit.results)})
+                                config=_config(scene_fit))
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / h5.name, error) from None
             bar.update(1)
@@ -169,7 +180,8 @@ def _analyze(args):
                 _remove_if_empty(out)
     _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
     _print_notes([recording_note(recording, scene if args.scene else None),
-                  *scene_fit.data.notes])
+                  *scene_fit.data.notes, drag_left_out_note(scene)])
+    _print_noise(scene_fit)
 
 
 def _move_into_place(staging, out):
@@ -232,6 +244,52 @@ def _print_summary(recording, impacts, scene_fit, h5, figures):
             parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
         print(f"  {model:>6}: " + ", ".join(parts))
     print(f"  selection: {scene_fit.verdict}")
+
+
+def _config(scene_fit):
+    """The analysis configuration recorded in the scene file: the models, and the laws fitted
+    under the noise model where they were."""
+    config = {"models": list(scene_fit.results)}
+    if scene_fit.noise_results:
+        config["noise"] = list(scene_fit.noise_results)
+    return config
+
+
+def _print_noise(scene_fit):
+    """One line per fit under the noise model and the noise verdict (nothing without them).
+
+    Each line: the law's parameters (ζ, ω0 and the ε range of a dashpot model), σ_ε and σ_j
+    with their 68 % intervals, and χ²/ν of the standardized innovations.
+    """
+    import numpy as np
+
+    from .physics.laws import LAWS
+    from .physics.models import MODELS
+
+    for law, fit in scene_fit.noise_results.items():
+        if not fit.success:
+            print(f"  noise {law:>18}: failed: {fit.message}")
+            continue
+        names = ("zeta", "omega0") if law in MODELS else LAWS[law].parameter_names
+        parts = []
+        for name in names:
+            estimate = fit.estimates[name]
+            unit = "" if estimate.unit in ("", "1") else f" {estimate.unit}"
+            parts.append(f"{name} = {estimate.value:.5g} ± {estimate.stderr:.2g}{unit}")
+        if law in MODELS:
+            eps = np.asarray(fit.predicted["restitution"], dtype=float)
+            eps = eps[np.isfinite(eps) & (eps > 0)]
+            if eps.size:
+                parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
+        scatter, jitter = fit.estimates["sigma_eps"], fit.estimates["sigma_j"]
+        parts.append(f"σ_ε = {100 * scatter.value:.2g} % [{100 * scatter.low68:.2g}, "
+                     f"{100 * scatter.high68:.2g}]")
+        parts.append(f"σ_j = {1e6 * jitter.value:.3g} µs [{1e6 * jitter.low68:.3g}, "
+                     f"{1e6 * jitter.high68:.3g}]")
+        parts.append(f"χ²/ν = {fit.redchi:.3g}")
+        print(f"  noise {law:>18}: " + ", ".join(parts))
+    if scene_fit.noise_results:
+        print(f"  noise selection: {scene_fit.noise_verdict}")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -300,6 +358,7 @@ def build_parser():
     fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
+    fit.add_argument("--noise", action="store_true", help=NOISE_HELP)
     fit.set_defaults(run=_fit)
     analyze = commands.add_parser(
         "analyze", help="one recording to an HDF5 file, figures and a summary (no Snakemake)")
@@ -310,6 +369,7 @@ def build_parser():
                                          "(its name names the outputs)")
     analyze.add_argument("--models", nargs="+", choices=list(MODELS),
                          help="models to fit (default: the scene's, else all five)")
+    analyze.add_argument("--noise", action="store_true", help=NOISE_HELP)
     analyze.set_defaults(run=_analyze)
     return parser
 

@@ -162,8 +162,13 @@ class TrainModel:
     contact_time: Callable | None = None
 
     def _step(self, speed):
-        """(duration to the next impact, next impact speed, both slopes, noise gains) at u."""
+        """(duration to the next impact, next impact speed, both slopes, noise gains) at u,
+        and where the step is not finite (a parameter set whose train leaves the float range
+        or is captured: its speeds are carried on at 0, so that it does not stop the batch)."""
+        speed, broken = _finite_speed(speed)
         rebound, rebound_slope = self.rebound(speed)
+        rebound, bad = _finite_speed(rebound)
+        broken = broken | bad
         flight = self.flight(rebound)
         duration, duration_slope = flight.duration, flight.duration_slope * rebound_slope
         if self.contact_time is not None:
@@ -171,9 +176,12 @@ class TrainModel:
             duration, duration_slope = duration + contact, duration_slope + contact_slope
         # A relative kick η to the rebound speed moves the next impact by T'(v)·v·η in time
         # and by L'(v)·v·η in speed.
-        return (duration, flight.landing_speed, duration_slope,
-                flight.landing_slope * rebound_slope, flight.duration_slope * rebound,
-                flight.landing_slope * rebound)
+        out = (duration, flight.landing_speed, duration_slope,
+               flight.landing_slope * rebound_slope, flight.duration_slope * rebound,
+               flight.landing_slope * rebound)
+        for value in out:
+            broken = broken | ~np.isfinite(value)
+        return tuple(np.where(broken, 0.0, value) for value in out) + (broken,)
 
     def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
                detector_sigma=0.0, sigma_scale=1.0):
@@ -214,6 +222,7 @@ class TrainModel:
         observed = np.isfinite(times)
         anchored = np.logical_not(diffuse)
         p_tt = p_tu = p_uu = total = 0.0
+        broken = np.zeros((), bool)  # parameter sets whose train left the finite numbers
         # Columns of the outputs; the batch shape is known only once the model's callables,
         # which carry their own parameter arrays, have broadcast against the state.
         out = {name: [] for name in ("innovations", "variance", "times", "speeds", "filtered",
@@ -252,7 +261,8 @@ class TrainModel:
                 break
             # Predict impact n + 1, linearized about the estimate (speeds below 0 are no state
             # a ball can be in; an update that far off is clipped, and shows in the innovations).
-            duration, landing, f_tu, f_uu, g_t, g_u = self._step(np.maximum(u, 0.0))
+            duration, landing, f_tu, f_uu, g_t, g_u, bad = self._step(np.maximum(u, 0.0))
+            broken = broken | bad
             g_t, g_u = g_t * process, g_u * process
             p_tt, p_tu, p_uu = (p_tt + 2.0 * f_tu * p_tu + f_tu * f_tu * p_uu + g_t * g_t,
                                 f_uu * (p_tu + f_tu * p_uu) + g_t * g_u,
@@ -261,6 +271,8 @@ class TrainModel:
         batch = np.broadcast_shapes(*(np.shape(a) for column in out.values() for a in column))
         out = {name: np.stack(np.broadcast_arrays(*column, np.empty(batch))[:-1], axis=-1)
                for name, column in out.items()}
+        # A set that broke has no likelihood (inf, never NaN); the other sets keep theirs.
+        total = np.where(broken | np.isnan(total), np.inf, total)
         return TrainFilter(neg2_log_likelihood=np.broadcast_to(total, batch).copy(),
                            innovations=out["innovations"], innovation_variance=out["variance"],
                            predicted_times=out["times"], predicted_speeds=out["speeds"],
@@ -302,3 +314,11 @@ class TrainModel:
         measured = out["times"] + timing_sigma * rng.standard_normal(batch + (count,))
         return SimulatedTrain(times=measured, true_times=out["times"],
                               impact_speeds=out["speeds"], rebound_speeds=out["rebounds"])
+
+
+def _finite_speed(speed):
+    """(speed with non-finite values put at 0, where they were): a speed outside the float
+    range is no state of a ball, and the flight and contact functions refuse it."""
+    speed = np.asarray(speed, dtype=float)
+    bad = ~np.isfinite(speed)
+    return np.where(bad, 0.0, speed), bad

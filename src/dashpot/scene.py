@@ -160,6 +160,9 @@ class Scene:
         Options for the reader (flag_length, gate_distance, bumper_position, unit).
     accuracy : str
         Numerical accuracy level of the fits ("auto", "fast", "standard", "exact").
+    noise : bool
+        Also fit under the noise model (bounce-to-bounce scatter and timing jitter): the
+        restitution-law ladder and the models, with their own selection (default False).
     diameter : Known or None
         Diameter of the ball in m; with ``mass`` it turns on air drag (:attr:`drag`).
     air_density : Known or None
@@ -185,6 +188,7 @@ class Scene:
     timing_resolution: float | None = None
     reader: dict = field(default_factory=dict)
     accuracy: str = "auto"
+    noise: bool = False
     diameter: Known | None = None
     air_density: Known | None = None
     drag_coefficient: Known | None = None
@@ -274,6 +278,8 @@ class Scene:
         out = {}
         for item in fields(self):
             value = getattr(self, item.name)
+            if item.name == "noise" and not value:
+                continue  # recorded only where asked for: the default scene's record unchanged
             if item.name in _DRAG_KEYS:
                 if not self.needs_drag:
                     continue
@@ -382,7 +388,8 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                   sensor=mapping.get("sensor"), recording=recording, models=models,
                   timing_resolution=mapping.get("timing_resolution"),
                   reader=dict(mapping.get("reader", {})),
-                  accuracy=mapping.get("accuracy", "auto"), **kwargs)
+                  accuracy=mapping.get("accuracy", "auto"),
+                  noise=bool(mapping.get("noise", False)), **kwargs)
     _check_drag(scene, source)
     if scene.incline_angle is not None and scene.g_eff is None and \
             scene.driving_acceleration < MIN_DRIVING_ACCELERATION:

@@ -1,4 +1,5 @@
-"""One HDF5 file per scene: impacts, bounces, every model's fit and the selection table.
+"""One HDF5 file per scene: impacts, bounces, every model's fit and the selection table, and
+where they were asked for the fits under the noise model and their own selection table.
 
 The layout (``docs/hdf5-layout.md`` lists every item and unit) uses only groups, numeric and
 UTF-8 string datasets and attributes, so plain h5py reads it; every table is a group with one
@@ -42,6 +43,7 @@ SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
 INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds", "samples",
                     "autocorrelation_steps", "converged")
+NOISE_SELECTION_UNITS = {**SELECTION_UNITS, "sigma_j": "s"}
 PREDICTED_UNITS = {"times": "s", "speeds": "m/s", "restitution": "1",
                    "contact_durations": "s", "at_data": "s"}
 
@@ -115,6 +117,47 @@ def _write_fit(group, fit):
                         "error_bound": fit.error_bound, "accuracy": fit.accuracy,
                         "varied": json.dumps(list(fit.varied)),
                         "notes": json.dumps(fit.notes)})
+    _parameters_and_residuals(group, fit, "every residual of the fit divided by its 1-sigma: "
+                              "times, then measured impact and rebound speeds, then priors")
+    # Numbers only (NaN where a method has no such figure; converged as 1 or 0).
+    rows = [{"method": method, **{key: float(row.get(key, np.nan)) for key in INTERVAL_COLUMNS}}
+            for method, row in fit.intervals.items()]
+    _table(group, "intervals", pd.DataFrame(rows, columns=["method", *INTERVAL_COLUMNS]),
+           {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s", "samples": "1",
+            "autocorrelation_steps": "1", "converged": "1"})
+    _eps_curve(group, fit)
+
+
+def _write_noise_fit(group, fit):
+    """A fit under the noise model: as a deterministic fit's group, with −2 ln L, σ_ε and σ_j
+    (with their intervals) as attributes, the standardized innovations as the normalized
+    residuals, the flagged impacts and each impact's timing noise; no intervals table (the
+    parameters table holds every interval) and no accuracy figures (the filter is exact)."""
+    attrs = {"success": fit.success, "message": fit.message, "chisqr": fit.chisqr,
+             "redchi": fit.redchi, "aic": fit.aic, "bic": fit.bic,
+             "neg2_log_likelihood": fit.neg2_log_likelihood, "ndata": fit.ndata,
+             "nvarys": fit.nvarys, "nfev": fit.nfev, "varied": json.dumps(list(fit.varied)),
+             "notes": json.dumps(fit.notes)}
+    for name in ("sigma_eps", "sigma_j"):
+        estimate = fit.estimates.get(name)
+        values = ((estimate.value, estimate.low68, estimate.high68, estimate.low95,
+                   estimate.high95) if estimate is not None else (np.nan,) * 5)
+        attrs[name] = values[0]
+        attrs[f"{name}_interval68"] = np.array(values[1:3], dtype=float)
+        attrs[f"{name}_interval95"] = np.array(values[3:5], dtype=float)
+    group.attrs.update(attrs)
+    _parameters_and_residuals(group, fit, "standardized innovation r/sqrt(S) of each impact "
+                              "(NaN for the first, which anchors the train): independent "
+                              "N(0, 1) under the model")
+    _eps_curve(group, fit)
+    _dataset(group, "outliers", np.asarray(fit.outliers, dtype=np.int64), "1").attrs[
+        "meaning"] = "positions in residuals/* of the innovations with |z| > 4 (kept in the fit)"
+    _dataset(group, "timing_sigma", fit.timing_sigma, "s").attrs["meaning"] = (
+        "total 1-sigma timing noise of each fitted impact, sqrt(detector sigma^2 + sigma_j^2)")
+
+
+def _parameters_and_residuals(group, fit, normalized_meaning):
+    """The parameters table, correlation, residuals and predicted train of a fit."""
     rows = [{"name": name, "value": e.value, "stderr": e.stderr, "low68": e.low68,
              "high68": e.high68, "low95": e.low95, "high95": e.high95, "unit": e.unit,
              "status": e.status, "note": e.note} for name, e in fit.estimates.items()]
@@ -133,17 +176,13 @@ def _write_fit(group, fit):
     _dataset(residuals, "time", fit.time_residuals, "s").attrs["meaning"] = (
         "observed minus predicted impact time")
     _dataset(residuals, "normalized", fit.normalized_residuals, "1").attrs["meaning"] = (
-        "every residual of the fit divided by its 1-sigma: times, then measured impact and "
-        "rebound speeds, then priors")
+        normalized_meaning)
     predicted = group.create_group("predicted")
     for name, values in fit.predicted.items():
         _dataset(predicted, name, values, PREDICTED_UNITS[name])
-    # Numbers only (NaN where a method has no such figure; converged as 1 or 0).
-    rows = [{"method": method, **{key: float(row.get(key, np.nan)) for key in INTERVAL_COLUMNS}}
-            for method, row in fit.intervals.items()]
-    _table(group, "intervals", pd.DataFrame(rows, columns=["method", *INTERVAL_COLUMNS]),
-           {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s", "samples": "1",
-            "autocorrelation_steps": "1", "converged": "1"})
+
+
+def _eps_curve(group, fit):
     curve = group.create_group("eps_curve")
     for name, unit in (("speed", "m/s"), ("eps", "1"), ("captured", "1")):
         if name in fit.eps_curve:
@@ -197,6 +236,14 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
             _write_fit(fits.create_group(model), fit)
         selection = _table(out, "selection", scene_fit.selection, SELECTION_UNITS)
         selection.attrs["verdict"] = scene_fit.verdict
+        if scene_fit.noise_results:
+            # Only where asked for: a file without them has the layout it always had.
+            noise_fits = out.create_group("noise_fits")
+            for law, fit in scene_fit.noise_results.items():
+                _write_noise_fit(noise_fits.create_group(law), fit)
+            noise = _table(out, "noise_selection", scene_fit.noise_selection,
+                           NOISE_SELECTION_UNITS)
+            noise.attrs["verdict"] = scene_fit.noise_verdict
 
 
 def read_fit(path):
@@ -207,7 +254,10 @@ def read_fit(path):
     dict
         ``attrs`` (root attributes), ``impacts``, ``bounces``, ``selection`` (DataFrames) and
         ``fits``: model -> dict with ``attrs``, ``parameters`` (DataFrame indexed by name),
-        ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays).
+        ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays);
+        where the file holds fits under the noise model also ``noise_selection`` (DataFrame)
+        and ``noise_fits``: law -> dict as in ``fits`` without ``intervals``, with
+        ``outliers`` and ``timing_sigma`` (arrays).
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
@@ -222,6 +272,19 @@ def read_fit(path):
                 **{name: {key: group[name][key][()] for key in group[name]}
                    for name in ("residuals", "predicted", "eps_curve")},
             }
+        if "noise_fits" in source:
+            out["noise_selection"] = read_table(source["noise_selection"])
+            out["noise_fits"] = {}
+            for law, group in source["noise_fits"].items():
+                out["noise_fits"][law] = {
+                    "attrs": dict(group.attrs),
+                    "parameters": read_table(group["parameters"]).set_index("name"),
+                    "correlation": group["correlation"][()],
+                    "outliers": group["outliers"][()],
+                    "timing_sigma": group["timing_sigma"][()],
+                    **{name: {key: group[name][key][()] for key in group[name]}
+                       for name in ("residuals", "predicted", "eps_curve")},
+                }
     return out
 
 

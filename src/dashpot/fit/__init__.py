@@ -33,7 +33,10 @@ others):
 ``model_fit``              :func:`fit_model`: one model fitted to one scene
 ``scene_fit``              :func:`fit_scene`: every model fitted, and the selection table
 ``noise_fit``              a law or model fitted under bounce-to-bounce scatter and timing
-                           jitter (:mod:`dashpot.likelihood`); not yet used by ``fit_scene``
+                           jitter (:mod:`dashpot.likelihood`)
+``noise_scene``            the law ladder and the models fitted under the noise model, for
+                           ``fit_scene(..., noise=True)`` (selection in
+                           :mod:`dashpot.noise_selection`)
 =========================  ===================================================================
 
 References

@@ -72,12 +72,6 @@ def prepare_data(impacts, scene):
             sigma = np.ones(times.size)
             notes.append("no timing uncertainty given: estimated from the scatter of the fit")
     g = scene.driving_acceleration
-    if scene.needs_drag:
-        # The trains the fits solve have no drag yet: say so rather than fit it silently.
-        notes.append(f"the scene gives the ball's mass and diameter, but the fits do not model "
-                     f"air drag yet: flights under g_eff = {g:.6g} m/s² alone (buoyancy and "
-                     f"added mass included, drag constant "
-                     f"{scene.drag.drag_constant.value:.3g} 1/m left out)")
     run = table["run"].to_numpy() if "run" in table else np.zeros(times.size, dtype=int)
     bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma, "run": run}),
                            g=g)
@@ -114,3 +108,24 @@ def prepare_data(impacts, scene):
                    speed_sigma=np.where(has_speed, speed_sigma, np.nan), g=g,
                    sigma_known=sigma_known, excluded=np.flatnonzero(~keep), bounces=bounces,
                    notes=notes)
+
+
+def drag_left_out_note(scene):
+    """The note of a deterministic fit (:func:`dashpot.fit.fit_model`) where the scene models
+    air drag, or "".
+
+    The deterministic trains have no drag yet, so such a fit flies under g_eff alone and says
+    so rather than leave the drag out silently. The fits under the noise model fly the drag
+    flight and do not get it.
+
+    Parameters
+    ----------
+    scene : Scene
+    """
+    if not scene.needs_drag:
+        return ""
+    return (f"the scene gives the ball's mass and diameter, but the deterministic fits do not "
+            f"model air drag yet: flights under g_eff = {scene.driving_acceleration:.6g} m/s² "
+            f"alone (buoyancy and added mass included, drag constant "
+            f"{scene.drag.drag_constant.value:.3g} 1/m left out; the noise-model fits include "
+            f"it)")

@@ -33,6 +33,7 @@ from ..physics.models import GRAVITY_MODELS, MODELS
 from ..scene import Scene
 from .accuracy import _trains_solver, choose_accuracy
 from .covariance import _draws, _interval_row, _linear_estimate, _sampled
+from .data import drag_left_out_note
 from .identifiability import _identifiability_notes
 from .levenberg_marquardt import _levenberg_marquardt
 from .posterior import _posterior_beta
@@ -95,7 +96,7 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
     if unknown:
         raise ValueError(f"unknown uncertainty method {sorted(unknown)[0]!r}; use "
                          f"{', '.join(UNCERTAINTY_METHODS)}")
-    notes = list(data.notes)
+    notes = list(data.notes) + [note for note in (drag_left_out_note(scene),) if note]
     try:
         return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed, accuracy)
     except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:

@@ -90,7 +90,7 @@ from .results import Estimate, FitResult
 from .settings import Z68, Z95
 from .start import _flight_ratio_start, _start_values
 
-__all__ = ["NoiseFitResult", "fit_noise_model", "fit_noise_models"]
+__all__ = ["NoiseFitResult", "failed_noise_fit", "fit_noise_model", "fit_noise_models"]
 
 NOISE_PARAMETERS = ("v0", "sigma_eps", "sigma_j")
 OUTLIER_Z = 4.0  # standardized innovations beyond this are flagged in the notes
@@ -824,18 +824,34 @@ class _Problem:
                                      "beta = zeta * omega0 (linear propagation)")
 
     def failed(self, t, message, notes):
-        data = self.datasets[t]
-        empty = np.full(data.times.size, np.nan)
-        nothing = np.zeros(0)
-        return NoiseFitResult(
-            model=self.law_name, success=False, message=message, estimates={}, varied=(),
-            correlation=np.zeros((0, 0)), chisqr=math.inf, redchi=math.inf, aic=math.inf,
-            bic=math.inf, ndata=int(data.times.size), nvarys=0, nfev=0, time_residuals=empty,
-            normalized_residuals=empty,
-            predicted={"times": nothing, "speeds": nothing, "restitution": nothing,
-                       "contact_durations": nothing, "at_data": empty},
-            eps_curve={"speed": nothing, "eps": nothing, "captured": np.zeros(0, bool)},
-            notes=notes + [message], numerical_tolerance=math.nan, error_bound=math.nan)
+        return failed_noise_fit(self.datasets[t], self.law_name, message, notes)
+
+
+def failed_noise_fit(data, law, message, notes=()):
+    """A noise fit that could not be made, with its reason: the layout of any other, with
+    ``success`` false, criteria inf and nothing predicted.
+
+    Parameters
+    ----------
+    data : FitData
+    law : str
+    message : str
+        Why the fit failed (also the last note).
+    notes : sequence of str
+        Notes gathered before the failure.
+    """
+    empty = np.full(data.times.size, np.nan)
+    nothing = np.zeros(0)
+    return NoiseFitResult(
+        model=law, success=False, message=message, estimates={}, varied=(),
+        correlation=np.zeros((0, 0)), chisqr=math.inf, redchi=math.inf, aic=math.inf,
+        bic=math.inf, ndata=int(data.times.size), nvarys=0, nfev=0, time_residuals=empty,
+        normalized_residuals=empty,
+        predicted={"times": nothing, "speeds": nothing, "restitution": nothing,
+                   "contact_durations": nothing, "at_data": empty},
+        eps_curve={"speed": nothing, "eps": nothing, "captured": np.zeros(0, bool)},
+        notes=list(notes) + [message], numerical_tolerance=math.nan, error_bound=math.nan,
+        neg2_log_likelihood=math.inf)
 
 
 def _span(centre, lower, upper, count):

@@ -119,10 +119,18 @@ class FitResult:
 
 @dataclass
 class SceneFit:
-    """Every requested model fitted to one scene, with the model-selection table."""
+    """Every requested model fitted to one scene, with the model-selection table.
+
+    ``noise_results``, ``noise_selection`` and ``noise_verdict`` hold the fits under the noise
+    model (:func:`dashpot.fit.noise_scene.fit_noise_scene`) where they were asked for: empty,
+    None and "" otherwise.
+    """
 
     scene: Scene
     data: FitData
     results: dict
     selection: pd.DataFrame
     verdict: str
+    noise_results: dict = field(default_factory=dict)
+    noise_selection: pd.DataFrame | None = None
+    noise_verdict: str = ""

@@ -38,3 +38,6 @@ ZETA_ELASTIC_GRID = np.geomspace(1e-12, 1e-4, 33)
 # Relative errors above which a parameter is reported as not determined by the data.
 WEAK_RELATIVE_ERROR = 0.5
 STRONG_CORRELATION = 0.98
+# The restitution-law ladder fitted under the noise model beside the dashpot models (``fit_scene``
+# with noise=True), simplest first: names of :data:`dashpot.physics.laws.LAWS`.
+NOISE_LAWS = ("constant", "linear", "quadratic", "power", "viscoelastic-hertz", "hunt-crossley")
