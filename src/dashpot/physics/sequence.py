@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import check_model, check_nonnegative, check_positive
+from .flight import drag_flight
 from .models import MODELS, collide
 
 __all__ = ["BounceSequence", "bounce_sequence"]
@@ -54,7 +55,7 @@ class BounceSequence:
 
 
 def bounce_sequence(model, *, beta, omega0, g, v0, n_max=200, v_min=0.0, method="exact",
-                    rtol=None):
+                    rtol=None, drag=0.0):
     """Impact times, speeds, contact durations and flight times of successive bounces.
 
     Parameters
@@ -74,6 +75,11 @@ def bounce_sequence(model, *, beta, omega0, g, v0, n_max=200, v_min=0.0, method=
         Stop before an impact slower than this (m/s).
     method, rtol
         Passed to :func:`collide`.
+    drag : float, default 0
+        Quadratic air-drag constant k_d in 1/m (:mod:`dashpot.physics.flight`; `g` is then
+        the effective gravity, buoyancy and added mass included). With drag the ball leaves
+        at u_n = ε_n·v_n, flies T(u_n) and lands at v_{n+1} = L(u_n) < u_n; drag during the
+        millisecond of contact is neglected. 0 gives the gravity-only train exactly.
 
     Returns
     -------
@@ -93,11 +99,12 @@ def bounce_sequence(model, *, beta, omega0, g, v0, n_max=200, v_min=0.0, method=
     g = float(check_positive("g", g))
     v0 = float(check_positive("v0", v0))
     v_min = float(check_nonnegative("v_min", v_min))
+    drag = float(check_nonnegative("drag", drag))
     if int(n_max) != n_max or n_max < 1:
         raise ValueError(f"n_max must be a positive integer; got {n_max!r}")
     zeta = beta / omega0
     v_star = g / omega0
-    speeds, restitution, contacts = [], [], []
+    speeds, restitution, contacts, drag_flights = [], [], [], []
     speed = v0
     stop_reason = "n_max"
     # The map is sequential: each impact speed depends on the previous rebound.
@@ -110,13 +117,18 @@ def bounce_sequence(model, *, beta, omega0, g, v0, n_max=200, v_min=0.0, method=
             stop_reason = "captured"
             break
         speed = float(outcome.eps) * speed
+        if drag:
+            flight = drag_flight(speed, g, drag)
+            drag_flights.append(float(flight.duration))
+            speed = float(flight.landing_speed)
         if speed < v_min or speed == 0.0:
             stop_reason = "v_min"
             break
     speeds = np.array(speeds)
     restitution = np.array(restitution)
     contacts = np.array(contacts)
-    flights = 2.0 * speeds[1:] / g
+    # With drag, the flight after the last impact was drawn only for the v_min check.
+    flights = np.array(drag_flights[:speeds.size - 1]) if drag else 2.0 * speeds[1:] / g
     intervals = contacts[:-1] + flights
     times = np.concatenate([[0.0], np.cumsum(intervals)])
     return BounceSequence(model=model, impact_times=times, impact_speeds=speeds,

@@ -6,7 +6,7 @@ sidecar ``truth.json`` with the generating parameters and the true impact times,
 readers and the fits can be checked against the truth. Deterministic for a given seed.
 
 A light ball can bounce in air (a drag constant, or its mass and diameter): the train then has
-drag-true flights (:func:`dashpot.synth.train.drag_bounce_sequence`) and ``truth.json`` records
+drag-true flights (:func:`dashpot.bounce_sequence` with ``drag``) and ``truth.json`` records
 the drag. Without drag the files are those of the gravity-only train, byte for byte.
 """
 
@@ -26,7 +26,7 @@ from .tables import (
     write_photogate,
     write_timestamps,
 )
-from .train import air_drag, drag_bounce_sequence
+from .train import air_drag
 
 __all__ = ["SCENE_KINDS", "write_scene"]
 
@@ -100,10 +100,10 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
         raise ValueError(f"air drag is modelled for a bouncing ball (audio, phyphox, "
                          f"timestamps), not for a {kind} recording of a cart")
     else:
-        sequence = drag_bounce_sequence(model, beta=beta, omega0=omega0,
-                                        g=drag_truth["effective_gravity"],
-                                        drag=drag_truth["drag_constant"], v0=v0, n_max=n_max,
-                                        v_min=v_min)
+        sequence = bounce_sequence(model, beta=beta, omega0=omega0,
+                                   g=drag_truth["effective_gravity"],
+                                   drag=drag_truth["drag_constant"], v0=v0, n_max=n_max,
+                                   v_min=v_min)
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     recording = directory / RECORDING_NAMES[kind]

@@ -2,25 +2,18 @@
 
 A light ball (a ping-pong ball) loses speed to air drag in flight: its flights are shorter and
 it lands slower than it left, so that successive intervals shrink faster than ε alone makes
-them. :func:`drag_bounce_sequence` draws such a train: at impact n with speed v_n the contact
-model gives ε_n and the contact duration τ_n (as in :func:`dashpot.bounce_sequence`), the ball
-leaves at u_n = ε_n·v_n, and its flight under gravity and quadratic drag
-(:func:`dashpot.physics.flight.drag_flight`) lasts T(u_n) and ends at the next impact speed
-v_{n+1} = L(u_n). Drag during the contact itself (a millisecond) is neglected. Without drag
-(k_d = 0) the train is exactly that of :func:`dashpot.bounce_sequence`.
+them. :func:`air_drag` gives the drag constant and effective gravity of such a train (from k_d
+or from the ball), which :func:`dashpot.bounce_sequence` (argument ``drag``) then draws with
+drag-true flights.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from .._validation import check_model, check_nonnegative, check_positive
-from ..physics.flight import drag_constant, drag_flight, effective_gravity, terminal_speed
-from ..physics.models import MODELS, collide
-from ..physics.sequence import BounceSequence
+from .._validation import check_nonnegative, check_positive
+from ..physics.flight import drag_constant, effective_gravity, terminal_speed
 from ..scene import DEFAULT_AIR_DENSITY, DEFAULT_DRAG_COEFFICIENT
 
-__all__ = ["air_drag", "drag_bounce_sequence"]
+__all__ = ["air_drag"]
 
 BALL_KEYS = ("mass", "diameter", "drag_coefficient", "air_density")
 
@@ -76,68 +69,3 @@ def air_drag(g, *, drag=None, ball=None):
                              f"denser than air of {out['air_density']:g} kg/m³")
     return {"drag_constant": k_d, "effective_gravity": g_eff,
             "terminal_speed": float(terminal_speed(g_eff, k_d)), "gravity": g, **out}
-
-
-def drag_bounce_sequence(model, *, beta, omega0, g, drag, v0, n_max=200, v_min=0.0,
-                         method="exact", rtol=None):
-    """Impact times, speeds, contact durations and flights of a ball bouncing in air.
-
-    Parameters
-    ----------
-    model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
-    beta : float
-        Damping rate β in 1/s, >= 0.
-    omega0 : float
-        Undamped angular frequency ω0 of the contact in rad/s, > 0.
-    g : float
-        Effective gravity g_eff in m/s² (buoyancy and added mass included), > 0; it also sets
-        the contact's v* = g/ω0.
-    drag : float
-        Drag constant k_d in 1/m, >= 0 (0: :func:`dashpot.bounce_sequence` exactly).
-    v0 : float
-        Speed of the first impact in m/s, > 0.
-    n_max, v_min, method, rtol
-        As in :func:`dashpot.bounce_sequence`.
-
-    Returns
-    -------
-    BounceSequence
-        ``flight_times`` T(u_n) from launch at u_n = ε_n v_n to the next impact; each next
-        impact speed is the landing speed L(u_n).
-    """
-    model = check_model(model, MODELS)
-    beta = float(check_nonnegative("beta", beta))
-    omega0 = float(check_positive("omega0", omega0))
-    g = float(check_positive("g", g))
-    drag = float(check_nonnegative("drag", drag))
-    v0 = float(check_positive("v0", v0))
-    v_min = float(check_nonnegative("v_min", v_min))
-    if int(n_max) != n_max or n_max < 1:
-        raise ValueError(f"n_max must be a positive integer; got {n_max!r}")
-    zeta, v_star = beta / omega0, g / omega0
-    speeds, restitution, contacts, flights = [], [], [], []
-    speed, stop_reason = v0, "n_max"
-    # Sequential: each impact speed is the landing speed of the previous flight.
-    for _ in range(int(n_max)):
-        outcome = collide(model, zeta, speed / v_star, method=method, rtol=rtol)
-        speeds.append(speed)
-        restitution.append(float(outcome.eps))
-        contacts.append(float(outcome.contact_time) / omega0)
-        if outcome.captured:
-            stop_reason = "captured"
-            break
-        flight = drag_flight(float(outcome.eps) * speed, g, drag)
-        landing = float(flight.landing_speed)
-        if landing < v_min or landing == 0.0:
-            stop_reason = "v_min"
-            break
-        flights.append(float(flight.duration))
-        speed = landing
-    contacts = np.array(contacts)
-    # At n_max the last impact's flight was drawn only for the v_min check.
-    flights = np.array(flights[:len(speeds) - 1])
-    intervals = contacts[:-1] + flights
-    return BounceSequence(model=model, impact_times=np.concatenate([[0.0], np.cumsum(intervals)]),
-                          impact_speeds=np.array(speeds), restitution=np.array(restitution),
-                          contact_durations=contacts, flight_times=flights, intervals=intervals,
-                          stop_reason=stop_reason)
