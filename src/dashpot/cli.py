@@ -227,7 +227,7 @@ def _contact_text(estimates, key, label, unit):
 
 
 def _print_summary(recording, impacts, scene_fit, h5, figures):
-    """β, k and the ε range per model, and the preferred model, in a few lines."""
+    """β, k and the ε range per model, and the selection's verdict, in a few lines."""
     import numpy as np
 
     print(f"{recording}: {len(impacts)} impacts -> {h5}, figures in {figures}/")
