@@ -5,8 +5,11 @@ scene file (``results/<scene>.h5``, read with :func:`load_record`):
 
 - ``intervals``: observed bounce intervals T_n with every fitted model's predicted intervals
   (differences of its predicted impact times at the fitted impacts) and the residuals;
-- ``restitution``: measured ε against impact speed with every fitted model's ε(v) curve;
-- ``selection``: the Akaike weights and ΔAIC of the models;
+- ``restitution``: measured ε against impact speed with every fitted model's ε(v) curve, and
+  where the scene was also fitted under the noise model, each of those fits' ε(v) (its law at
+  the fitted parameters, over the observed speed range, as stored in ``noise_fits/<law>``);
+- ``selection``: the Akaike weights and ΔAIC of the models, with a second panel of the fits
+  under the noise model where the scene has them;
 - ``detection`` (audio recordings only): the recording's envelope with the detected impacts.
 
 Measured ε and impact speed (:func:`restitution_points`): where the sensor measured speeds
@@ -115,13 +118,22 @@ def restitution_points(record):
             bounces["restitution_uncertainty"].to_numpy(float)[keep])
 
 
-def _eps_curves(record):
+def _eps_curves(record, group="fits"):
     curves = {}
-    for model, fit in record["fits"].items():
+    for model, fit in record.get(group, {}).items():
         curve = fit["eps_curve"]
         if fit["attrs"].get("success", False) and len(curve.get("speed", [])):
             curves[model] = (np.asarray(curve["speed"], float), np.asarray(curve["eps"], float))
     return curves
+
+
+def _noise_eps_curves(record):
+    """ε(v) of the fits under the noise model, in their selection table's order (the file's
+    groups list them alphabetically)."""
+    curves = _eps_curves(record, "noise_fits")
+    if "noise_selection" not in record:
+        return curves
+    return {name: curves[name] for name in record["noise_selection"]["model"] if name in curves}
 
 
 def _finite_or_none(values):
@@ -134,27 +146,34 @@ def scene_figures(record):
     index, observed, uncertainty, predictions, failed = interval_series(record)
     speed, eps, speed_sigma, eps_sigma = restitution_points(record)
     selection = record["selection"]
-    weights = np.where(selection["success"].to_numpy(bool),
-                       selection["akaike_weight"].to_numpy(float), np.nan)
     return {
         "intervals": plots.intervals_figure(index, observed, uncertainty, predictions,
                                             failed=failed),
         "restitution": plots.restitution_speed_figure(speed, eps, _finite_or_none(speed_sigma),
                                                       _finite_or_none(eps_sigma),
-                                                      _eps_curves(record)),
-        "selection": _selection_figure(selection, weights),
+                                                      _eps_curves(record),
+                                                      _noise_eps_curves(record)),
+        "selection": _selection_figure(selection, record.get("noise_selection")),
     }
 
 
-def _selection_figure(selection, weights):
-    """The selection figure on ΔQAIC where the models share a misfit (files written before
-    ΔQAIC was stored show ΔAIC)."""
+def _weights_and_criterion(selection):
+    """Names, Akaike weights (NaN for a failed fit), Δ and its criterion of a selection table:
+    ΔQAIC where the models share a misfit (files written before ΔQAIC was stored show ΔAIC)."""
+    weights = np.where(selection["success"].to_numpy(bool),
+                       selection["akaike_weight"].to_numpy(float), np.nan)
     delta_aic = selection["delta_aic"].to_numpy(float)
     delta = (selection["delta_qaic"].to_numpy(float) if "delta_qaic" in selection
              else delta_aic)
     scaled = bool(np.any(np.isfinite(delta) & (delta != delta_aic)))
-    return plots.selection_figure(selection["model"].tolist(), weights, delta,
-                                  criterion="QAIC" if scaled else "AIC")
+    return selection["model"].tolist(), weights, delta, "QAIC" if scaled else "AIC"
+
+
+def _selection_figure(selection, noise_selection=None):
+    """The selection figure, with the panel of the fits under the noise model where given."""
+    models, weights, delta, criterion = _weights_and_criterion(selection)
+    noise = None if noise_selection is None else _weights_and_criterion(noise_selection)
+    return plots.selection_figure(models, weights, delta, criterion=criterion, noise=noise)
 
 
 def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000):

@@ -85,6 +85,22 @@ def _label(model):
     return MODEL_LABELS.get(model, str(model))
 
 
+# Laws of the restitution ladder fitted under the noise model: colours no model uses.
+NOISE_LAW_COLORS = {"constant": "#000000", "linear": "#E69F00", "quadratic": "#8C564B",
+                    "power": "#9467BD", "viscoelastic-hertz": "#17BECF",
+                    "hunt-crossley": "#BCBD22"}
+"""Colour of each restitution law's ε(v) and bar where a scene has fits under the noise model
+(a dashpot model fitted under the noise model keeps its own colour)."""
+
+
+def _noise_color(name):
+    return NOISE_LAW_COLORS.get(name, _style(name)["color"])
+
+
+def _noise_label(name):
+    return f"noise: {_label(name)}"
+
+
 def _ordered(models):
     """Models in the paper's order, unknown names after them in their given order."""
     models = list(models)
@@ -648,7 +664,7 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
 
 
 def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
-                             restitution_uncertainty, curves):
+                             restitution_uncertainty, curves, noise_curves=None):
     """Measured restitution against impact speed, with each fitted model's ε(v).
 
     Parameters
@@ -662,6 +678,9 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     curves : dict of str to (array_like, array_like)
         Model name -> (impact speed in m/s, ε). Points with ε <= 0 (the model captures the
         ball there) are not drawn.
+    noise_curves : dict of str to (array_like, array_like), optional
+        Law or model name -> (impact speed in m/s, ε) of each fit under the noise model, drawn
+        dash-dotted, labelled "noise: <name>" (the Line2D's gid is "noise:<name>").
 
     Returns
     -------
@@ -680,14 +699,12 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     ax = fig.add_subplot()
     handles = []
     for model in _ordered(curves):
-        curve_speed, curve_eps = (np.asarray(a, dtype=float).ravel() for a in curves[model])
-        if curve_speed.shape != curve_eps.shape:
-            raise ValueError(f"curve of {model!r}: speed and eps lengths differ "
-                             f"({curve_speed.size} and {curve_eps.size})")
-        order = np.argsort(curve_speed, kind="stable")
-        curve_speed, curve_eps = curve_speed[order], curve_eps[order]
-        shown = np.where(curve_eps > 0.0, curve_eps, np.nan)
+        curve_speed, shown = _sorted_curve(model, curves[model])
         handles.append(_model_line(ax, model, curve_speed, shown, linewidth=1.5))
+    for name, curve in (noise_curves or {}).items():
+        curve_speed, shown = _sorted_curve(name, curve)
+        handles.append(ax.plot(curve_speed, shown, color=_noise_color(name), linestyle="-.",
+                               linewidth=1.2, label=_noise_label(name), gid=f"noise:{name}")[0])
     handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
                                   color=_DATA_COLOR, elinewidth=0.8, capsize=2,
                                   label="measured", zorder=3))
@@ -701,7 +718,18 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     return fig
 
 
-def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC"):
+def _sorted_curve(name, curve):
+    """A curve's speeds in increasing order and its ε there, NaN where the ball is captured."""
+    curve_speed, curve_eps = (np.asarray(a, dtype=float).ravel() for a in curve)
+    if curve_speed.shape != curve_eps.shape:
+        raise ValueError(f"curve of {name!r}: speed and eps lengths differ "
+                         f"({curve_speed.size} and {curve_eps.size})")
+    order = np.argsort(curve_speed, kind="stable")
+    curve_speed, curve_eps = curve_speed[order], curve_eps[order]
+    return curve_speed, np.where(curve_eps > 0.0, curve_eps, np.nan)
+
+
+def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", noise=None):
     """Akaike weight of each model as a bar, with its ΔAIC (or ΔQAIC) written above it.
 
     Parameters
@@ -716,25 +744,59 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC"):
     criterion : {"AIC", "QAIC"}, default "AIC"
         What Δ and the weights were computed from: "QAIC" where the models share a misfit
         and ΔAIC was divided by the best model's reduced χ² (:mod:`dashpot.select`).
+    noise : tuple, optional
+        ``(names, akaike_weights, delta, criterion)`` of the fits under the noise model (laws
+        and models, as the first three parameters): drawn as a second panel below.
 
     Returns
     -------
     matplotlib.figure.Figure
-        One axes: Akaike weight (dimensionless) per model.
+        One axes: Akaike weight (dimensionless) per model; a second one per fit under the
+        noise model where `noise` is given.
     """
     models = [str(m) for m in models]
+    weights, delta = _weights_and_delta(models, akaike_weights, delta_aic)
+    panels = [(models, weights, delta, criterion)]
+    if noise is not None:
+        names, noise_weights, noise_delta, noise_criterion = noise
+        names = [str(n) for n in names]
+        panels.append((names, *_weights_and_delta(names, noise_weights, noise_delta),
+                       noise_criterion))
+    width = max(len(panel[0]) for panel in panels)
+    fig = Figure(figsize=(1.3 * max(width, 3) + 2.0, 4.5 * len(panels)), layout="constrained")
+    axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
+    model_colors = [_style(m)["color"] for m in models]
+    _weight_bars(axes[0], models, weights, delta, criterion, model_colors,
+                 [_label(m) for m in models])
+    axes[0].set_xlabel("contact model")
+    axes[0].set_title("Model selection: Akaike weights" + (
+        "\non the misfit's scale (QAIC): no model describes the data" if criterion == "QAIC"
+        else ""))
+    if noise is not None:
+        names, noise_weights, noise_delta, noise_criterion = panels[1]
+        _weight_bars(axes[1], names, noise_weights, noise_delta, noise_criterion,
+                     [_noise_color(n) for n in names], [_label(n) for n in names])
+        axes[1].set_xlabel("restitution law or contact model, fitted under the noise model")
+        axes[1].set_title("Under the noise model (bounce-to-bounce scatter, timing jitter)" + (
+            "\non the misfit's scale (QAIC)" if noise_criterion == "QAIC" else ""))
+    return fig
+
+
+def _weights_and_delta(models, akaike_weights, delta_aic):
     weights = np.asarray(akaike_weights, dtype=float).ravel()
     delta = np.asarray(delta_aic, dtype=float).ravel()
     if not (weights.size == delta.size == len(models)):
         raise ValueError(f"models, akaike_weights and delta_aic must have the same length; got "
                          f"{len(models)}, {weights.size} and {delta.size}")
-    fig = Figure(figsize=(1.3 * max(len(models), 3) + 2.0, 4.5), layout="constrained")
-    ax = fig.add_subplot()
+    return weights, delta
+
+
+def _weight_bars(ax, models, weights, delta, criterion, colors, labels):
+    """One bar per model (its Akaike weight) with Δ and w written above it."""
     position = np.arange(len(models))
     ok = np.isfinite(weights)
     heights = np.where(ok, weights, 0.0)
-    bars = ax.bar(position, heights, width=0.65,
-                  color=[_style(m)["color"] for m in models], edgecolor="0.2", linewidth=0.6)
+    bars = ax.bar(position, heights, width=0.65, color=colors, edgecolor="0.2", linewidth=0.6)
     for bar, weight, d, good in zip(bars, weights, delta, ok):
         if not good:
             text = "fit failed"
@@ -745,16 +807,11 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC"):
         ax.annotate(text, xy=(bar.get_x() + bar.get_width() / 2, bar.get_height()),
                     xytext=(0, 3), textcoords="offset points", ha="center", va="bottom",
                     fontsize="small")
-    ax.set_xticks(position, [_label(m) for m in models])
+    ax.set_xticks(position, labels)
     ax.set_ylim(0.0, 1.15)
     ax.set_xlim(-0.6, len(models) - 0.4)
-    ax.set_xlabel("contact model")
     ax.set_ylabel("Akaike weight (dimensionless)")
-    ax.set_title("Model selection: Akaike weights" + (
-        "\non the misfit's scale (QAIC): no model describes the data" if criterion == "QAIC"
-        else ""))
     ax.grid(axis="y", alpha=0.3)
-    return fig
 
 
 # --- output ---------------------------------------------------------------------------------

@@ -162,12 +162,19 @@ def summary_table(scene_fits):
         scene does not give it, e.g. k without a mass), ``beta_note`` and ``k_note`` (empty,
         or why β or k is NaN although fitted: "not determined (<the data's 95 % bound>;
         <why>)" where the data do not determine ω0, see
-        :func:`dashpot.fit.observability.not_determined`), plus ``verdict``.
+        :func:`dashpot.fit.observability.not_determined`), plus ``verdict``; then
+        ``sigma_eps`` (1), ``sigma_j`` (s) and ``noise_verdict``. A scene fitted under the
+        noise model as well (``noise_results``) adds one row per noise fit, model
+        ``"noise:<law>"``, with its selection figures from ``noise_selection``, ``redchi`` of
+        its standardized innovations and its fitted σ_ε and σ_j; every row of that scene
+        carries its ``noise_verdict``. Without noise fits these three columns are empty
+        (NaN, NaN, "").
     """
     from .fit.observability import not_determined
 
     rows = []
     for name, scene_fit in scene_fits.items():
+        first = len(rows)
         selection = scene_fit.selection.set_index("model")
         for model, fit in scene_fit.results.items():
             row = {"scene": name, "model": model, "success": fit.success,
@@ -175,14 +182,49 @@ def summary_table(scene_fits):
                    "akaike_weight": selection.loc[model, "akaike_weight"],
                    "delta_aic": selection.loc[model, "delta_aic"],
                    "delta_bic": selection.loc[model, "delta_bic"], "redchi": fit.redchi}
-            undetermined = not_determined(fit.estimates) if fit.success else {}
-            for key in ("beta", "k", "omega0", "zeta", "v0"):
-                estimate = fit.estimates.get(key)
-                shown = estimate is not None and key not in undetermined
-                row[key] = estimate.value if shown else math.nan
-                row[f"{key}_stderr"] = estimate.stderr if shown else math.nan
-                if key in ("beta", "k"):
-                    row[f"{key}_note"] = undetermined.get(key, "")
+            row.update(_contact_columns(fit, not_determined))
             row["verdict"] = scene_fit.verdict
             rows.append(row)
+        noise_results = getattr(scene_fit, "noise_results", None) or {}
+        noise_verdict = getattr(scene_fit, "noise_verdict", "") if noise_results else ""
+        for row in rows[first:]:
+            row.update(sigma_eps=math.nan, sigma_j=math.nan, noise_verdict=noise_verdict)
+        if noise_results:
+            rows += _noise_rows(name, scene_fit, noise_results, noise_verdict, not_determined)
     return pd.DataFrame(rows)
+
+
+def _contact_columns(fit, not_determined):
+    """β, k, ω0, ζ, v0 of one fit with their errors, and why β or k is empty where it is."""
+    undetermined = not_determined(fit.estimates) if fit.success else {}
+    columns = {}
+    for key in ("beta", "k", "omega0", "zeta", "v0"):
+        estimate = fit.estimates.get(key)
+        shown = estimate is not None and key not in undetermined
+        columns[key] = estimate.value if shown else math.nan
+        columns[f"{key}_stderr"] = estimate.stderr if shown else math.nan
+        if key in ("beta", "k"):
+            columns[f"{key}_note"] = undetermined.get(key, "")
+    return columns
+
+
+def _noise_rows(name, scene_fit, noise_results, noise_verdict, not_determined):
+    """Summary rows of a scene's fits under the noise model, one per law or model."""
+    selection = scene_fit.noise_selection.set_index("model")
+    rows = []
+    # In the selection table's order: a scene file may list its fits in another.
+    for law in selection.index:
+        fit = noise_results[law]
+        row = {"scene": name, "model": f"noise:{law}", "success": bool(fit.success),
+               "selected": bool(selection.loc[law, "selected"]),
+               "akaike_weight": selection.loc[law, "akaike_weight"],
+               "delta_aic": selection.loc[law, "delta_aic"],
+               "delta_bic": selection.loc[law, "delta_bic"], "redchi": fit.redchi}
+        row.update(_contact_columns(fit, not_determined))
+        row["verdict"] = scene_fit.verdict
+        for key in ("sigma_eps", "sigma_j"):
+            estimate = fit.estimates.get(key)
+            row[key] = estimate.value if estimate is not None else math.nan
+        row["noise_verdict"] = noise_verdict
+        rows.append(row)
+    return rows

@@ -40,7 +40,8 @@ SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "c
                    "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1", "delta_qaic": "1",
                    "akaike_weight": "1", "rank": "1"}
 SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
-                 "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s"}
+                 "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s",
+                 "sigma_j": "s"}
 INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds", "samples",
                     "autocorrelation_steps", "converged")
 NOISE_SELECTION_UNITS = {**SELECTION_UNITS, "sigma_j": "s"}
@@ -255,9 +256,9 @@ def read_fit(path):
         ``attrs`` (root attributes), ``impacts``, ``bounces``, ``selection`` (DataFrames) and
         ``fits``: model -> dict with ``attrs``, ``parameters`` (DataFrame indexed by name),
         ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays);
-        where the file holds fits under the noise model also ``noise_selection`` (DataFrame)
-        and ``noise_fits``: law -> dict as in ``fits`` without ``intervals``, with
-        ``outliers`` and ``timing_sigma`` (arrays).
+        where the file holds fits under the noise model also ``noise_selection`` (DataFrame),
+        its ``noise_verdict`` (str) and ``noise_fits``: law -> dict as in ``fits`` without
+        ``intervals``, with ``outliers`` and ``timing_sigma`` (arrays).
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
@@ -274,6 +275,7 @@ def read_fit(path):
             }
         if "noise_fits" in source:
             out["noise_selection"] = read_table(source["noise_selection"])
+            out["noise_verdict"] = str(source["noise_selection"].attrs.get("verdict", ""))
             out["noise_fits"] = {}
             for law, group in source["noise_fits"].items():
                 out["noise_fits"][law] = {

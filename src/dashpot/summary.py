@@ -30,7 +30,7 @@ SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "de
                    "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
                    "k_note", "omega0",
                    "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
-                   "status", "problem")
+                   "sigma_eps", "sigma_j", "noise_verdict", "status", "problem")
 """Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`)."""
 
 STATUSES = {
@@ -41,7 +41,8 @@ STATUSES = {
 }
 """Values of the ``status`` column and what each means."""
 
-_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "status", "problem")
+_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "noise_verdict", "status",
+                 "problem")
 # h5py raises all of these for a damaged or foreign file, depending on where the damage is.
 _READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 
@@ -59,11 +60,16 @@ def _fit_view(fit):
 
 
 def _scene_view(record):
-    """What summary_table reads of a SceneFit, from one ``read_fit()`` dict."""
+    """What summary_table reads of a SceneFit (with its fits under the noise model, where the
+    file has them), from one ``read_fit()`` dict."""
     return SimpleNamespace(results={model: _fit_view(fit) for model, fit in
                                     record["fits"].items()},
                            selection=record["selection"],
-                           verdict=str(record["attrs"].get("verdict", "")))
+                           verdict=str(record["attrs"].get("verdict", "")),
+                           noise_results={law: _fit_view(fit) for law, fit in
+                                          record.get("noise_fits", {}).items()},
+                           noise_selection=record.get("noise_selection"),
+                           noise_verdict=record.get("noise_verdict", ""))
 
 
 def summary_from_records(records):
@@ -81,8 +87,10 @@ def summary_from_records(records):
         model, success, selected (rank 1 by AIC), akaike_weight, delta_aic, delta_bic,
         redchi, β (1/s), k (N/m, NaN without a mass), ω0 (rad/s), ζ, v0 (m/s) each with its
         ``*_stderr``, ``beta_note`` and ``k_note`` (why β or k is empty although fitted: not
-        determined by the data), and the scene's verdict. No scenes give an empty table with these
-        columns.
+        determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
+        ``noise_verdict``: empty for the deterministic fits' rows, except the noise verdict of a
+        scene with fits under the noise model, which also has one row per noise fit (model
+        ``"noise:<law>"``). No scenes give an empty table with these columns.
     """
     table = summary_table({name: _scene_view(record) for name, record in records.items()})
     if table.empty:
@@ -128,7 +136,7 @@ def _one_line(error):
 def _scene_row(scene, status, problem):
     row = {column: math.nan for column in SUMMARY_COLUMNS}
     row.update(scene=scene, model="", success=False, selected=False, beta_note="", k_note="",
-               verdict="", status=status, problem=problem)
+               verdict="", noise_verdict="", status=status, problem=problem)
     return row
 
 

@@ -1,0 +1,159 @@
+"""Fits under the noise model in the cross-scene summary and in a scene's figures.
+
+A scene file written with the noise fits gives one summary row per noise fit (model
+``noise:<law>``) with its σ_ε, σ_j and χ²/ν of the innovations, and its figures draw each noise
+fit's ε(v) and a second selection panel; a scene file without them gives the summary and figures
+it gave before, plus the empty noise columns. The train is drawn by the noise model's own
+simulator: 30 impacts from 2 m/s, ε = 0.94 with 0.4 % bounce-to-bounce scatter.
+"""
+
+import math
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from dashpot.figures import load_record, scene_figures
+from dashpot.fit import fit_scene
+from dashpot.likelihood import TrainModel
+from dashpot.physics.flight import gravity_flight
+from dashpot.physics.laws import LAWS
+from dashpot.scene import Scene
+from dashpot.store import write_scene_fit, write_summary
+from dashpot.summary import SUMMARY_COLUMNS, summary_from_records
+
+G = 9.80665  # the default scene's g
+DETECTOR = 10e-6  # s, the detector's stated timing error
+# Columns of the summary before the noise fits were added to it.
+COLUMNS_WITHOUT_NOISE = (
+    "scene", "model", "success", "selected", "akaike_weight", "delta_aic", "delta_bic", "redchi",
+    "beta", "beta_stderr", "beta_note", "k", "k_stderr", "k_note", "omega0", "omega0_stderr",
+    "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict", "status", "problem")
+NOISE_COLUMNS = ("sigma_eps", "sigma_j", "noise_verdict")
+
+
+@pytest.fixture(scope="module")
+def scene_files(tmp_path_factory):
+    """One train written twice: fitted with model Ia only, and also under the noise model
+    (constant law and Ia). Returns (plain file, noisy file, noisy SceneFit)."""
+    model = TrainModel(LAWS["constant"].bind(0.94), lambda v: gravity_flight(v, G))
+    drawn = model.simulate(30, np.random.default_rng(60417), start_time=0.3, start_speed=2.0,
+                           process_sigma=0.004, jitter=20e-6, detector_sigma=DETECTOR)
+    # A timing-only sensor's impact table (as the readers give it: no speeds).
+    impacts = pd.DataFrame({"time": drawn.times, "time_uncertainty": DETECTOR,
+                            "amplitude": np.nan, "impact_speed": np.nan,
+                            "rebound_speed": np.nan, "speed_uncertainty": np.nan, "run": 0})
+    folder = tmp_path_factory.mktemp("noise-outputs")
+    plain_fit = fit_scene(impacts, Scene(), ("Ia",))
+    noisy_fit = fit_scene(impacts, Scene(), ("Ia",), noise=True, noise_laws=("constant",))
+    write_scene_fit(folder / "plain.h5", plain_fit, impacts)
+    write_scene_fit(folder / "noisy.h5", noisy_fit, impacts)
+    return folder / "plain.h5", folder / "noisy.h5", noisy_fit
+
+
+def test_summary_has_one_row_per_noise_fit_with_its_scatter_jitter_and_chi_square(scene_files):
+    _, noisy_path, noisy_fit = scene_files
+    table = summary_from_records({"noisy": load_record(noisy_path)})
+    assert list(table.columns) == list(SUMMARY_COLUMNS)
+    assert list(table["model"]) == ["Ia", *(f"noise:{law}" for law in
+                                            noisy_fit.noise_selection["model"])]
+    assert set(noisy_fit.noise_results) == {"constant", "Ia"}
+    rows = table.set_index("model")
+    with h5py.File(noisy_path, "r") as source:
+        for law in ("constant", "Ia"):
+            stored = source["noise_fits"][law].attrs
+            row = rows.loc[f"noise:{law}"]
+            assert row["sigma_eps"] == pytest.approx(stored["sigma_eps"], rel=1e-12)
+            assert row["sigma_j"] == pytest.approx(stored["sigma_j"], rel=1e-12)
+            assert row["redchi"] == pytest.approx(stored["redchi"], rel=1e-12)
+            assert bool(row["success"]) == bool(stored["success"])
+        selection = pd.DataFrame({name: source["noise_selection"][name][()]
+                                  for name in ("model", "akaike_weight", "selected")})
+        selection["model"] = [f"noise:{m.decode() if isinstance(m, bytes) else m}"
+                              for m in selection["model"]]
+        verdict = source["noise_selection"].attrs["verdict"]
+    # The selected noise fit is the one the noise selection table marks, weights from it too.
+    noise_rows = rows.loc[selection["model"]]
+    assert list(noise_rows["selected"]) == list(selection["selected"].astype(bool))
+    assert np.allclose(noise_rows["akaike_weight"], selection["akaike_weight"])
+    # ζ and ω0 where the noise fit is of a dashpot model, none for the constant law.
+    assert math.isnan(rows.loc["noise:constant", "omega0"])
+    assert math.isfinite(rows.loc["noise:Ia", "zeta"])
+    # Every row of the scene carries its noise verdict; the deterministic row has no σ's.
+    assert verdict and (table["noise_verdict"] == verdict).all()
+    assert math.isnan(rows.loc["Ia", "sigma_eps"]) and math.isnan(rows.loc["Ia", "sigma_j"])
+    # The summary of the file and of the fit in memory are the same rows.
+    from dashpot.select import summary_table
+    memory = summary_table({"noisy": noisy_fit})
+    assert list(memory["model"]) == list(table["model"])
+    assert np.allclose(memory["sigma_eps"], table["sigma_eps"], equal_nan=True)
+    assert np.allclose(memory["redchi"], table["redchi"], equal_nan=True)
+
+
+def test_summary_file_stores_the_jitter_in_seconds(scene_files, tmp_path):
+    _, noisy_path, _ = scene_files
+    table = summary_from_records({"noisy": load_record(noisy_path)})
+    write_summary(tmp_path / "summary.h5", tmp_path / "summary.csv", table)
+    with h5py.File(tmp_path / "summary.h5", "r") as source:
+        assert source["summary"]["sigma_j"].attrs["unit"] == "s"
+        assert source["summary"]["sigma_eps"].attrs["unit"] == "1"
+    written = pd.read_csv(tmp_path / "summary.csv")
+    assert sorted(written["model"]) == ["Ia", "noise:Ia", "noise:constant"]
+
+
+def test_scene_without_noise_keeps_its_rows_and_gets_empty_noise_columns(scene_files):
+    plain_path, _, _ = scene_files
+    table = summary_from_records({"plain": load_record(plain_path)})
+    assert list(table.columns) == [*COLUMNS_WITHOUT_NOISE[:-2], *NOISE_COLUMNS, "status",
+                                   "problem"]
+    assert list(table["model"]) == ["Ia"]
+    assert table["sigma_eps"].isna().all() and table["sigma_j"].isna().all()
+    assert (table["noise_verdict"] == "").all()
+
+
+def _lines_by_gid(figure):
+    return {line.get_gid(): line for ax in figure.axes for line in ax.get_lines()
+            if line.get_gid()}
+
+
+def test_restitution_figure_draws_each_noise_fit_curve(scene_files):
+    _, noisy_path, _ = scene_files
+    record = load_record(noisy_path)
+    lines = _lines_by_gid(scene_figures(record)["restitution"])
+    # The noise fits' curves in the noise selection table's order, after the model's.
+    assert list(lines) == ["Ia", *(f"noise:{m}" for m in record["noise_selection"]["model"])]
+    for law in ("constant", "Ia"):
+        line = lines[f"noise:{law}"]
+        assert line.get_label() == {"constant": "noise: constant", "Ia": "noise: Ia (A)"}[law]
+        curve = record["noise_fits"][law]["eps_curve"]
+        order = np.argsort(curve["speed"], kind="stable")
+        assert np.allclose(line.get_xdata(), np.asarray(curve["speed"])[order])
+        expected = np.asarray(curve["eps"])[order]
+        assert np.allclose(line.get_ydata(), np.where(expected > 0, expected, np.nan),
+                           equal_nan=True)
+    # The constant law's curve is flat at its fitted ε.
+    e = record["noise_fits"]["constant"]["parameters"].loc["e", "value"]
+    assert np.allclose(lines["noise:constant"].get_ydata(), e)
+
+
+def test_selection_figure_has_a_panel_of_the_noise_fits_weights(scene_files):
+    _, noisy_path, _ = scene_files
+    record = load_record(noisy_path)
+    figure = scene_figures(record)["selection"]
+    assert len(figure.axes) == 2
+    noise_axes = figure.axes[1]
+    heights = [bar.get_height() for bar in noise_axes.patches]
+    weights = record["noise_selection"]["akaike_weight"].to_numpy(float)
+    assert np.allclose(heights, np.where(record["noise_selection"]["success"], weights, 0.0))
+    labels = {"constant": "constant", "Ia": "Ia (A)"}
+    assert ([tick.get_text() for tick in noise_axes.get_xticklabels()]
+            == [labels[m] for m in record["noise_selection"]["model"]])
+
+
+def test_figures_of_a_scene_without_noise_have_no_noise_curves_or_panel(scene_files):
+    plain_path, _, _ = scene_files
+    figures = scene_figures(load_record(plain_path))
+    assert set(figures) == {"intervals", "restitution", "selection"}
+    assert set(_lines_by_gid(figures["restitution"])) == {"Ia"}
+    assert len(figures["selection"].axes) == 1
