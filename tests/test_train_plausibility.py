@@ -133,3 +133,35 @@ def test_the_chain_search_does_not_follow_growing_intervals():
     assert np.all(np.diff(chain)[1:] / np.diff(chain)[:-1] < 1.08)  # was all 13, ratios 1.1
     shrinking = np.concatenate([[0.0], np.cumsum(0.3 * 0.9 ** np.arange(12))])
     assert _best_chain(shrinking, np.ones(shrinking.size)).size == shrinking.size
+
+
+def test_bounces_of_random_times_says_they_are_no_bounce_train(tmp_path):
+    """`dashpot bounces` writes the table (to inspect the intervals) but says, per run, that
+    random times are not a bounce train, where `fit` refuses them."""
+    rng = np.random.default_rng(8601)
+    train = _train(8602)
+    random_times = np.sort(rng.uniform(0.0, 30.0, 25))
+    table = tmp_path / "impacts.csv"
+    pd.DataFrame({"time": np.concatenate([train, random_times]),
+                  "time_uncertainty": 20e-6,
+                  "run": np.repeat([0, 1], [train.size, random_times.size])}).to_csv(
+        table, index=False)
+    output = tmp_path / "bounces.csv"
+    status, out, err = run_cli(["bounces", str(table), "-o", str(output)])
+    assert status == 0, err
+    warnings = [line for line in out.splitlines() if NOT_A_BOUNCE_TRAIN in line]
+    assert len(warnings) == 1 and warnings[0].startswith("  note: run 1: ")
+    assert output.exists()
+
+
+@pytest.mark.parametrize("seed", (8701, 8702))
+def test_random_times_without_uncertainties_are_not_fitted(tmp_path, seed):
+    """A table of times alone (no time_uncertainty column: unknown σ) is judged with σ = 0,
+    not waved through by a NaN tolerance."""
+    rng = np.random.default_rng(seed)
+    table = tmp_path / "times.csv"
+    pd.DataFrame({"time": np.sort(rng.uniform(0.0, 30.0, 25))}).to_csv(table, index=False)
+    status, _, err = run_cli(["fit", str(table), "-o", str(tmp_path / "fit.h5")])
+    assert status == 2 and NOT_A_BOUNCE_TRAIN in err and str(table) in err
+    status, out, _ = run_cli(["bounces", str(table), "-o", str(tmp_path / "bounces.csv")])
+    assert status == 0 and NOT_A_BOUNCE_TRAIN in out

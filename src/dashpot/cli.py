@@ -78,8 +78,23 @@ def _bounces(args):
     _write_csv_atomically(table, args.output, [args.impacts])
     flagged = int((table["flag"] != "ok").sum())
     print(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> {args.output}")
-    for note in table.attrs.get("notes", []):
-        print(f"  note: {note}")
+    # The table is written whatever the intervals look like (it is how one inspects them),
+    # but a run that is no bounce train is said to be one, as `fit` refuses it.
+    _print_notes([*table.attrs.get("notes", []), *_not_bounce_trains(impacts)])
+
+
+def _not_bounce_trains(impacts):
+    """One warning per run of `impacts` whose intervals are not a ball bouncing to rest."""
+    from .plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
+
+    warnings = []
+    for run, group in impacts.groupby("run", sort=False):
+        problem = bounce_train_problem(group["time"].to_numpy(float),
+                                       group["time_uncertainty"].to_numpy(float))
+        if problem:
+            where = f"run {run}: " if impacts["run"].nunique() > 1 else ""
+            warnings.append(f"{where}{NOT_A_BOUNCE_TRAIN} ({problem}): `fit` refuses it")
+    return warnings
 
 
 def _fit(args):

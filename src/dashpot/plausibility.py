@@ -101,7 +101,10 @@ def bounce_train_problem(times, sigma=None):
     times = np.asarray(times, dtype=float)
     if times.size < 3 or not np.all(np.diff(times) > 0):
         return ""  # too few to judge, or refused by the readers and the fit for what they are
-    sigma = np.zeros(times.size) if sigma is None else np.asarray(sigma, dtype=float)
+    # Unknown (missing or NaN) uncertainties count as 0, as documented: a NaN tolerance would
+    # silently pass every ratio.
+    sigma = np.zeros(times.size) if sigma is None else np.nan_to_num(
+        np.asarray(sigma, dtype=float), nan=0.0)
     bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=1.0)
     ratio = bounces["restitution"].to_numpy(float)[:-1]
     ratio_sigma = bounces["restitution_uncertainty"].to_numpy(float)[:-1]
