@@ -20,7 +20,7 @@ from dashpot.physics.models import MODELS
 from dashpot.store import read_fit
 from dashpot.summary import SUMMARY_COLUMNS
 from dashpot.synth.scene import write_scene
-from workflow_run import run_once
+from workflow_run import copy_run, run_once
 from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
@@ -166,10 +166,8 @@ def _job_counts(output):
 
 @pytest.fixture
 def run_copy(default_run, tmp_path):
-    """A copy of the finished default run (results and .snakemake metadata, mtimes kept)."""
-    workdir = tmp_path / "repo"
-    shutil.copytree(default_run, workdir, symlinks=True)
-    return workdir
+    """A copy of the finished default run, for tests that run the workflow again."""
+    return copy_run(default_run, tmp_path)
 
 
 def test_second_run_does_nothing(run_copy):

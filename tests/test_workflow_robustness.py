@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from dashpot.synth.scene import write_scene
-from workflow_run import SNAKEMAKE, run_once
+from workflow_run import SNAKEMAKE, copy_run, run_once
 from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
@@ -68,10 +68,8 @@ def small_run(tmp_path_factory):
 
 @pytest.fixture
 def run_copy(small_run, tmp_path):
-    """A copy of the finished small run (results and .snakemake metadata, mtimes kept)."""
-    workdir = tmp_path / "repo"
-    shutil.copytree(small_run, workdir, symlinks=True)
-    return workdir
+    """A copy of the finished small run, for tests that run the workflow again."""
+    return copy_run(small_run, tmp_path)
 
 
 def _digest(path):

@@ -41,3 +41,11 @@ def run_once(tmp_path_factory, name, run):
     status = marker.read_text()
     assert status == "ok", status
     return workdir
+
+
+def copy_run(finished, tmp_path):
+    """A copy of a finished run's folder (results and .snakemake metadata, mtimes kept), for a
+    test that runs the workflow again without touching the shared run."""
+    workdir = tmp_path / "repo"
+    shutil.copytree(finished, workdir, symlinks=True)
+    return workdir

@@ -309,7 +309,9 @@ def _newton_in_bracket(value_and_slope, lower, upper, start, args, max_iter=100)
     """Root of an increasing function on [lower, upper] by Newton steps kept in the bracket.
 
     A step that leaves the current bracket is replaced by bisection, so the iteration always
-    converges; it stops at a step below 4 ulp of the iterate or a closed bracket.
+    converges; it stops at a step below 4 ulp of the iterate or a closed bracket. (The contact
+    models' :func:`dashpot.physics.brackets._halley_in_bracket` needs f'' and f''' in closed
+    form for its steps and its stopping estimate; the functions here have only f'.)
     """
     root = start.copy()
     tiny = np.finfo(float).eps
