@@ -209,7 +209,7 @@ def test_intervals_figure_with_failed_model_and_nan_predictions():
     n, observed, sigma, predictions = _scene()
     predictions["IIa"] = 0.5 * 0.91 ** n  # given, but the fit failed: must not be drawn
     fig = plots.intervals_figure(n, observed, sigma, predictions, failed=("IIa", "Ia"))
-    top, residual = fig.axes
+    top, residual, in_time = fig.axes
     drawn = _model_lines(top)
     assert set(drawn) == {"Ib", "IIb", "hybrid"}
     assert len(drawn["Ib"].get_xdata()) == 15
@@ -219,9 +219,46 @@ def test_intervals_figure_with_failed_model_and_nan_predictions():
     assert any(t.startswith("Ia (A)") and "failed" in t for t in texts)
     assert "sigma" in residual.get_ylabel()
     np.testing.assert_allclose(_model_lines(residual)["hybrid"].get_ydata(), 0.0, atol=1e-9)
-    # Without usable uncertainties the residuals are in ms.
+    # The same residuals in time units beside them: Ib's are 0, IIb's observed − predicted.
+    assert "ms" in in_time.get_ylabel()
+    iib = _model_lines(in_time)["IIb"].get_ydata()
+    expected = 1e3 * (observed - np.where(n % 5 == 0, np.nan, 0.5 * 0.899 ** n))
+    np.testing.assert_allclose(iib, expected, rtol=1e-12)
+    # Without usable uncertainties the residuals are in time units only.
     fig = plots.intervals_figure(n, observed, None, predictions)
-    assert "ms" in fig.axes[1].get_ylabel()
+    assert len(fig.axes) == 2 and "ms" in fig.axes[1].get_ylabel()
+
+
+def test_interval_residuals_take_the_unit_of_their_size():
+    """Microsecond residuals are shown in µs, not as 0.00x ms; bounce numbers are integers."""
+    n = np.arange(1, 9)
+    observed = 0.3 * 0.95 ** n
+    fig = plots.intervals_figure(n, observed, np.full(n.size, 2e-6),
+                                 {"Ia": observed + 5e-6 * (-1.0) ** n})
+    in_time = fig.axes[2]
+    assert "µs" in in_time.get_ylabel()
+    np.testing.assert_allclose(np.abs(_model_lines(in_time)["Ia"].get_ydata()), 5.0)
+    for ax in fig.axes:
+        ticks = [t for t in ax.get_xticks() if n.min() - 0.5 <= t <= n.max() + 0.5]
+        assert ticks and all(float(t).is_integer() for t in ticks), ticks
+
+
+def test_restitution_limits_follow_the_data_and_the_curves():
+    """ε near 0.94 is not squeezed into [0, 1], nothing sits on an edge, and a capture drop
+    inside the measured speed range widens the range to show it."""
+    speed = np.linspace(0.2, 2.0, 12)
+    eps = 0.94 + 0.004 * np.sin(7.0 * speed)
+    flat = {"Ia": (np.linspace(0.0, 2.1, 50), np.full(50, 0.942))}
+    ax = plots.restitution_speed_figure(speed, eps, None, np.full(12, 0.002), flat).axes[0]
+    bottom, top = ax.get_ylim()
+    assert 0.9 < bottom < eps.min() - 0.002 and eps.max() + 0.002 < top < 0.98
+    left, right = ax.get_xlim()
+    assert left == 0.0 and 2.0 < right < 2.2
+    curve_speed = np.linspace(0.01, 2.1, 200)
+    dropping = {"hybrid": (curve_speed, 0.94 - 0.6 * np.exp(-curve_speed / 0.05))}
+    ax = plots.restitution_speed_figure(speed, eps, None, None, dropping).axes[0]
+    shown = dropping["hybrid"][1][curve_speed <= ax.get_xlim()[1]]
+    assert ax.get_ylim()[0] <= shown.min() < eps.min()
 
 
 def test_restitution_speed_curve_hides_captured_speeds():

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
 from ._validation import check_positive
 from .atomic import atomic_path
@@ -594,7 +595,7 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
         Observed intervals T_n in s (impact n to impact n + 1).
     observed_uncertainty : array_like or None
         1σ uncertainty of each T_n in s. If it is None or not finite and positive everywhere,
-        residuals are shown in ms instead of in units of σ.
+        residuals are shown in time units only.
     predictions : dict of str to array_like
         Model name -> predicted intervals in s, aligned with `observed` from its first entry.
         May be shorter (a model that captures the ball early predicts fewer bounces) or hold
@@ -607,8 +608,9 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
     -------
     matplotlib.figure.Figure
         Top: T_n (s) against n, observed with error bars, each model's prediction as a line.
-        Bottom: residual observed − predicted, in units of σ (dimensionless, ±1 band shaded)
-        or in ms.
+        Below: residual observed − predicted in units of σ (dimensionless, ±1 band shaded)
+        where every σ is usable, and always in time units (s, ms or µs, whichever suits the
+        largest residual; σ drawn as error bars about 0). Bounce numbers are integer ticks.
     """
     n = _as_series("bounce_index", bounce_index)
     observed = np.asarray(observed, dtype=float).ravel()
@@ -624,16 +626,16 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
     in_sigma = sigma is not None and bool(np.all(np.isfinite(sigma) & (sigma > 0.0)))
     failed = set(failed)
 
-    fig = Figure(figsize=(9.5, 7.0), layout="constrained")
-    top, bottom = fig.subplots(2, 1, gridspec_kw={"height_ratios": (2.0, 1.0)})
+    # Residuals in σ alone hide their size (4,000σ may be 70 ms or 70 µs): where they are
+    # in σ, a third panel gives them in time units too.
+    panels = 3 if in_sigma else 2
+    fig = Figure(figsize=(9.5, 7.0 if panels == 2 else 8.5), layout="constrained")
+    top, *residual_axes = fig.subplots(panels, 1, gridspec_kw={
+        "height_ratios": (2.0,) + (1.0,) * (panels - 1)})
+    in_time = residual_axes[-1]
     handles = [top.errorbar(n, observed, yerr=sigma, fmt="o", markersize=3.5, color=_DATA_COLOR,
                             elinewidth=1.0, capsize=2, label="observed", zorder=3)]
-    if in_sigma:
-        bottom.axhspan(-1.0, 1.0, color="0.5", alpha=0.15, linewidth=0)
-    elif sigma is not None:
-        bottom.errorbar(n, np.zeros(n.shape), yerr=1e3 * sigma, fmt="none", color="0.6",
-                        elinewidth=1.0, capsize=2)
-    bottom.axhline(0.0, color="0.3", linewidth=0.8)
+    residuals = {}
     for model in _ordered(set(predictions) | failed):
         if model in failed:
             style = _style(model)
@@ -642,23 +644,34 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
                                   label=f"{_label(model)}: fit failed, not drawn"))
             continue
         predicted = np.asarray(predictions[model], dtype=float).ravel()[:n.size]
-        m = predicted.size
-        handles.append(_model_line(top, model, n[:m], predicted, markers=True, markersize=3,
-                                   linewidth=1.0, alpha=0.85))
-        residual = observed[:m] - predicted
-        residual = residual / sigma[:m] if in_sigma else 1e3 * residual
-        _model_line(bottom, model, n[:m], residual, markers=True, markersize=3, linewidth=0.8,
-                    alpha=0.85)
-    for ax in (top, bottom):
+        handles.append(_model_line(top, model, n[:predicted.size], predicted, markers=True,
+                                   markersize=3, linewidth=1.0, alpha=0.85))
+        residuals[model] = observed[:predicted.size] - predicted
+    scale, unit = _time_unit([*residuals.values(), sigma if sigma is not None else []])
+    if in_sigma:
+        residual_axes[0].axhspan(-1.0, 1.0, color="0.5", alpha=0.15, linewidth=0)
+        residual_axes[0].set_ylabel(r"residual $(T_n - T_n^\mathrm{model})/\sigma_n$"
+                                    "\n(dimensionless)")
+    if sigma is not None:
+        in_time.errorbar(n, np.zeros(n.shape), yerr=scale * sigma, fmt="none", color="0.6",
+                         elinewidth=1.0, capsize=2)
+    in_time.set_ylabel(rf"residual $T_n - T_n^\mathrm{{model}}$ ({unit})")
+    for model, residual in residuals.items():
+        m = residual.size
+        if in_sigma:
+            _model_line(residual_axes[0], model, n[:m], residual / sigma[:m], markers=True,
+                        markersize=3, linewidth=0.8, alpha=0.85)
+        _model_line(in_time, model, n[:m], scale * residual, markers=True, markersize=3,
+                    linewidth=0.8, alpha=0.85)
+    for ax in (top, *residual_axes):
         ax.set_xlabel("bounce number $n$")
         ax.set_xlim(n.min() - 0.5, n.max() + 0.5)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.grid(alpha=0.3)
+    for ax in residual_axes:
+        ax.axhline(0.0, color="0.3", linewidth=0.8)
     top.set_ylabel("interval $T_n$ (s)")
     top.set_title("Bounce intervals: observed and predicted")
-    if in_sigma:
-        bottom.set_ylabel(r"residual $(T_n - T_n^\mathrm{model})/\sigma_n$" "\n(dimensionless)")
-    else:
-        bottom.set_ylabel(r"residual $T_n - T_n^\mathrm{model}$ (ms)")
     _figure_legend(fig, handles)
     return fig
 
@@ -708,14 +721,52 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
                                   color=_DATA_COLOR, elinewidth=0.8, capsize=2,
                                   label="measured", zorder=3))
-    ax.set_ylim(bottom=0.0)
-    ax.set_xlim(left=0.0)
+    ax.set_xlim(*_speed_limits(speed, xerr))
+    ax.set_ylim(*_restitution_limits(ax.get_xlim(), eps, yerr, handles[1:]))
     ax.set_xlabel("impact speed $v$ (m/s)")
     ax.set_ylabel(EPS_LABEL)
     ax.set_title("Restitution against impact speed")
     ax.grid(alpha=0.3)
     _figure_legend(fig, handles)
     return fig
+
+
+def _time_unit(values):
+    """(factor, unit) to show times of the size of the largest finite |value| (values in s)."""
+    finite = np.concatenate([np.abs(np.asarray(v, dtype=float)).ravel() for v in values]
+                            or [np.zeros(0)])
+    finite = finite[np.isfinite(finite)]
+    largest = float(finite.max()) if finite.size else 0.0
+    if largest >= 1.0:
+        return 1.0, "s"
+    if largest >= 1e-3 or largest == 0.0:
+        return 1e3, "ms"
+    return 1e6, "µs"
+
+
+def _speed_limits(speed, speed_error):
+    """x range of the restitution figure: from 0 to past the fastest measured bounce."""
+    upper = speed + (0.0 if speed_error is None else np.nan_to_num(speed_error))
+    upper = upper[np.isfinite(upper)]
+    return 0.0, (1.05 * float(upper.max()) if upper.size and upper.max() > 0 else 1.0)
+
+
+def _restitution_limits(speed_range, eps, eps_error, lines):
+    """y range of the restitution figure: the measured points with their error bars and every
+    curve inside the speed range (a capture drop there included), padded by 5 %, never beyond
+    the physical range [0, 1] by more than the data themselves go."""
+    error = 0.0 if eps_error is None else np.nan_to_num(eps_error)
+    values = [eps - error, eps + error]
+    for line in lines:
+        x, y = (np.asarray(a, dtype=float) for a in line.get_data())
+        values.append(y[(x >= speed_range[0]) & (x <= speed_range[1])])
+    values = np.concatenate([np.ravel(v) for v in values])
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return 0.0, 1.02
+    low, high = float(values.min()), float(values.max())
+    pad = 0.05 * max(high - low, 0.01)
+    return max(low - pad, min(low, 0.0)), high + pad
 
 
 def _sorted_curve(name, curve):
