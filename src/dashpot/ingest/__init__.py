@@ -27,7 +27,14 @@ from pathlib import Path
 
 from ..errors import InputError
 
-AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".oga")
+AUDIO_SUFFIXES = (".wav", ".wave", ".flac", ".ogg", ".oga", ".opus", ".mp3", ".aif", ".aiff",
+                  ".aifc", ".caf", ".au", ".snd", ".w64", ".rf64")
+"""File names read as audio: what the libsndfile bundled with soundfile decodes (its
+``available_formats()``: WAV, FLAC, Ogg Vorbis/Opus, MP3, AIFF, CAF, AU, W64, RF64)."""
+UNREADABLE_MEDIA = (".m4a", ".mp4", ".m4v", ".aac", ".mov", ".avi", ".mkv", ".webm", ".3gp",
+                    ".wma", ".wmv", ".amr")
+"""Phone and camera recordings libsndfile cannot decode (AAC, AMR or WMA sound; video
+containers): refused with the conversion command to a WAV file."""
 KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
 
 
@@ -38,7 +45,8 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     Parameters
     ----------
     path : str or os.PathLike
-        Audio recording (WAV, FLAC, OGG) or lab table (CSV/TSV/semicolon text, .xlsx).
+        Audio recording (WAV, FLAC, OGG, MP3, AIFF, CAF, ...: see ``AUDIO_SUFFIXES``) or lab
+        table (CSV/TSV/semicolon text, .xlsx, .xls, .ods, Tracker text export).
     kind : {"audio", "phyphox", "timestamps", "motion_sensor", "photogate"}, optional
         Reader to use; by default audio from the file suffix, tables by their headers.
     flag_length : float, optional
@@ -68,11 +76,35 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     return impacts
 
 
+def unreadable_media_problem(path):
+    """The one-line problem for a recording libsndfile cannot decode, with its conversion.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording (e.g. a phone's ``.m4a`` or a video whose sound track holds the impacts).
+
+    Returns
+    -------
+    str
+        What is wrong and the ffmpeg command that extracts the sound as a WAV file.
+    """
+    path = Path(path)
+    kind = "video" if path.suffix.lower() in (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm",
+                                              ".3gp", ".wmv") else "audio"
+    target = path.with_suffix(".wav").name
+    return (f"{path.suffix.lower()} {kind} cannot be decoded here (readable: "
+            f"{', '.join(s.lstrip('.').upper() for s in AUDIO_SUFFIXES[::2])} ...); convert its "
+            f"sound to WAV first, e.g. `ffmpeg -i {path.name} -vn -c:a pcm_s16le {target}`")
+
+
 def _read(path, kind, flag_length, gate_distance, unit, bumper_position):
     """The impact table of the reader `kind` chooses (see read_impacts)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "no such file")
+    if path.suffix.lower() in UNREADABLE_MEDIA:
+        raise InputError(path, unreadable_media_problem(path))
     if kind is None:
         if path.suffix.lower() in AUDIO_SUFFIXES:
             kind = "audio"

@@ -1,4 +1,4 @@
-"""Impacts of a bouncing ball from a sound recording (WAV, FLAC, OGG).
+"""Impacts of a bouncing ball from a sound recording (WAV, FLAC, OGG, MP3, AIFF, CAF, ...).
 
 :func:`detect_impacts` streams the file in blocks and returns the impact table of
 :mod:`dashpot.ingest`; :func:`read_audio` reads a whole (short) recording into memory. Both
@@ -131,7 +131,9 @@ _TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak 
 _EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
 _PROBE_WARMUP_SECONDS = 0.05  # high-pass settling before a probed stretch of the file
 _PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
-_FILE_FORMATS = {"WAV", "FLAC", "OGG"}
+# Every container the bundled libsndfile decodes, except header-less RAW (it cannot be opened
+# without being told its layout).
+_FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
 
 
 # --------------------------------------------------------------------------------------------
@@ -228,9 +230,13 @@ def _open(path):
     A WAV whose header sizes were never filled in (0 or 0xFFFFFFFF, as a crashed recorder
     leaves them) is read from the samples present; the handle's ``repair_note`` says so.
     """
+    from . import UNREADABLE_MEDIA, unreadable_media_problem
+
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
+    if path.suffix.lower() in UNREADABLE_MEDIA:
+        raise InputError(path, unreadable_media_problem(path))
     if path.stat().st_size == 0:
         raise InputError(path, "empty file (0 bytes)")
     try:
@@ -241,12 +247,13 @@ def _open(path):
         else:
             handle = _RepairedSoundFile(_PatchedHeaderFile(path, repair[0]), repair[1])
     except (sf.LibsndfileError, RuntimeError, TypeError) as error:
-        raise InputError(path, f"not a readable audio file (WAV, FLAC or OGG expected): "
-                               f"{error}") from None
+        raise InputError(path, f"not a readable audio file (WAV, FLAC, OGG, MP3, AIFF, CAF or "
+                               f"another format libsndfile decodes expected): "
+                               f"{' '.join(str(error).split())}") from None
     if handle.format not in _FILE_FORMATS:
         handle.close()
-        raise InputError(path, f"unsupported audio format {handle.format}: WAV, FLAC or OGG "
-                               f"expected")
+        raise InputError(path, f"unsupported audio format {handle.format}: WAV, FLAC, OGG, "
+                               f"MP3, AIFF or CAF expected")
     problem = _truncation(handle.extra_info)
     if problem:
         handle.close()
@@ -304,7 +311,7 @@ def _check_block_seconds(block_seconds):
 
 
 def read_audio(path, *, block_seconds=10.0):
-    """Samples and sample rate of a WAV, FLAC or OGG recording.
+    """Samples and sample rate of a recording libsndfile decodes (WAV, FLAC, OGG, MP3, AIFF, …).
 
     Parameters
     ----------
@@ -1477,8 +1484,9 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     Parameters
     ----------
     path : str or os.PathLike
-        WAV, FLAC or OGG file; sample rate at least :data:`MIN_SAMPLE_RATE` (8 kHz);
-        8/16/24/32-bit integer or float samples; any number of channels.
+        A recording libsndfile decodes (WAV, FLAC, OGG, MP3, AIFF, CAF, ...); sample rate at
+        least :data:`MIN_SAMPLE_RATE` (8 kHz); 8/16/24/32-bit integer or float samples; any
+        number of channels.
     block_seconds : float, default 30
         The file is decoded and analysed in blocks of this length (s), so that memory stays
         bounded however long the recording.

@@ -41,7 +41,6 @@ from __future__ import annotations
 import csv
 import io
 import re
-import warnings
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -80,7 +79,7 @@ _SPEED_UNITS = {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "m s-1": 1.0, "m·s⁻¹
 
 _TIME_NAMES = {"time", "t", "zeit", "timestamp", "timestamps", "impact time", "impact times",
                "time of impact", "clock time"}
-_POSITION_NAMES = {"position", "distance", "x", "pos"}
+_POSITION_NAMES = {"position", "distance", "x", "y", "pos"}
 _VELOCITY_NAMES = {"velocity", "v", "speed"}
 _UNCERTAINTY_NAMES = {"uncertainty", "time uncertainty", "sigma", "σ", "error", "time error",
                       "std", "u", "dt"}
@@ -98,6 +97,9 @@ _NUMBER = re.compile(r"^[+-]?(?P<int>\d*)(?:\.(?P<frac>\d*))?(?:[eE](?P<exp>[+-]
 _ZIP_MEMBER_BYTES = 64_000_000
 _ZIP_MAX_RATIO = 100
 _ZIP_RATIO_FROM_BYTES = 1_000_000  # smaller members may compress as well as they like
+_OLE2_MAGIC = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # compound file: Excel 97-2003 .xls
+_ODS_MIMETYPE = b"application/vnd.oasis.opendocument.spreadsheet"
+_WORKBOOK_VARIANTS = ("Excel", "OpenDocument")  # variants whose members are sheets
 
 
 @dataclass(frozen=True)
@@ -155,7 +157,8 @@ class _Table:
         """Prefix for error messages that locates the table inside its file."""
         if self.member is None:
             return ""
-        return f"sheet '{self.member}': " if self.variant == "Excel" else f"'{self.member}': "
+        return (f"sheet '{self.member}': " if self.variant.startswith(_WORKBOOK_VARIANTS)
+                else f"'{self.member}': ")
 
 
 def _is_number(strings, decimal):
@@ -245,6 +248,18 @@ def _text_table(path, raw, member):
     if not head:
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
     separator = _sniff_separator(head)
+    title = None
+    if separator is None and len(head) > 2 and not _is_number([head[0].strip()], ".")[0]:
+        # Tracker's data export: a first line naming the track ('mass_A'), then the header.
+        below = _sniff_separator(head[1:])
+        header_below = below is not None and not np.any(
+            _is_number([f.strip() for f in next(csv.reader([head[1]], delimiter=below))], "."))
+        if header_below and below not in head[0]:
+            separator, title = below, head[0].strip()
+            rest = lines[comments:]
+            first = next(k for k, line in enumerate(rest) if line.strip())
+            text = "\n".join(rest[first + 1:])
+            head = head[1:]
     body = "\n".join(head[1:])
     decimal = "," if separator != "," and re.search(r"\d,\d", body) else "."
     try:
@@ -261,7 +276,9 @@ def _text_table(path, raw, member):
     variant = (f"CSV, {names[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
-               + (f", {comments} comment line(s) skipped" if comments else ""))
+               + (f", {comments} comment line(s) skipped" if comments else "")
+               + (f", first line names the track '{title}' (Tracker data export)" if title
+                  else ""))
     return _finish_table(path, cells, decimal, variant, member)
 
 
@@ -285,16 +302,19 @@ def _finish_table(path, cells, decimal, variant, member):
     return table
 
 
-def _excel_tables(path, raw):
-    """Every sheet of an .xlsx workbook as a table."""
+def _excel_tables(path, raw, variant):
+    """Every sheet of a workbook (.xlsx, legacy BIFF .xls or OpenDocument .ods) as a table.
+
+    All three are read by pandas with the calamine engine (python-calamine); numbers come back
+    as floats, so their written digits are not known and the column's resolution is inferred
+    from the spacing of its values (see _column_resolution).
+    """
     try:
-        with warnings.catch_warnings():
-            # Minimal writers (phyphox's own among them) leave out the style part.
-            warnings.filterwarnings("ignore", message=".*default style.*", category=UserWarning)
-            sheets = pd.read_excel(io.BytesIO(raw), sheet_name=None, header=None, dtype=object,
-                                   engine="openpyxl")
-    except Exception as error:  # openpyxl raises many kinds for damaged workbooks
-        raise InputError(path, f"not a readable Excel workbook: {error}") from error
+        sheets = pd.read_excel(io.BytesIO(raw), sheet_name=None, header=None, dtype=object,
+                               engine="calamine")
+    except Exception as error:  # calamine raises several kinds for damaged workbooks
+        problem = " ".join(str(error).split()) or type(error).__name__
+        raise InputError(path, f"not a readable {variant} workbook: {problem}") from error
     tables = []
     for name, frame in sheets.items():  # loop over sheets, not rows
         if frame.size == 0:
@@ -302,7 +322,7 @@ def _excel_tables(path, raw):
         cells = frame.astype(object).where(frame.notna(), "").astype(str).to_numpy(dtype=str)
         cells = np.char.strip(cells)
         try:
-            tables.append(_finish_table(path, cells, ".", "Excel", str(name)))
+            tables.append(_finish_table(path, cells, ".", variant, str(name)))
         except InputError:
             continue  # e.g. a metadata sheet of words only; the caller reports what is missing
     if not tables:
@@ -353,7 +373,10 @@ def _load_tables(path):
             raise InputError(path, "not a table: a damaged zip/xlsx archive") from error
         if "xl/workbook.xml" in names:
             _check_zip_sizes(path, archive, names)
-            return _excel_tables(path, raw)
+            return _excel_tables(path, raw, "Excel")
+        if "mimetype" in names and archive.read("mimetype").startswith(_ODS_MIMETYPE):
+            _check_zip_sizes(path, archive, names)
+            return _excel_tables(path, raw, "OpenDocument spreadsheet (.ods)")
         members = [n for n in names if n.lower().endswith(".csv") and not n.startswith("meta/")]
         if not members:
             raise InputError(path, "not a table: a zip archive without CSV files")
@@ -372,6 +395,14 @@ def _load_tables(path):
         if not tables:
             raise InputError(path, "not a table: no CSV member of the archive holds numbers")
         return tables
+    if raw[:8] == _OLE2_MAGIC:
+        # Excel 97-2003 (BIFF8 inside an OLE2 compound file), as phyphox's "Excel" export
+        # writes it. The OLE2 container caps nothing itself, so refuse what no lab table needs.
+        if len(raw) > _ZIP_MEMBER_BYTES:
+            raise InputError(path, f"Excel 97-2003 workbook of {len(raw) / 1e6:.0f} MB: larger "
+                                   f"than a lab table can be (limit "
+                                   f"{_ZIP_MEMBER_BYTES / 1e6:.0f} MB)")
+        return _excel_tables(path, raw, "Excel 97-2003 (.xls)")
     return [_text_table(path, raw, None)]
 
 
@@ -1043,12 +1074,39 @@ class _Run:
     columns: dict  # quantity -> (values in SI, resolution in SI)
 
 
+def _column_resolution(values, resolution):
+    """Resolution of a column of readings from the data's spacing, in the values' unit.
+
+    The smallest non-zero change between consecutive readings, never finer than the finest
+    digit written in the column. One cell's text (a zeroed start written ``0.0``, a number an
+    exporter shortened) cannot set it: a column's digits show its resolution only where they
+    are most numerous, and a workbook's cells hold floats without written digits.
+    """
+    finite = np.isfinite(values)
+    steps = np.abs(np.diff(values[finite]))
+    steps = steps[steps > 0]
+    written = resolution[finite & np.isfinite(resolution)]
+    finest = float(np.min(written)) if written.size else 0.0
+    if steps.size == 0:
+        return finest
+    return max(float(np.min(steps)), finest)
+
+
+def _span(present):
+    """First and last index (inclusive) where `present` is True, or None if it never is."""
+    where = np.flatnonzero(present)
+    return (int(where[0]), int(where[-1])) if where.size else None
+
+
 def _runs(path, table, quantities):
     """Group columns into runs and read each run's time and `quantities` in SI units.
 
-    `quantities` maps a quantity ('position', 'velocity', 'state') to (names, unit kind).
-    Shorter runs are padded with empty cells (or NaN) at the end; a gap inside a run is an
-    error.
+    `quantities` maps a quantity ('position', 'velocity', 'state') to (names, unit kind), in
+    order of preference: the first one a run has is the one its samples are read from, and a
+    later one (velocity beside a position) is not used, so its blanks cannot reject the file.
+    Blanks at the start or end of a column are normal (a derivative starts a sample or two
+    after the position; shorter runs are padded at the end); a blank between values of the
+    column read, or of the time beside them, is an error naming the row.
     """
     where = table.where
     columns = table.columns
@@ -1064,40 +1122,45 @@ def _runs(path, table, quantities):
             time_index = shared_time[0]
         found = {}
         for quantity, (names, kind) in quantities.items():
-            j = next((j for j in members if (columns[j].name in names if names else
-                                             _is_state(columns[j]))), None)
-            if j is not None:
-                found[quantity] = j
+            candidates = [j for j in members if (columns[j].name in names if names else
+                                                 _is_state(columns[j]))]
+            if candidates:
+                found[quantity] = candidates
         if not found:
             continue
+        quantity = next(iter(found))
+        names, kind = quantities[quantity]
         time, time_res = _numbers(path, table, time_index, what="time")
         time_factor = _unit_factor(path, where, columns[time_index], table, "time") or 1.0
-        indices = [time_index, *found.values()]
-        filled = np.zeros(table.cells.shape[0], dtype=bool)
-        for j in indices:  # loop over the run's columns
-            filled |= table.cells[:, j] != ""
-        last = np.flatnonzero(filled)
-        rows = np.arange(last[-1] + 1 if last.size else 0)
+        read = []
+        for j in found[quantity]:  # loop over candidate columns (Tracker: x and y)
+            filled = table.cells[:, j] != ""
+            if kind is not None:
+                values, res = _numbers(path, table, j, what=quantity)
+                factor = _unit_factor(path, where, columns[j], table, kind) or 1.0
+                filled = np.isfinite(values)
+                read.append((j, filled, values * factor, res * factor))
+            else:
+                read.append((j, filled, None, None))
+        if len(read) > 1:
+            # Several coordinates (Tracker's x and y): the one the object moves along most.
+            spread = [np.nanstd(v) if np.any(np.isfinite(v)) else -1.0 for _, _, v, _ in read]
+            read = [read[int(np.argmax(spread))]]
+        j, filled, values, res = read[0]
+        span = _span(filled)
+        if span is None:
+            continue
+        rows = np.arange(span[0], span[1] + 1)
+        gap = ~filled[rows]
+        if gap.any():
+            k = int(rows[np.flatnonzero(gap)[0]])
+            raise InputError(path, f"{where}{columns[j].header} is missing inside the run "
+                                   f"(a blank between its values)", row=k + 1)
         _check_times(path, table, time[rows] * time_factor, rows)
-        data = {"time_resolution": time_res[rows] * time_factor}
-        for quantity, j in found.items():
-            kind = quantities[quantity][1]
-            if kind is None:  # gate states: words or numbers, read by the photogate reader
-                blank = table.cells[rows, j] == ""
-                if blank.any():
-                    k = int(rows[np.flatnonzero(blank)[0]])
-                    raise InputError(path, f"{where}{columns[j].header} is missing inside the "
-                                           f"run", row=k + 1)
-                continue
-            values, res = _numbers(path, table, j, what=quantity)
-            factor = _unit_factor(path, where, columns[j], table, kind) or 1.0
-            values, res = values[rows] * factor, res[rows] * factor
-            gap = ~np.isfinite(values)
-            if gap.any():
-                k = int(rows[np.flatnonzero(gap)[0]])
-                raise InputError(path, f"{where}{columns[j].header} is missing inside the run",
-                                 row=k + 1)
-            data[quantity] = (values, res)
+        data = {"time_resolution": time_res[rows] * time_factor, "column": columns[j].header}
+        if kind is not None:
+            quantum = _column_resolution(values[rows], res[rows])
+            data[quantity] = (values[rows], np.full(rows.size, quantum))
         runs.append(_Run(label, rows, time[rows] * time_factor, data))
     return runs
 
