@@ -335,20 +335,22 @@ def test_cli_bounces_with_a_drag_constant(tmp_path, capsys):
     assert not (tmp_path / "bad.csv").exists()
 
 
-def test_a_drag_scene_is_fitted_with_a_note_that_drag_is_left_out():
-    """Until the train solvers model drag, a scene that gives mass and diameter is fitted
-    under g_eff alone, and the fit says so instead of ignoring the drag silently (the fits
-    under the noise model fly the drag flight: the note is the deterministic fit's)."""
+def test_a_drag_scene_is_fitted_with_drag_and_says_so():
+    """A scene that gives mass and diameter is fitted with the drag flight: k_d is a fitted
+    parameter under the scene's prior, and the fit's notes say so; a scene without the
+    diameter has neither (drag fits themselves: tests/test_flight_fits.py)."""
     from dashpot.fit import fit_model, prepare_data
 
     times = np.cumsum(np.r_[0.0, 0.3 * 0.95 ** np.arange(12)])
     impacts = pd.DataFrame({"time": times, "time_uncertainty": np.full(times.size, 1e-5)})
     apparatus = {"mass": 0.0027, "diameter": 0.04}
     scene = scene_from_mapping({"apparatus": apparatus}, source="scene.yaml", base=".")
-    notes = [note for note in fit_model(prepare_data(impacts, scene), "Ia", scene).notes
-             if "air drag" in note]
-    assert len(notes) == 1 and "left out" in notes[0]
-    assert f"{scene.drag.drag_constant.value:.3g} 1/m" in notes[0]
+    fit = fit_model(prepare_data(impacts, scene), "Ia", scene)
+    notes = [note for note in fit.notes if "air drag" in note]
+    assert len(notes) == 1 and "k_d fitted" in notes[0]
+    assert f"{scene.drag.drag_constant.value:.3g} +- " in notes[0]
+    assert fit.estimates["k_d"].status == "prior" and "k_d" in fit.varied
     plain = scene_from_mapping({"apparatus": {"mass": 0.0027}}, source="scene.yaml", base=".")
-    assert not [note for note in fit_model(prepare_data(impacts, plain), "Ia", plain).notes
-                if "drag" in note]
+    fit = fit_model(prepare_data(impacts, plain), "Ia", plain)
+    assert not [note for note in fit.notes if "drag" in note]
+    assert "k_d" not in fit.estimates and "k_d" not in fit.varied

@@ -99,7 +99,7 @@ def _not_bounce_trains(impacts):
 
 def _fit(args):
     from .analysis import analyze, recording_note
-    from .fit.data import drag_left_out_note
+    from .fit.data import flight_notes
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -118,7 +118,7 @@ def _fit(args):
         raise _cannot_write(args.output, error) from None
     print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
     _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes,
-                  drag_left_out_note(scene)])
+                  *flight_notes(scene)])
     for model, fit in scene_fit.results.items():
         beta = fit.estimates.get("beta")
         if fit.success and beta:
@@ -138,7 +138,7 @@ def _analyze(args):
 
     from .figures import load_record, save_scene_figures
     from .analysis import analyze, recording_note
-    from .fit.data import drag_left_out_note
+    from .fit.data import flight_notes
     from .pipeline import is_audio
     from .scene import Scene, load_scene
     from .store import write_scene_fit
@@ -195,7 +195,7 @@ def _analyze(args):
                 _remove_if_empty(out)
     _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
     _print_notes([recording_note(recording, scene if args.scene else None),
-                  *scene_fit.data.notes, drag_left_out_note(scene)])
+                  *scene_fit.data.notes, *flight_notes(scene)])
     _print_noise(scene_fit)
 
 

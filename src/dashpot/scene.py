@@ -42,6 +42,11 @@ __all__ = ["AirDrag", "Known", "Scene", "load_scene", "scene_from_mapping", "STA
 
 STANDARD_GRAVITY = 9.80665  # m/s², conventional value (CGPM 1901)
 MIN_DRIVING_ACCELERATION = 1e-3  # m/s², as the schema's g_eff: a track level to 1e-4 rad
+INCLINE_ANGLE_UNCERTAINTY = 0.5
+"""1σ of a stated incline angle in degrees, where the fits measure g_eff from the motion: a
+track's tilt read off a protractor or a phone's inclinometer is good to about half a degree
+(real cart runs measured g_eff 4 % off the stated angle, 0.5° at 12°)."""
+CART_SENSORS = ("motion_sensor", "photogate")
 
 
 @dataclass(frozen=True)
@@ -172,6 +177,10 @@ class Scene:
     contact_time : Known or None
         Duration of the first contact in s (e.g. 0.7 ± 0.3 ms for a table-tennis ball): a
         prior on ω0 = π/τ in the fits (:func:`dashpot.fit.fit_model`).
+    friction : bool or None
+        Whether the fits try rolling friction in flight (two accelerations, away from and
+        toward the bumper; kept only where the data support it). None: tried for cart scenes
+        (an incline angle, or a motion sensor's or photogate's recording).
     """
 
     name: str = "scene"
@@ -193,6 +202,7 @@ class Scene:
     air_density: Known | None = None
     drag_coefficient: Known | None = None
     contact_time: Known | None = None
+    friction: bool | None = None
 
     @property
     def _acceleration_without_air(self):
@@ -211,6 +221,28 @@ class Scene:
         if self.g_eff is None and self.needs_drag:
             return self._drag_values(*(known.value for known in self._drag_inputs()))[1]
         return self._acceleration_without_air
+
+    @property
+    def tries_friction(self):
+        """Whether the fits try rolling friction in flight (see ``friction``)."""
+        if self.friction is not None:
+            return self.friction
+        return self.incline_angle is not None or self.sensor in CART_SENSORS
+
+    @property
+    def flight_acceleration(self):
+        """What is known of the mean acceleration of the flights g_eff, in m/s² (Known).
+
+        The stated g_eff, exact; else g·sin θ from the incline angle with the uncertainty of
+        :data:`INCLINE_ANGLE_UNCERTAINTY` carried to it (g·cos θ·δθ): a prior the motion data
+        refine where a fit measures the flight's accelerations; else the driving
+        acceleration, exact.
+        """
+        if self.g_eff is None and self.incline_angle is not None:
+            angle = math.radians(self.incline_angle)
+            return Known(self.driving_acceleration, self.gravity * math.cos(angle)
+                         * math.radians(INCLINE_ANGLE_UNCERTAINTY))
+        return Known(self.driving_acceleration)
 
     @property
     def needs_drag(self):
@@ -278,7 +310,8 @@ class Scene:
         out = {}
         for item in fields(self):
             value = getattr(self, item.name)
-            if item.name == "noise" and not value:
+            if (item.name == "noise" and not value) or (item.name == "friction"
+                                                        and value is None):
                 continue  # recorded only where asked for: the default scene's record unchanged
             if item.name in _DRAG_KEYS:
                 if not self.needs_drag:
@@ -389,7 +422,8 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                   timing_resolution=mapping.get("timing_resolution"),
                   reader=dict(mapping.get("reader", {})),
                   accuracy=mapping.get("accuracy", "auto"),
-                  noise=bool(mapping.get("noise", False)), **kwargs)
+                  noise=bool(mapping.get("noise", False)), friction=mapping.get("friction"),
+                  **kwargs)
     _check_drag(scene, source)
     if scene.incline_angle is not None and scene.g_eff is None and \
             scene.driving_acceleration < MIN_DRIVING_ACCELERATION:

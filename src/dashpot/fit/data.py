@@ -110,22 +110,24 @@ def prepare_data(impacts, scene):
                    notes=notes)
 
 
-def drag_left_out_note(scene):
-    """The note of a deterministic fit (:func:`dashpot.fit.fit_model`) where the scene models
-    air drag, or "".
-
-    The deterministic trains have no drag yet, so such a fit flies under g_eff alone and says
-    so rather than leave the drag out silently. The fits under the noise model fly the drag
-    flight and do not get it.
+def flight_notes(scene):
+    """The notes of a deterministic fit (:func:`dashpot.fit.fit_model`) on the flight physics
+    the scene asks for: air drag where it gives the ball's mass and diameter; none else.
 
     Parameters
     ----------
     scene : Scene
+
+    Returns
+    -------
+    list of str
     """
-    if not scene.needs_drag:
-        return ""
-    return (f"the scene gives the ball's mass and diameter, but the deterministic fits do not "
-            f"model air drag yet: flights under g_eff = {scene.driving_acceleration:.6g} m/s² "
-            f"alone (buoyancy and added mass included, drag constant "
-            f"{scene.drag.drag_constant.value:.3g} 1/m left out; the noise-model fits include "
-            f"it)")
+    drag = scene.drag
+    if drag is None:
+        return []
+    k_d = drag.drag_constant
+    prior = (f"{k_d.value:.3g} +- {k_d.uncertainty:.2g} 1/m" if k_d.uncertainty is not None
+             else f"{k_d.value:.3g} 1/m (exact)")
+    return [f"air drag in flight: k_d fitted with the scene's prior {prior} (mass, diameter, "
+            f"drag coefficient and air density); g_eff = {scene.driving_acceleration:.6g} m/s² "
+            f"with buoyancy and added mass"]

@@ -19,7 +19,7 @@ def _identifiability_notes(estimates, varied, correlation, params):
         param = params[name]
         if any(np.isfinite(bound) and abs(param.value - bound) <= 1e-3 * abs(bound)
                for bound in (param.min, param.max)):
-            notes.append(f"{labels[name]} ended at its bound: not determined by these data")
+            notes.append(f"{labels.get(name, name)} ended at its bound: not determined by these data")
     omega0 = estimates.get("omega0")
     if omega0 is not None and omega0.status != "fixed" and math.isinf(omega0.high95):
         notes.append("omega0 (and so k) is not bounded above at 95 %: the data are consistent "
@@ -35,6 +35,7 @@ def _identifiability_notes(estimates, varied, correlation, params):
         for j in range(i + 1, len(varied)):
             rho = correlation[i, j]
             if np.isfinite(rho) and abs(rho) > STRONG_CORRELATION:
-                notes.append(f"{labels[first]} and {labels[varied[j]]} are strongly correlated "
+                notes.append(f"{labels.get(first, first)} and "
+                             f"{labels.get(varied[j], varied[j])} are strongly correlated "
                              f"(rho = {rho:.3f}): the data constrain a combination of them")
     return notes

@@ -56,8 +56,9 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
     Parameters
     ----------
     residual_rows : callable
-        ``residual_rows(values)`` with values of shape (sets, len(PARAMETERS)) returns the
-        normalized residuals, shape (sets, n).
+        ``residual_rows(values)`` with values of shape (sets, parameters) returns the
+        normalized residuals, shape (sets, n); the columns are PARAMETERS, then any further
+        parameters of `params` in their order.
     params : lmfit.Parameters
         Start values; which are varied. Updated in place to the fitted values and errors (and
         returned as the result's ``params``): copying lmfit parameters costs more than an
@@ -76,9 +77,11 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
         With the fields the fit reads: params (values and stderr), var_names, covar, chisqr,
         redchi, nfree, ndata, nfev, residual, success, message, aic, bic.
     """
-    values = np.array([params[name].value for name in PARAMETERS], float)
-    varied = [i for i, name in enumerate(PARAMETERS) if params[name].vary]
-    differenced = [i for i in varied if PARAMETERS[i] not in linear_columns]
+    # PARAMETERS, then any further parameters of `params` (the flight's) in their order.
+    names = PARAMETERS + tuple(name for name in params if name not in PARAMETERS)
+    values = np.array([params[name].value for name in names], float)
+    varied = [i for i, name in enumerate(names) if params[name].vary]
+    differenced = [i for i in varied if names[i] not in linear_columns]
 
     def evaluate(point):
         """Residuals and Jacobian at `point` (one batched call)."""
@@ -92,7 +95,7 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
                 k = differenced.index(i)
                 jacobian[:, column] = (rows[1 + k] - rows[0]) / steps[k]
             else:
-                jacobian[:, column] = linear_columns[PARAMETERS[i]]
+                jacobian[:, column] = linear_columns[names[i]]
         return rows[0], jacobian, sets.shape[0]
 
     residual, jacobian, nfev = evaluate(values)
@@ -149,12 +152,12 @@ def _levenberg_marquardt(residual_rows, params, linear_columns, *, max_nfev, sig
     result = lmfit.minimizer.MinimizerResult()
     result.params = params
     for column, i in enumerate(varied):
-        name = PARAMETERS[i]
+        name = names[i]
         result.params[name].value = float(values[i])
         result.params[name].stderr = (float(math.sqrt(covar[column, column]))
                                       if covar is not None else None)
     ndata, nvarys = residual.size, len(varied)
-    result.var_names = [PARAMETERS[i] for i in varied]
+    result.var_names = [names[i] for i in varied]
     result.covar, result.residual, result.nfev = covar, residual, int(nfev)
     result.chisqr, result.ndata, result.nvarys, result.nfree = chisqr, ndata, nvarys, dof
     result.redchi = chisqr / dof

@@ -18,6 +18,8 @@ Numbered as in :mod:`dashpot.fit`.
    materials", J. Phys. I France 6, 5 (1996) (linear spring-dashpot: contact time π/ω_d).
 .. [11] T. Schwager and T. Pöschel, "Coefficient of restitution and linear-dashpot model
    revisited", Granular Matter 9, 465 (2007) (the contact ends where the force vanishes).
+.. [12] R. E. Kass and A. E. Raftery, "Bayes factors", J. Am. Stat. Assoc. 90, 773 (1995)
+   (ΔBIC of 6-10: strong evidence).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from ..physics.models import GRAVITY_MODELS, MODELS
 from ..scene import Scene
 from .accuracy import _trains_solver, choose_accuracy
 from .covariance import _draws, _interval_row, _linear_estimate, _sampled
-from .data import drag_left_out_note
+from .data import flight_notes
 from .identifiability import _identifiability_notes
 from .levenberg_marquardt import _levenberg_marquardt
 from .posterior import _posterior_beta
@@ -43,7 +45,13 @@ from .results import FitResult
 from .settings import (COARSE_OMEGA0_STEP, INTERVAL_DRAWS, INTERVAL_SEED, METHOD, OPTIONS,
                        PARAMETERS, UNCERTAINTY_METHODS)
 from .start import _start_values
-from .trains import _TrainPredictor, _restitution
+from .trains import FLIGHT_PARAMETERS, _TrainPredictor, _restitution
+
+FRICTION_STEP_BIC = 6.0
+"""ΔBIC that keeps rolling friction in flight, as the noise fits' nested steps
+(:data:`dashpot.noise_selection.NESTED_STEP_BIC`): strong evidence on the scale of Kass and
+Raftery [12]_."""
+FRICTION_START = 1e-3  # start of the friction deceleration, relative to g_eff
 
 
 def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
@@ -88,6 +96,16 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
         times of the observed impacts); ``eps_curve`` ε against impact speed (m/s) over the
         predicted range. Information criteria follow [3]_: with known timing errors AIC =
         χ² + 2K and BIC = χ² + K ln N; otherwise N ln(χ²/N) + 2K and N ln(χ²/N) + K ln N.
+
+        Where the scene models air drag (:attr:`Scene.drag`) the flights between impacts are
+        drag flights and ``estimates`` adds the drag constant ``k_d`` (1/m), fitted with the
+        scene's prior (a Gaussian penalty, as the prior on v0). Where it tries rolling
+        friction (:attr:`Scene.tries_friction`, cart scenes) the model is fitted again with
+        the flight's two accelerations, a_away = g_eff + f away from the bumper and
+        a_toward = g_eff − f back (``g_eff`` with the scene's incline angle as its prior, or
+        fixed where the scene states g_eff; ``friction`` f), and that fit is kept only where
+        it lowers the BIC by at least FRICTION_STEP_BIC; ``estimates`` then adds ``g_eff``,
+        ``friction``, ``a_away`` and ``a_toward`` (m/s²). A note says which was kept.
     """
     scene = scene or Scene()
     if model not in MODELS:
@@ -96,11 +114,34 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
     if unknown:
         raise ValueError(f"unknown uncertainty method {sorted(unknown)[0]!r}; use "
                          f"{', '.join(UNCERTAINTY_METHODS)}")
-    notes = list(data.notes) + [note for note in (drag_left_out_note(scene),) if note]
+    notes = list(data.notes) + flight_notes(scene)
     try:
-        return _fit(data, model, scene, notes, max_nfev, tuple(uncertainty), seed, accuracy)
+        result = _fit(data, model, scene, list(notes), max_nfev, tuple(uncertainty), seed,
+                      accuracy)
+        if scene.tries_friction and result.success:
+            with_friction = _fit(data, model, scene, list(notes), max_nfev, tuple(uncertainty),
+                                 seed, accuracy, friction=True)
+            result = _friction_step(result, with_friction)
+        return result
     except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
         return _failed(model, f"fit failed: {error}", notes, data)
+
+
+def _friction_step(without, with_friction):
+    """The fit with rolling friction where it lowers the BIC by FRICTION_STEP_BIC, else the
+    one without; a note says which and why."""
+    gain = without.bic - with_friction.bic
+    if with_friction.success and gain >= FRICTION_STEP_BIC:
+        a_away, a_toward = (with_friction.estimates[name] for name in ("a_away", "a_toward"))
+        with_friction.notes.append(
+            f"rolling friction kept: it lowers the BIC by {gain:.3g} (>= "
+            f"{FRICTION_STEP_BIC:g}); a_away = {a_away.value:.4g} +- {a_away.stderr:.2g} m/s², "
+            f"a_toward = {a_toward.value:.4g} +- {a_toward.stderr:.2g} m/s²")
+        return with_friction
+    why = (f"it lowers the BIC by only {gain:.3g} (< {FRICTION_STEP_BIC:g})"
+           if with_friction.success else f"its fit failed ({with_friction.message})")
+    without.notes.append(f"rolling friction not kept, fixed at zero: {why}")
+    return without
 
 
 def _failed(model, message, notes, data):
@@ -126,7 +167,48 @@ def _misfit_bound(dof):
     return dof + 3.0 * math.sqrt(2.0 * dof)
 
 
-def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
+def _flight_setup(scene, data, friction):
+    """The flight parameters of a fit: start values, varied or not, priors, why fixed.
+
+    Returns
+    -------
+    values : dict
+        Start value of each of FLIGHT_PARAMETERS (empty: gravity's flight, no columns).
+    varied : dict
+        Whether each is fitted.
+    priors : list of (name, centre, sd)
+    fixed : dict
+        Why a fixed one is fixed (for the estimates' notes).
+    """
+    drag = scene.drag
+    if drag is None and not friction:
+        return {}, {}, [], {}
+    values = {"k_d": 0.0, "g_eff": data.g, "friction": 0.0}
+    varied = dict.fromkeys(FLIGHT_PARAMETERS, False)
+    priors, fixed = [], {}
+    if drag is not None:
+        known = drag.drag_constant
+        values["k_d"] = known.value
+        varied["k_d"] = known.uncertainty is not None
+        if varied["k_d"]:
+            priors.append(("k_d", known.value, known.uncertainty))
+        else:
+            fixed["k_d"] = "drag constant known exactly from the scene"
+    if friction:
+        known = scene.flight_acceleration
+        values["g_eff"] = known.value
+        # Started off zero: the fast optimizer's difference steps are relative to the value.
+        values["friction"] = FRICTION_START * known.value
+        varied["g_eff"] = varied["friction"] = True
+        if known.uncertainty is None:
+            varied["g_eff"] = False
+            fixed["g_eff"] = "the scene's g_eff"
+        else:
+            priors.append(("g_eff", known.value, known.uncertainty))
+    return values, varied, priors, fixed
+
+
+def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, friction=False):
     mass = scene.mass
     known_v0 = scene.known_impact_speed
     stiffness = scene.stiffness
@@ -157,10 +239,14 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     notes.append(f"accuracy {reason}")
     known_omega0 = (math.sqrt(stiffness.value / mass.value) if stiffness is not None
                     else None if contact_time is None else math.pi / contact_time.value)
+    flight_start, flight_varied, flight_priors, flight_fixed = _flight_setup(scene, data,
+                                                                             friction)
+    flight_names = tuple(flight_start)
+    names = PARAMETERS + flight_names  # the columns of the residual function
     start, how = _start_values(model, data, None if known_v0 is None else known_v0.value,
                                known_omega0, fit_v0=fixed_v0 is None,
                                trains_solver=trains_solver,
-                               level=level)
+                               level=level, flight=tuple(flight_start.values()))
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
@@ -177,7 +263,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     params.add("v_star", value=g / start["omega0"], vary=fixed_omega0 is None)
     params.add("v0", value=start["v0"], vary=fixed_v0 is None)
     params.add("t0", value=start["t0"])
-    fixed = {}
+    for name in flight_names:
+        params.add(name, value=flight_start[name], vary=flight_varied[name])
+    fixed = dict(flight_fixed)
     if fixed_omega0 is not None:
         fixed["omega0"] = ("stiffness and mass known exactly: omega0 = sqrt(k/m)"
                            if contact_time is None else
@@ -203,6 +291,11 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     if known_v0 is not None and fixed_v0 is None:
         priors.append(("v0", known_v0.value, known_v0.uncertainty))
         notes.append("prior on v0 from the scene")
+    priors.extend(flight_priors)
+    if friction:
+        notes.append("rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - "
+                     "friction fitted" + (" (the scene's incline angle a prior on g_eff)"
+                                          if flight_varied["g_eff"] else ""))
 
     # Each train is that of the level's map to machine precision (Newton's method, or the
     # compiled impact-by-impact pass over the surrogate tables): the finite-difference
@@ -217,7 +310,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
     def residual(p):
         """lmfit's residual function: one parameter set."""
         values = p.valuesdict()
-        return residual_rows(np.array([[values[name] for name in PARAMETERS]]))[0]
+        return residual_rows(np.array([[values[name] for name in names]]))[0]
 
     # ∂r/∂t0: the time offset enters linearly, only the impact-time rows.
     t0_column = np.zeros(_residual_size(data, priors))
@@ -235,7 +328,10 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         values = fitted.params.valuesdict()
         if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
             return True
-        trains, *_ = predictor(values["zeta"], g / values["v_star"], values["v0"])
+        flight = [values[name] for name in flight_names]
+        if not np.all(_TrainPredictor.accepts(*flight)):
+            return True
+        trains, *_ = predictor(values["zeta"], g / values["v_star"], values["v0"], *flight)
         return int(trains.impacts[0]) < data.count
 
     result = minimize(params)
@@ -261,7 +357,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         finer, _ = _start_values(model, data, None if known_v0 is None else known_v0.value,
                                  start["omega0"], fit_v0=fixed_v0 is None,
                                  trains_solver=trains_solver, level=level,
-                                 omega0_spread=COARSE_OMEGA0_STEP)
+                                 omega0_spread=COARSE_OMEGA0_STEP,
+                                 flight=tuple(flight_start.values()))
         if finer is not None:
             again = params.copy()
             for name, value in (("zeta", finer["zeta"]), ("v_star", g / finer["omega0"]),
@@ -290,7 +387,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
         return _failed(model, "fit failed: the model gave non-finite residuals", notes, data)
     zeta, v_star = values["zeta"], values["v_star"]
     omega0 = g / v_star
-    trains, times, speeds, _ = predictor(zeta, omega0, values["v0"])
+    flight = [values[name] for name in flight_names]
+    trains, times, speeds, _ = predictor(zeta, omega0, values["v0"], *flight)
     impacts = int(trains.impacts[0])
     times, speeds = times[0], speeds[0]
     message = result.message
@@ -392,6 +490,23 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy):
             gamma_sd = math.hypot(log_sd(d_zeta, d_v_star), mass_sd) * gamma
             estimates["gamma"] = _sampled(gamma, gamma_sd, 2.0 * mass_draws * beta_draws,
                                           "kg/s", "derived", "gamma = 2 m beta")
+    units = {"k_d": "1/m", "g_eff": "m/s^2", "friction": "m/s^2"}
+    meaning = {"k_d": "quadratic drag constant of the flight (deceleration k_d v^2)",
+               "g_eff": "mean acceleration of the flights",
+               "friction": "friction deceleration of the flights"}
+    for name in flight_names:
+        if name != "k_d" and not friction:
+            continue
+        st, why = status(name)
+        estimates[name] = _linear_estimate(values[name], sd.get(name, 0.0), units[name], st,
+                                           why or meaning[name])
+    if friction:
+        for name, sign, formula in (("a_away", 1.0, "g_eff + friction"),
+                                    ("a_toward", -1.0, "g_eff - friction")):
+            value = values["g_eff"] + sign * values["friction"]
+            spread = log_sd(("g_eff", 1.0 / value), ("friction", sign / value)) * value
+            estimates[name] = _linear_estimate(value, spread, "m/s^2", "derived",
+                                               f"{name} = {formula}")
     notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
 
     nvarys = len(varied)

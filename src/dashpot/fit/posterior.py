@@ -42,8 +42,10 @@ def _posterior_beta(residual_rows, result, g, seed, chisqr_scale=1.0, walkers=32
     import emcee
 
     varied = list(result.var_names)
-    columns = [PARAMETERS.index(name) for name in varied]
-    best = np.array([result.params[name].value for name in PARAMETERS], float)
+    # PARAMETERS, then any further parameters of the fit (the flight's) in their order.
+    names = PARAMETERS + tuple(name for name in result.params if name not in PARAMETERS)
+    columns = [names.index(name) for name in varied]
+    best = np.array([result.params[name].value for name in names], float)
 
     def log_probability(points):
         values = np.repeat(best[None], points.shape[0], axis=0)

@@ -10,21 +10,27 @@ from .settings import OMEGA0_RANGE, PARAMETERS, REJECTED
 
 
 def _residual_rows(values, *, data, predictor, priors):
-    """Normalized residuals, one row per parameter set (columns as in PARAMETERS).
+    """Normalized residuals, one row per parameter set (columns as in PARAMETERS, then any
+    flight parameters the predictor takes, :data:`~dashpot.fit.trains.FLIGHT_PARAMETERS`).
 
     Impact-time misfits over their σ, then the measured impact and rebound speeds' misfits
     over theirs, then one row per Gaussian prior (name, centre, sd). A set outside the
-    physical range (ζ < 0, ω0 above OMEGA0_RANGE, v0 <= 0) gets REJECTED everywhere.
+    physical range (ζ < 0, ω0 above OMEGA0_RANGE, v0 <= 0, a flight the predictor does not
+    accept) gets REJECTED everywhere.
     """
     g = data.g
-    zeta, v_star, v0, t0 = values.T
+    zeta, v_star, v0, t0 = values.T[:len(PARAMETERS)]
+    flight = values[:, len(PARAMETERS):].T
     impact_rows = np.isfinite(data.impact_speed)
     rebound_rows = np.isfinite(data.rebound_speed)
     valid = (zeta >= 0.0) & (v_star > g / OMEGA0_RANGE[1]) & (v0 > 0.0)
+    if flight.size:
+        valid &= predictor.accepts(*flight)
     out = np.full((values.shape[0], _residual_size(data, priors)), REJECTED)
     if not valid.any():
         return out
-    _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid])
+    _, times, speeds, rebound = predictor(zeta[valid], g / v_star[valid], v0[valid],
+                                          *flight[:, valid])
     parts = [(data.times - t0[valid, None] - times[:, data.index]) / data.sigma]
     if impact_rows.any():
         parts.append((data.impact_speed[impact_rows] - speeds[:, data.index[impact_rows]])
@@ -33,9 +39,16 @@ def _residual_rows(values, *, data, predictor, priors):
         parts.append((data.rebound_speed[rebound_rows] - rebound[:, data.index[rebound_rows]])
                      / data.speed_sigma[rebound_rows])
     for name, centre, sd in priors:
-        parts.append((values[valid, PARAMETERS.index(name), None] - centre) / sd)
+        parts.append((values[valid, _column(name, predictor), None] - centre) / sd)
     out[valid] = np.concatenate(parts, axis=1)
     return out
+
+
+def _column(name, predictor):
+    """Column of a parameter: PARAMETERS, then the predictor's flight parameters."""
+    if name in PARAMETERS:
+        return PARAMETERS.index(name)
+    return len(PARAMETERS) + predictor.flight_parameters.index(name)
 
 
 def _residual_size(data, priors):

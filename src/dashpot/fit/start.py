@@ -28,7 +28,7 @@ def _flight_ratio_start(intervals, flags):
 
 
 def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
-             trains_solver=impact_trains):
+             trains_solver=impact_trains, flight=()):
     """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
 
     Every iteration evaluates the trains at the current values and at a small step in each
@@ -38,7 +38,8 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     while at fixed ω0 the rest converges in a few steps.
 
     `start` (speeds relative to the first, one row per ω0 or one row for all) starts the
-    trains' Newton iterations.
+    trains' Newton iterations. `flight` holds the flight parameters held fixed here
+    (:data:`~dashpot.fit.trains.FLIGHT_PARAMETERS`, SI; empty: gravity's flight).
 
     Returns
     -------
@@ -64,7 +65,8 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
             trial[k + 1, :, k] *= 1.0 + step
         trial = trial.reshape(-1, 2)
         times, trains = _train_times(model, data, trial[:, 0], np.tile(omega0, names + 1),
-                                     trial[:, 1], start=start, trains_solver=trains_solver)
+                                     trial[:, 1], start=start, trains_solver=trains_solver,
+                                     flight=flight)
         misfit = data.times[None, :] - times
         t0 = np.sum(misfit * weights, axis=1) / weights.sum()
         residual = ((misfit - t0[:, None]) / data.sigma).reshape(names + 1, count, -1)
@@ -127,7 +129,7 @@ def _zeta_on_grid(model, eps, vtilde, trains_solver, grid=None):
 
 
 def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
-                  trains_solver=impact_trains, level="exact", omega0_spread=1.0):
+                  trains_solver=impact_trains, level="exact", omega0_spread=1.0, flight=()):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -138,7 +140,9 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     centre. The fast level finds ζ on a grid
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     With `known_omega0` the grid is that one value, or with `omega0_spread` > 1 the grid from
-    `known_omega0` / `omega0_spread` to `known_omega0` · `omega0_spread` (rad/s).
+    `known_omega0` / `omega0_spread` to `known_omega0` · `omega0_spread` (rad/s). The fits
+    at fixed ω0 fly the flight of `flight` (its parameters' start values, SI; see
+    :func:`_profile`).
     """
     if level == "fast":
         zeta_for = functools.partial(_zeta_on_grid, trains_solver=trains_solver)
@@ -191,7 +195,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     chisqr, zeta, v0_fit, t0, ratios = _profile(model, data, zeta[usable], omega0,
                                                 np.full(omega0.size, v0), ratios,
                                                 fit_v0=fit_v0, iterations=iterations,
-                                                trains_solver=trains_solver)
+                                                trains_solver=trains_solver, flight=flight)
     best = int(np.argmin(chisqr))
     centre = float(omega0[best])
     if (level != "fast" and 0 < best < omega0.size - 1

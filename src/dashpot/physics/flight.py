@@ -11,6 +11,7 @@ law          acceleration along the motion    duration T(u)              landing
 gravity      −g up, +g down                   2u/g                       u
 drag         −g_eff ∓ k_d·v|v|                (v_t/g)(atan w + asinh w)  u/√(1 + w²)
 incline      −a_up away, +a_down back         u/a_up + u/√(a_up a_down)  u·√(a_down/a_up)
+track        −a_up ∓ k_d·v|v| away, back      see :func:`track_flight`   see there
 ===========  ===============================  =========================  ====================
 
 with w = u/v_t and v_t = √(g_eff/k_d) the terminal speed (in the drag row g is g_eff).
@@ -34,6 +35,13 @@ Incline: a cart rolling on a track tilted by θ with rolling friction μ deceler
 a_up = g(sin θ + μ cos θ) while it moves away from the bumper and accelerates at
 a_down = g(sin θ − μ cos θ) on its way back. It stops after u/a_up at the distance u²/2a_up and
 returns to the bumper at √(2 a_down · u²/2a_up) = u√(a_down/a_up), taking L(u)/a_down more [3]_.
+
+Track (both at once, the law the fits use): moving away against −a_up − k_d·v², the body
+stops after t_up = atan(w)/√(k_d a_up) at h = ln(1 + w²)/(2k_d), now with w = u√(k_d/a_up);
+falling back from rest under a_down − k_d·v², cosh(√(k_d a_down)·t) = e^(k_d h) = √(1 + w²)
+gives t_down = asinh(w)/√(k_d a_down) and the landing speed
+√(a_down/k_d)·tanh(asinh w) = u√(a_down/a_up)/√(1 + w²) [1]_. With a_up = a_down = g it is the
+drag row, with k_d = 0 the incline row, and with both the gravity row.
 
 All functions take SI units (m/s, m/s², 1/m, s), or any consistent set: in the dimensionless
 units of :mod:`dashpot.physics.models` (speed in v* = g/ω0, time in 1/ω0) g is 1 and k_d is
@@ -65,7 +73,8 @@ import numpy as np
 from .._validation import check_nonnegative, check_positive
 
 __all__ = ["Flight", "apex_height", "drag_constant", "drag_flight", "effective_gravity",
-           "fall_time", "gravity_flight", "incline_flight", "rise_time", "terminal_speed"]
+           "fall_time", "gravity_flight", "incline_flight", "rise_time", "terminal_speed",
+           "track_flight"]
 
 SPHERE_ADDED_MASS = 0.5
 """Added-mass coefficient C_m of a sphere in potential flow (Landau & Lifshitz §11)."""
@@ -289,6 +298,52 @@ def incline_flight(speed, up, down):
     landing_slope = np.sqrt(down / up)
     return Flight(duration=speed * duration_slope, landing_speed=speed * landing_slope,
                   duration_slope=duration_slope, landing_slope=landing_slope)
+
+
+def track_flight(speed, up, down, drag=0.0):
+    """Flight away from the surface and back under two accelerations and quadratic drag.
+
+    Parameters
+    ----------
+    speed : float or ndarray
+        Launch speed u in m/s (>= 0).
+    up : float or ndarray
+        Deceleration a_up while moving away from the surface in m/s² (> 0): g_eff on a
+        ball, g sin θ + friction on a cart.
+    down : float or ndarray
+        Acceleration a_down on the way back in m/s² (> 0): g_eff, or g sin θ − friction.
+    drag : float or ndarray, default 0
+        Drag constant k_d in 1/m (>= 0).
+
+    Returns
+    -------
+    Flight
+        T = (u/a_up)·atan(w)/w + (u/√(a_up a_down))·asinh(w)/w, L = u√(a_down/a_up)/√(1 + w²),
+        dT/du = 1/(a_up(1 + w²)) + 1/(√(a_up a_down)·√(1 + w²)),
+        dL/du = √(a_down/a_up)·(1 + w²)^(−3/2), with w = u√(k_d/a_up) (module notes).
+    """
+    speed = check_nonnegative("speed", speed)
+    up = check_positive("up", up)
+    down = check_positive("down", down)
+    drag = check_nonnegative("drag", drag)
+    speed, up, down, drag = np.broadcast_arrays(speed, up, down, drag)
+    duration, landing_speed, duration_slope, landing_slope = _track(speed, up, down, drag)
+    return Flight(duration=duration, landing_speed=landing_speed,
+                  duration_slope=duration_slope, landing_slope=landing_slope)
+
+
+def _track(speed, up, down, drag):
+    """Unchecked :func:`track_flight` (arrays broadcast): T, L, dT/du, dL/du.
+
+    For the train solvers, which call it on checked, dimensionless arrays many times a fit.
+    """
+    w = speed * np.sqrt(drag / up)
+    inverse_root = 1.0 / np.hypot(1.0, w)  # 1/√(1 + w²), no overflow at huge w
+    back = 1.0 / np.sqrt(up * down)
+    ratio = np.sqrt(down / up)
+    duration = speed * (_ratio(np.arctan, w) / up + _ratio(np.arcsinh, w) * back)
+    return (duration, speed * ratio * inverse_root,
+            inverse_root ** 2 / up + inverse_root * back, ratio * inverse_root ** 3)
 
 
 def _check_drag(g, drag):

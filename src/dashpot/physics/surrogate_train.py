@@ -15,6 +15,11 @@ critical speed where the exact solver decides capture) is computed instead by
 :func:`impact_trains` with ``surrogate_collide`` as its map, which passes those points to the
 exact solver: the trains are always those of the surrogate's map.
 
+A :class:`~dashpot.physics.train.TrackFlight` (air drag, a cart's two accelerations) enters
+the loop as the landing speed L(r) = r·√(down/up)/√(1 + drag·r²/up) of each rebound r
+(:func:`dashpot.physics.flight.track_flight`); the intervals follow from the trains
+(:attr:`~dashpot.physics.train.ImpactTrains.intervals`).
+
 References
 ----------
 .. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface",
@@ -42,8 +47,11 @@ _DONE, _OFF_TABLE = 0, 1
 
 @numba.njit(cache=True)
 def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step, crit_coef,
-                   crit_start, crit_step, zeta_max, y_max, is_ib, root_capture):
+                   crit_start, crit_step, zeta_max, y_max, is_ib, root_capture, up, down,
+                   drag, has_flight):
     """The bounce map applied impact by impact to every train (see the module docstring).
+
+    `up`, `down`, `drag` are the trains' flights (used where `has_flight`).
 
     Returns speeds, restitution, contact times (trains × count), the number of impacts of each
     train, and each train's outcome (_DONE, or _OFF_TABLE for the caller to recompute).
@@ -67,6 +75,9 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
         x = math.log(z) - 0.5 * math.log1p(-z * z) if is_ib else math.log(z)
         log_critical = _spline_1d_at(crit_coef, crit_start, crit_step, x, wy)
         cell_x = _quintic_weights((x - x_start) / x_step, nx - 4, wx)
+        if has_flight:
+            landing_ratio = math.sqrt(down[row] / up[row])
+            drag_over_up = drag[row] / up[row]
         speed = vtilde0[row]
         for k in range(count):
             s = math.log(speed) - log_critical
@@ -88,6 +99,8 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
             restitution[row, k] = eps
             contact_times[row, k] = math.exp(fields[1])
             speed = eps * speed
+            if has_flight:
+                speed = speed * landing_ratio / math.sqrt(1.0 + drag_over_up * speed * speed)
             if speed == 0.0:
                 # ε·u underflowed: the train ends here, as in the impact-by-impact map.
                 impacts[row] = k + 1
@@ -96,7 +109,7 @@ def _trains_kernel(zeta, vtilde0, count, coef, x_start, x_step, y_start, y_step,
 
 
 def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, rtol=None,
-                     directory=None):
+                     directory=None, flight=None):
     """:func:`~dashpot.physics.train.impact_trains` with the surrogate of `level` as the map.
 
     Parameters
@@ -117,6 +130,8 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
         Newton's tolerance for those trains (default that of :func:`impact_trains`).
     directory : path-like, optional
         Cache directory of the tables (see :func:`~dashpot.physics.surrogate.load_surrogate`).
+    flight : TrackFlight, optional
+        The flight between impacts of each train (default: gravity's).
 
     Returns
     -------
@@ -126,6 +141,7 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
     """
     solver = functools.partial(surrogate_collide, level=level, directory=directory)
     options = {} if rtol is None else {"rtol": rtol}
+    options["flight"] = flight
     zeta, vtilde0 = (np.atleast_1d(np.asarray(value, dtype=float)) for value in (zeta, vtilde0))
     if zeta.shape != vtilde0.shape:
         zeta, vtilde0 = np.broadcast_arrays(zeta, vtilde0)
@@ -139,7 +155,7 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
         np.ascontiguousarray(zeta), np.ascontiguousarray(vtilde0), count, table.coef,
         table.x_start, table.x_step, table.y_start, table.y_step, table.critical_coef,
         table.critical_start, table.critical_step, ZETA_MAX[model], table.y_max,
-        model == "Ib", model != "IIb")
+        model == "Ib", model != "IIb", *_flight_arrays(flight, zeta.size))
     error_bound = np.zeros(zeta.size)
     evaluations = 1
     rest = np.flatnonzero(outcome != _DONE)
@@ -147,6 +163,7 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
         if start is not None:
             start = np.broadcast_to(np.asarray(start, dtype=float),
                                     (zeta.size, count))[rest]
+        options["flight"] = None if flight is None else flight.take(rest)
         fallback = impact_trains(model, zeta[rest], vtilde0[rest], count, start=start,
                                  solver=solver, **options)
         for name, array in (("speeds", speeds), ("restitution", restitution),
@@ -154,4 +171,14 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
                             ("error_bound", error_bound)):
             array[rest] = getattr(fallback, name)
         evaluations += fallback.evaluations
-    return ImpactTrains(speeds, restitution, contact_times, impacts, error_bound, evaluations)
+    return ImpactTrains(speeds, restitution, contact_times, impacts, error_bound, evaluations,
+                        flight)
+
+
+def _flight_arrays(flight, trains):
+    """The kernel's flight arguments: contiguous (up, down, drag) and whether to use them."""
+    if flight is None:
+        unused = np.ones(trains)
+        return unused, unused, np.zeros(trains), False
+    return (*(np.ascontiguousarray(value, dtype=float)
+              for value in (flight.up, flight.down, flight.drag)), True)

@@ -18,6 +18,12 @@ Speeds are in units of v* = g/ω0, times in units of 1/ω0. The interval after i
 release speed at F = 0, for the hybrid with the climb back to z = R already in τ; see
 :func:`dashpot.bounce_sequence`).
 
+With a :class:`TrackFlight` (air drag, or a cart's two accelerations on its track) the ball
+leaves at r_k = ε(u_k)·u_k, flies T(r_k) and lands at u_{k+1} = L(r_k)
+(:func:`dashpot.physics.flight.track_flight`); the map is then u_{k+1} = L(ε(u_k)u_k) and the
+interval τ_k + T(r_k). Contact is under g (the unit of the accelerations); drag during the
+contact is neglected, as in :func:`dashpot.bounce_sequence`.
+
 References
 ----------
 .. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface",
@@ -32,14 +38,60 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .flight import _track
 from .models import GRAVITY_MODELS, collide
 
-__all__ = ["ImpactTrain", "ImpactTrains", "impact_train", "impact_trains"]
+__all__ = ["ImpactTrain", "ImpactTrains", "TrackFlight", "impact_train", "impact_trains"]
 
 # Relative step of the central differences for d(εu)/du and its curvature: truncation ∝ step²
 # against rounding ∝ 1e-16/step.
 SLOPE_STEP = 1e-5
 MAX_NEWTON = 6
+
+
+@dataclass(frozen=True)
+class TrackFlight:
+    """The flight between impacts of each train, dimensionless (one value per train).
+
+    Attributes
+    ----------
+    up : ndarray, shape (trains,)
+        Deceleration moving away from the surface, a_up/g (1 for a ball; g is the
+        acceleration of the contact, the unit of v* = g/ω0).
+    down : ndarray, shape (trains,)
+        Acceleration on the way back, a_down/g.
+    drag : ndarray, shape (trains,)
+        Drag constant k_d·v*²/g (k_d in 1/m).
+
+    With up = down = 1 and drag = 0 the flight is gravity's, 2r, landing at r.
+    """
+
+    up: np.ndarray
+    down: np.ndarray
+    drag: np.ndarray
+
+    @classmethod
+    def of(cls, up, down, drag, trains):
+        """Broadcast to `trains` values each (float arrays)."""
+        return cls(*(np.broadcast_to(np.asarray(value, float), (trains,)).copy()
+                     for value in (up, down, drag)))
+
+    def take(self, rows):
+        """The flights of the trains `rows` (an index array or mask)."""
+        return TrackFlight(self.up[rows], self.down[rows], self.drag[rows])
+
+    def _per_train(self, shape):
+        extra = (1,) * (len(shape) - 1)
+        return (self.up.reshape(-1, *extra), self.down.reshape(-1, *extra),
+                self.drag.reshape(-1, *extra))
+
+    def landing(self, rebound):
+        """Landing speed L(r) of rebound speeds r, one row (first axis) per train."""
+        return _track(rebound, *self._per_train(rebound.shape))[1]
+
+    def duration(self, rebound):
+        """Flight duration T(r) of rebound speeds r, one row (first axis) per train."""
+        return _track(rebound, *self._per_train(rebound.shape))[0]
 
 
 @dataclass(frozen=True)
@@ -61,6 +113,8 @@ class ImpactTrains:
         bound on the error left by an accepted Newton step; 0 for the impact-by-impact map.
     evaluations : int
         Number of vectorized :func:`collide` calls used.
+    flight : TrackFlight or None
+        The flight between impacts (None: gravity's).
     """
 
     speeds: np.ndarray
@@ -69,13 +123,19 @@ class ImpactTrains:
     impacts: np.ndarray
     error_bound: np.ndarray
     evaluations: int
+    flight: TrackFlight | None = None
 
     @property
     def intervals(self):
-        """ω0·(t_{k+1} − t_k) = τ_k + 2u_{k+1}, shape (trains, count − 1); 0 past capture."""
+        """ω0·(t_{k+1} − t_k) = τ_k + T(ε_k u_k) (gravity: τ_k + 2u_{k+1}), shape
+        (trains, count − 1); 0 past capture."""
         exists = np.arange(1, self.speeds.shape[1]) < self.impacts[:, None]
         with np.errstate(invalid="ignore"):
-            return np.where(exists, self.contact_times[:, :-1] + 2.0 * self.speeds[:, 1:], 0.0)
+            if self.flight is None:
+                flights = 2.0 * self.speeds[:, 1:]
+            else:
+                flights = self.flight.duration(self.restitution[:, :-1] * self.speeds[:, :-1])
+            return np.where(exists, self.contact_times[:, :-1] + flights, 0.0)
 
 
 @dataclass(frozen=True)
@@ -113,7 +173,12 @@ def _cut_at_capture(speeds, restitution, contact_times, captured):
             np.where(past, 0.0, contact_times), impacts)
 
 
-def _sequential(model, zeta, vtilde0, count, solver=collide):
+def _landing(flight, rows, rebound):
+    """Landing speeds of the rebound speeds of trains `rows` (gravity: the rebound speed)."""
+    return rebound if flight is None else flight.take(rows).landing(rebound)
+
+
+def _sequential(model, zeta, vtilde0, count, solver=collide, flight=None):
     """The bounce map applied one impact at a time, vectorized over the trains (exact)."""
     trains = zeta.size
     speeds = np.zeros((trains, count))
@@ -134,12 +199,12 @@ def _sequential(model, zeta, vtilde0, count, solver=collide):
         # ε underflows to 0 for Ia as ζ -> 1⁻: a train also ends where the speed vanishes.
         ends = outcome.captured | (outcome.eps * speed[alive] == 0.0)
         captured[alive, k] = ends
-        speed[alive] = outcome.eps * speed[alive]
+        speed[alive] = _landing(flight, alive, outcome.eps * speed[alive])
         alive[np.flatnonzero(alive)[ends]] = False
     speeds, restitution, contact_times, impacts = _cut_at_capture(speeds, restitution,
                                                                   contact_times, captured)
     return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(trains),
-                        evaluations)
+                        evaluations, flight)
 
 
 def _linear_recurrence(factor, forcing):
@@ -188,7 +253,7 @@ def _newton_step(slope, defect, curvature, spacing, active):
     return step, left
 
 
-def _newton(model, zeta, speeds, rtol, solver=collide):
+def _newton(model, zeta, speeds, rtol, solver=collide, flight=None):
     """Newton iterations on every train at once from the start `speeds` (trains × count).
 
     Returns the trains and a mask of those that converged (the others are left to the
@@ -211,9 +276,13 @@ def _newton(model, zeta, speeds, rtol, solver=collide):
         # ε·u and τ at u and u(1 ± h), in one call: central slopes and the curvature that
         # bounds what a Newton step leaves.
         probe = solver(model, zeta[todo, None, None], u[:, None, :] * factors[None, :, None])
-        mapped = probe.eps * u[:, None, :] * factors[None, :, None]
+        rebound = probe.eps * u[:, None, :] * factors[None, :, None]
+        # The map is the landing speed of the rebound (the rebound itself under gravity).
+        mapped = _landing(flight, todo, rebound)
         spacing = SLOPE_STEP * u
-        slope = (mapped[:, 1] - mapped[:, 2]) / (2.0 * spacing)  # d(εu)/du
+        slope = (mapped[:, 1] - mapped[:, 2]) / (2.0 * spacing)  # d(L(εu))/du
+        rebound_slope = (slope if flight is None
+                         else (rebound[:, 1] - rebound[:, 2]) / (2.0 * spacing))
         curvature = np.abs(mapped[:, 1] - 2.0 * mapped[:, 0] + mapped[:, 2]) / spacing ** 2
         captured = probe.captured[:, 0]
         # Only impacts up to a train's first capture exist; later entries are not unknowns.
@@ -241,7 +310,7 @@ def _newton(model, zeta, speeds, rtol, solver=collide):
             accepted_tau = tau[:, 0] + tau_slope * step
         for mask, speed_rows, eps_rows, tau_rows, bound_rows in (
                 (converged, u, probe.eps[:, 0], tau[:, 0], defect_size),
-                (accepted, updated, (mapped[:, 0] + slope * step) / updated,
+                (accepted, updated, (rebound[:, 0] + rebound_slope * step) / updated,
                  accepted_tau, bound)):
             rows = todo[mask]
             out_speeds[rows], out_eps[rows] = speed_rows[mask], eps_rows[mask]
@@ -262,10 +331,36 @@ def _newton(model, zeta, speeds, rtol, solver=collide):
                                         updated[moving])
     speeds_out, eps_out, tau_out, impacts = _cut_at_capture(out_speeds, out_eps, out_tau,
                                                             out_captured)
-    return ImpactTrains(speeds_out, eps_out, tau_out, impacts, out_bound, evaluations), done
+    return (ImpactTrains(speeds_out, eps_out, tau_out, impacts, out_bound, evaluations, flight),
+            done)
 
 
-def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide):
+def _constant_restitution_speeds(eps, vtilde0, count, flight):
+    """Impact speeds of trains with one ε each (Ia, IIa), in closed form.
+
+    Under gravity u_k = ṽ0·ε^k. With a track flight L(r) = r·s/√(1 + c r²) (s = √(down/up),
+    c = drag/up), x_k = 1/u_k² obeys the linear recurrence x_{k+1} = a·x_k + b with
+    a = 1/(εs)², b = c/s², so x_k = a^k x_0 + b(a^k − 1)/(a − 1).
+    """
+    powers = np.arange(count, dtype=float)[None, :]
+    if flight is None:
+        with np.errstate(under="ignore"):
+            return vtilde0[:, None] * eps[:, None] ** powers
+    ratio = np.sqrt(flight.down / flight.up)
+    log_a = (-2.0 * (np.log(eps) + np.log(ratio)))[:, None]
+    b = (flight.drag / flight.up / ratio ** 2)[:, None]
+    with np.errstate(all="ignore"):
+        # (a^k − 1)/(a − 1) = expm1(k ln a)/expm1(ln a), → k as a → 1.
+        growth = np.where(log_a != 0.0, np.expm1(powers * log_a) / np.expm1(log_a), powers)
+        inverse_square = np.exp(powers * log_a) / vtilde0[:, None] ** 2 + b * growth
+        speeds = 1.0 / np.sqrt(inverse_square)
+    speeds[:, 0] = vtilde0
+    # A speed too small to represent (or ε = 0) ends the train, as under gravity.
+    return np.where(np.isfinite(speeds), speeds, 0.0)
+
+
+def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide,
+                  flight=None):
     """Speeds, contact times and intervals of the first `count` impacts of many trains.
 
     Parameters
@@ -285,6 +380,8 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver
     solver : callable, default :func:`collide`
         ``solver(model, zeta, vtilde)`` returning a :class:`Collision` (e.g. a surrogate of
         chosen accuracy); the trains are exact for that map.
+    flight : TrackFlight, optional
+        The flight between impacts of each train (default: gravity's).
 
     Returns
     -------
@@ -292,7 +389,8 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver
 
     Notes
     -----
-    Ia and IIa do not depend on the impact speed [1]_: u_k = ṽ0·ε^k in closed form. For the
+    Ia and IIa do not depend on the impact speed [1]_: u_k = ṽ0·ε^k in closed form (with a
+    track flight, the closed form of :func:`_constant_restitution_speeds`). For the
     gravity models Newton's method [2]_ solves all the map's equations at once; trains where
     it does not converge in a few iterations are built impact by impact.
     """
@@ -304,38 +402,42 @@ def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver
     if model not in GRAVITY_MODELS:
         outcome = solver(model, zeta, vtilde0)
         eps = outcome.eps[:, None]
-        with np.errstate(under="ignore"):
-            speeds = vtilde0[:, None] * eps ** np.arange(count, dtype=float)[None, :]
+        speeds = _constant_restitution_speeds(outcome.eps, vtilde0, count, flight)
         # ε underflows to 0 for Ia as ζ -> 1⁻: a train ends where the speed vanishes.
         ends = np.zeros((zeta.size, count), bool)
         ends[:, :-1] = speeds[:, 1:] == 0.0
         speeds, restitution, contact_times, impacts = _cut_at_capture(
             speeds, np.broadcast_to(eps, speeds.shape),
             np.broadcast_to(outcome.contact_time[:, None], speeds.shape), ends)
-        return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(zeta.size), 1)
+        return ImpactTrains(speeds, restitution, contact_times, impacts, np.zeros(zeta.size), 1,
+                            flight)
     if start is None:
-        return _sequential(model, zeta, vtilde0, count, solver)
+        return _sequential(model, zeta, vtilde0, count, solver, flight)
     guess = vtilde0[:, None] * np.asarray(start, dtype=float).reshape(zeta.size, count)
     guess[:, 0] = vtilde0
     usable = np.all(np.isfinite(guess) & (guess > 0.0), axis=1)
     trains, converged = _newton(model, zeta, np.where(usable[:, None], guess, 1.0), rtol,
-                                solver)
+                                solver, flight)
     converged &= usable
     if converged.all():
         return trains
     rest = np.flatnonzero(~converged)
-    fallback = _sequential(model, zeta[rest], vtilde0[rest], count, solver)
+    fallback = _sequential(model, zeta[rest], vtilde0[rest], count, solver,
+                           None if flight is None else flight.take(rest))
     fields = {name: getattr(trains, name).copy() for name in
               ("speeds", "restitution", "contact_times", "impacts", "error_bound")}
     for name in fields:
         fields[name][rest] = getattr(fallback, name)
-    return ImpactTrains(**fields, evaluations=trains.evaluations + fallback.evaluations)
+    return ImpactTrains(**fields, evaluations=trains.evaluations + fallback.evaluations,
+                        flight=flight)
 
 
-def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide):
+def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide,
+                 flight=None):
     """One train: :func:`impact_trains` for a single (ζ, ṽ0), cut at its last impact.
 
-    Parameters are those of :func:`impact_trains` as scalars (`start` of length `count`).
+    Parameters are those of :func:`impact_trains` as scalars (`start` of length `count`;
+    `flight` a :class:`TrackFlight` of one train).
 
     Returns
     -------
@@ -343,7 +445,7 @@ def impact_train(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=
     """
     trains = impact_trains(model, [zeta], [vtilde0], count,
                            start=None if start is None else np.asarray(start)[None, :],
-                           rtol=rtol, solver=solver)
+                           rtol=rtol, solver=solver, flight=flight)
     impacts = int(trains.impacts[0])
     return ImpactTrain(trains.speeds[0, :impacts], trains.restitution[0, :impacts],
                        trains.contact_times[0, :impacts], trains.intervals[0, :impacts - 1],
