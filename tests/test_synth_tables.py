@@ -11,13 +11,16 @@ from __future__ import annotations
 import csv
 import hashlib
 import io
+import json
 import math
 import re
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import openpyxl
 import pytest
+from scipy import stats
 
 import dashpot
 from dashpot.synth.tables import (write_motion_sensor, write_phyphox_collision,
@@ -140,6 +143,78 @@ def test_timestamps_round_to_the_written_digits(tmp_path):
     truth = write_timestamps(tmp_path / "t.csv", [0.1234567891], decimals=4, declare_unit=False)
     assert rows_of(tmp_path / "t.csv") == [["time"], ["0.1235"]]
     assert truth["impact_times"] == [0.1235]
+
+
+
+# Seed of the scatter test below, drawn once at random when the test was written.
+SCATTER_SEED = 918_273_645
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
+
+
+def _chi_square_range(dof):
+    """Central 99.9 % range of a chi-square with `dof` degrees of freedom."""
+    return stats.chi2.ppf(0.0005, dof), stats.chi2.ppf(0.9995, dof)
+
+
+def _written_times(path):
+    """Times and stated 1σ (s) of a timestamp table, read with the csv module."""
+    rows = rows_of(path)
+    assert rows[0] == ["time (s)", "uncertainty (s)"]
+    values = np.array([[number(x) for x in row] for row in rows[1:]])
+    return values[:, 0], values[:, 1]
+
+
+def test_scattered_times_scatter_with_the_stated_sigma(tmp_path):
+    """Many times: the deviations from the truth are N(0, σ²) by the chi-square of their
+    standardized values, and without scatter the file holds the truth rounded."""
+    truth = np.cumsum(np.full(4000, 0.01))
+    sigma = 1e-5
+    written = write_timestamps(tmp_path / "t.csv", truth, uncertainty=sigma, scatter=True,
+                               seed=SCATTER_SEED, start_delay=0.5)
+    times, stated = _written_times(tmp_path / "t.csv")
+    assert np.all(stated == sigma) and written["scatter"] and written["start_delay"] == 0.5
+    deviations = (times - (truth + 0.5)) / stated
+    low, high = _chi_square_range(truth.size)
+    assert low < np.sum(deviations ** 2) < high
+    # The draws are independent of the seed's neighbours: another seed, other times.
+    write_timestamps(tmp_path / "u.csv", truth, uncertainty=sigma, scatter=True,
+                     seed=SCATTER_SEED + 1, start_delay=0.5)
+    assert not np.array_equal(_written_times(tmp_path / "u.csv")[0], times)
+    # Without scatter the times are the truth to the written digit (1 µs).
+    write_timestamps(tmp_path / "v.csv", truth, uncertainty=sigma, start_delay=0.5)
+    exact, _ = _written_times(tmp_path / "v.csv")
+    assert np.max(np.abs(exact - (truth + 0.5))) <= 0.5e-6 + 1e-12
+
+
+def test_timestamp_table_scene_scatters_with_its_stated_uncertainty(tmp_path):
+    """The workflow's timestamp-table scene, as config/config.yaml defines it: its written
+    times scatter about truth.json's impact times with the 1σ the file states."""
+    import yaml
+
+    from dashpot.pipeline import write_synthetic_scene
+
+    spec = yaml.safe_load(CONFIG.read_text(encoding="utf-8"))["synthetic"]["timestamp-table"]
+    write_synthetic_scene(tmp_path, spec, name="timestamp-table")
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    times, stated = _written_times(tmp_path / "timestamps.csv")
+    true_times = np.asarray(truth["sequence"]["impact_times"])
+    start = truth["recording"]["start_delay"]
+    assert times.size == true_times.size >= 10
+    assert np.all(stated == spec["options"]["uncertainty"])
+    chi_square = np.sum(((times - (true_times + start)) / stated) ** 2)
+    low, high = _chi_square_range(times.size)
+    assert low < chi_square < high, (chi_square, low, high)
+
+
+def test_scatter_needs_an_uncertainty_and_a_start_delay(tmp_path):
+    with pytest.raises(ValueError, match="scatter needs"):
+        write_timestamps(tmp_path / "t.csv", [0.0, 1.0], scatter=True, start_delay=1.0)
+    with pytest.raises(ValueError, match="6 sigma"):
+        write_timestamps(tmp_path / "t.csv", [0.0, 1.0], uncertainty=1e-3, scatter=True,
+                         start_delay=5e-3)
+    with pytest.raises(ValueError, match="start_delay"):
+        write_timestamps(tmp_path / "t.csv", [0.0, 1.0], start_delay=-1.0)
+    assert not any(tmp_path.iterdir())
 
 
 # ------------------------------------------------------------------------ motion and gates

@@ -116,7 +116,7 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
     elif kind == "phyphox":
         written = write_phyphox_stopwatch(recording, sequence.impact_times, **options)
     elif kind == "timestamps":
-        written = write_timestamps(recording, sequence.impact_times, **options)
+        written = write_timestamps(recording, sequence.impact_times, seed=seed, **options)
     elif kind == "motion_sensor":
         written = write_motion_sensor(recording, sequence, g_eff=g, seed=seed, **options)
     else:

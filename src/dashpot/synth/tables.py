@@ -406,9 +406,15 @@ def write_phyphox_collision(path, impact_times, *, g=9.81, delimiter=",", decima
 # Plain list of impact times
 # ---------------------------------------------------------------------------------------------
 
-def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, declare_unit=True,
-                     decimals=None, delimiter=",", decimal="."):
+def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, scatter=False, seed=0,
+                     start_delay=0.0, declare_unit=True, decimals=None, delimiter=",",
+                     decimal="."):
     """Write a one-column list of impact times (optionally with uncertainties).
+
+    With ``scatter=True`` the written times are the true ones plus independent Gaussian
+    errors of the stated `uncertainty` (the column then tells the truth about the times'
+    scatter, as a fit assumes); without it they are the true times rounded to the written
+    digits and the column only declares an uncertainty.
 
     Parameters
     ----------
@@ -420,6 +426,16 @@ def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, declare_
         Unit of the written numbers.
     uncertainty : float or array_like, optional
         1σ uncertainty of each time in s; adds an ``uncertainty`` column in `unit`.
+    scatter : bool, default False
+        Draw each written time from N(true time, `uncertainty`²) (needs `uncertainty`); the
+        draws are sorted back into order only if they cross, which at σ far below the flight
+        times they never do.
+    seed : int, default 0
+        Seed of the draws (numpy's default generator), for reproducible files.
+    start_delay : float, default 0
+        Time in s from the clock's zero to the first impact: added to every time. With
+        `scatter` it must exceed 6σ, so that no drawn time is negative (a list of times
+        starting exactly at the first impact would lose half its first draws).
     declare_unit : bool, default True
         Put the unit in the header (``time (ms)``); False writes a bare ``time`` header.
     decimals : int, optional
@@ -430,8 +446,9 @@ def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, declare_
     Returns
     -------
     dict
-        ``impact_times`` in s as written (rounded), ``resolution`` (s, one unit of the last
-        digit), ``unit``, ``uncertainty`` (s or None).
+        ``impact_times`` in s as written (rounded; on the file's clock, `start_delay` after
+        the true times), ``resolution`` (s, one unit of the last digit), ``unit``,
+        ``uncertainty`` (s or None), ``scatter`` (bool), ``seed`` and ``start_delay`` (s).
     """
     times = _check_times("impact_times", impact_times)
     _check_format(delimiter, decimal)
@@ -439,20 +456,33 @@ def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, declare_
         raise ValueError(f"unit must be 's' or 'ms'; got {unit!r}")
     scale = 1.0 if unit == "s" else 1e3
     decimals = (6 if unit == "s" else 3) if decimals is None else int(decimals)
-    values = np.round(times * scale, decimals)
-    headers = [f"time ({unit})" if declare_unit else "time"]
-    columns = [_fixed(values, decimals, decimal)]
     sigma = None
     if uncertainty is not None:
         sigma = np.broadcast_to(np.asarray(uncertainty, dtype=float), times.shape)
         if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
             raise ValueError("uncertainty must be finite and >= 0")
+    start_delay = float(start_delay)
+    if not np.isfinite(start_delay) or start_delay < 0:
+        raise ValueError(f"start_delay must be finite and >= 0; got {start_delay!r}")
+    times = times + start_delay
+    if scatter:
+        if sigma is None:
+            raise ValueError("scatter needs the uncertainty the times scatter with")
+        if start_delay <= 6.0 * np.max(sigma):
+            raise ValueError(f"with scatter, start_delay must exceed 6 sigma "
+                             f"({6.0 * np.max(sigma):g} s) so that no time is negative")
+        times = np.sort(times + sigma * np.random.default_rng(seed).standard_normal(times.size))
+    values = np.round(times * scale, decimals)
+    headers = [f"time ({unit})" if declare_unit else "time"]
+    columns = [_fixed(values, decimals, decimal)]
+    if sigma is not None:
         headers.append(f"uncertainty ({unit})" if declare_unit else "uncertainty")
         columns.append(_fixed(sigma * scale, decimals + 1, decimal))
     _atomic_write(path, _csv_bytes(headers, columns, delimiter))
     return {"kind": "timestamps", "impact_times": (values / scale).tolist(),
             "resolution": 10.0 ** -decimals / scale, "unit": unit,
-            "uncertainty": None if sigma is None else np.asarray(sigma).tolist()}
+            "uncertainty": None if sigma is None else np.asarray(sigma).tolist(),
+            "scatter": bool(scatter), "seed": int(seed), "start_delay": start_delay}
 
 
 # ---------------------------------------------------------------------------------------------
