@@ -1,0 +1,95 @@
+"""Coverage and width of reported intervals over seeded trials (shared test helper).
+
+Coverage alone passes inflated errors (a 95.45 % interval twice too wide still covers about
+100 %, inside any binomial tolerance of a few tens of trials), so every parameter is judged on
+two counts:
+
+* coverage: the number of trials whose 68.27 % (95.45 %) interval holds the truth must lie in
+  the central 99.9 % range of the binomial distribution Bin(N, 0.6827) (Bin(N, 0.9545)); a
+  correct method fails this 0.1 % of the time per check;
+* width: the mean half-width of the 68.27 % interval, and the mean standard error, divided by
+  the standard deviation of the estimates over the trials, must lie in [0.7, 1.4]. For N >= 40
+  the sample standard deviation scatters by about 1/√(2N) <= 11 %, so a correct method passes
+  by more than 3σ and errors inflated or deflated by 1.4× fail.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+LEVELS = (("68", 0.6827), ("95", 0.9545))
+TAIL = 0.0005  # each side: the central 99.9 % of the binomial distribution
+WIDTH_RANGE = (0.7, 1.4)
+FIELDS = ("value", "stderr", "low68", "high68", "low95", "high95")
+
+
+def binomial_range(trials, rate):
+    """Smallest and largest number of covering trials inside the central 99.9 % of
+    Bin(trials, rate)."""
+    return (int(stats.binom.ppf(TAIL, trials, rate)),
+            int(stats.binom.isf(TAIL, trials, rate)))
+
+
+def collect(estimates):
+    """Arrays of FIELDS from a list of Estimate (one per trial)."""
+    return {name: np.array([float(getattr(e, name)) for e in estimates]) for name in FIELDS}
+
+
+def judge(estimates, truth):
+    """Measured coverage and width of one parameter over the trials, and what fails.
+
+    Parameters
+    ----------
+    estimates : list of dashpot.fit.Estimate
+        One per trial.
+    truth : float
+
+    Returns
+    -------
+    measured : dict
+        ``covered68``, ``covered95`` (counts), ``trials``, ``halfwidth/spread``,
+        ``stderr/spread``.
+    failures : list of str
+    """
+    row = collect(estimates)
+    trials = row["value"].size
+    spread = float(np.std(row["value"], ddof=1))
+    measured = {"trials": trials}
+    failures = []
+    for level, rate in LEVELS:
+        count = int(np.sum((row["low" + level] <= truth) & (truth <= row["high" + level])))
+        measured["covered" + level] = count
+        low, high = binomial_range(trials, rate)
+        if not low <= count <= high:
+            failures.append(f"{level} % interval holds the truth in {count}/{trials} trials "
+                            f"(99.9 % binomial range {low}-{high})")
+    measured["halfwidth/spread"] = float(np.mean(row["high68"] - row["low68"]) / 2.0 / spread)
+    measured["stderr/spread"] = float(np.mean(row["stderr"]) / spread)
+    for key in ("halfwidth/spread", "stderr/spread"):
+        if not WIDTH_RANGE[0] <= measured[key] <= WIDTH_RANGE[1]:
+            failures.append(f"{key} = {measured[key]:.2f} (allowed {WIDTH_RANGE[0]}-"
+                            f"{WIDTH_RANGE[1]})")
+    return measured, failures
+
+
+def judge_all(results, truth):
+    """:func:`judge` for every parameter of `truth` over fit results (``.estimates``).
+
+    Returns
+    -------
+    lines : list of str
+        One line per parameter with its measured figures.
+    failures : list of str
+        Each prefixed by the parameter's name.
+    """
+    lines, failures = [], []
+    for name, true in truth.items():
+        measured, failed = judge([fit.estimates[name] for fit in results], true)
+        trials = measured["trials"]
+        lines.append(f"{name:>9}: 68 % {measured['covered68']}/{trials}, 95 % "
+                     f"{measured['covered95']}/{trials}, half-width/spread "
+                     f"{measured['halfwidth/spread']:.2f}, stderr/spread "
+                     f"{measured['stderr/spread']:.2f}")
+        failures += [f"{name}: {text}" for text in failed]
+    return lines, failures
