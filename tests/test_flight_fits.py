@@ -10,19 +10,24 @@ written), never tuned.
 from __future__ import annotations
 
 import math
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from scipy.integrate import solve_ivp
 from scipy.stats import binom
 
 import dashpot
 from dashpot.fit import fit_model, prepare_data
+from dashpot.ingest import read_impacts
 from dashpot.physics.flight import drag_constant, track_flight
 from dashpot.physics.surrogate_train import surrogate_trains
 from dashpot.physics.train import TrackFlight, impact_trains
 from dashpot.scene import Known, Scene
+from dashpot.synth.scene import write_scene
 
 SEED = 20261125
 PING_PONG_MASS, PING_PONG_DIAMETER = 0.0027, 0.040
@@ -204,3 +209,28 @@ def test_without_friction_the_friction_term_is_not_kept_on_most_seeds():
         assert any(note.startswith("rolling friction") for note in fit.notes)
     # ΔBIC >= 6 under the null is rare (well below 5 %); allow what 5 % would give at 99.9 %.
     assert kept <= binom.ppf(0.999, trials, 0.05)
+
+
+def test_the_default_paper_cart_scene_still_recovers_beta_and_k():
+    """The workflow's synthetic paper-cart scene (config/config.yaml), as the `simulate` rule
+    writes it: a motion sensor's cart, so rolling friction is tried (and, without friction in
+    the truth, not kept); the generating hybrid model recovers β and k within 2σ."""
+    config = yaml.safe_load(Path("config/config.yaml").read_text(encoding="utf-8"))
+    cart = config["synthetic"]["paper-cart"]
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_scene(Path(folder) / "paper-cart", cart["kind"], model=cart["model"],
+                           beta=cart["beta"], omega0=cart["omega0"], g=cart["g"],
+                           v0=cart["v0"], n_max=cart["n_max"], seed=cart["seed"],
+                           **cart["options"])
+        impacts = read_impacts(path, kind=cart["kind"])
+    apparatus = cart["scene"]["apparatus"]
+    scene = Scene(name="paper-cart", sensor=cart["kind"], g_eff=apparatus["g_eff"],
+                  mass=Known(apparatus["mass"]))
+    assert scene.tries_friction
+    fit = fit_model(prepare_data(impacts, scene), cart["model"], scene)
+    assert fit.success, fit.message
+    assert any(note.startswith("rolling friction") for note in fit.notes)
+    truth = {"beta": cart["beta"], "k": apparatus["mass"] * cart["omega0"] ** 2}
+    for name, value in truth.items():
+        estimate = fit.estimates[name]
+        assert abs(estimate.value - value) <= 2.0 * estimate.stderr, (name, estimate, value)
