@@ -22,6 +22,7 @@ from scipy.stats import binom
 
 import dashpot
 from dashpot.fit import fit_model, prepare_data
+from dashpot.fit.trains import _TrainPredictor
 from dashpot.ingest import read_impacts
 from dashpot.physics.flight import drag_constant, track_flight
 from dashpot.physics.surrogate_train import surrogate_trains
@@ -95,6 +96,88 @@ def test_drag_trains_at_every_level_match_the_impact_by_impact_sequence(model, l
     np.testing.assert_allclose(times, sequence.impact_times, rtol=0, atol=tolerance)
     np.testing.assert_allclose(trains.speeds[0] * v_star, sequence.impact_speeds,
                                rtol=tolerance)
+
+
+@pytest.fixture(scope="module")
+def track_reference():
+    """Trains under a track flight (a_up ≠ a_down and drag), built impact by impact from the
+    contact map (:func:`dashpot.collide`) and solve_ivp flights: no train solver involved.
+    Dimensionless (g = 1): ζ = 0.02, ṽ0 = 60, up 1.02, down 0.98, drag 1e-4; 20 impacts."""
+    zeta, vtilde0, up, down, drag, count = 0.02, 60.0, 1.02, 0.98, 1e-4, 20
+    out = {}
+    for model in dashpot.MODELS:
+        times, speeds, clock, speed = [], [], 0.0, vtilde0
+        for _ in range(count):
+            times.append(clock)
+            speeds.append(speed)
+            collision = dashpot.collide(model, zeta, speed)
+            duration, landing = _integrated_flight(float(collision.eps) * speed, up, down, drag)
+            clock += float(collision.contact_time) + duration
+            speed = landing
+        out[model] = np.array(times), np.array(speeds)
+    return (zeta, vtilde0, up, down, drag, count), out
+
+
+@pytest.mark.parametrize("level", ["exact", "standard", "fast"])
+@pytest.mark.parametrize("model", dashpot.MODELS)
+def test_track_trains_at_every_level_match_an_impact_by_impact_integration(
+        track_reference, model, level):
+    (zeta, vtilde0, up, down, drag, count), reference = track_reference
+    times, speeds = reference[model]
+    flight = TrackFlight.of(up, down, drag, 1)
+    if level == "exact":
+        first = impact_trains(model, [zeta], [vtilde0], count, flight=flight)
+        trains = impact_trains(model, [zeta], [vtilde0], count, flight=flight,
+                               start=first.speeds / first.speeds[:, :1] * 1.001)
+        for found in (first, trains):
+            np.testing.assert_allclose(found.speeds[0], speeds, rtol=1e-9)
+    else:
+        trains = surrogate_trains(model, [zeta], [vtilde0], count, level=level, flight=flight)
+    # Relative accuracy of the level (the exact solver's, or the surrogate's certified bound).
+    tolerance = {"exact": 1e-9, "standard": 1e-8, "fast": 1e-5}[level]
+    np.testing.assert_allclose(trains.speeds[0], speeds, rtol=tolerance)
+    found = np.concatenate([[0.0], np.cumsum(trains.intervals[0])])
+    np.testing.assert_allclose(found, times, rtol=tolerance, atol=tolerance * times[-1])
+
+
+@pytest.mark.parametrize("model", dashpot.MODELS)
+def test_a_flight_without_friction_or_drag_is_gravity_exactly(model):
+    zeta, vtilde0 = np.array([0.05, 0.2]), np.array([40.0, 300.0])
+    gravity = impact_trains(model, zeta, vtilde0, 15)
+    neutral = impact_trains(model, zeta, vtilde0, 15, flight=TrackFlight.of(1.0, 1.0, 0.0, 2))
+    np.testing.assert_array_equal(neutral.speeds, gravity.speeds)
+    # T(ε_k u_k) = 2ε_k u_k against 2u_{k+1}: the same to rounding.
+    np.testing.assert_allclose(neutral.intervals, gravity.intervals, rtol=1e-15, atol=0)
+    # The fits' trains at neutral flight parameters are today's exactly.
+    predictor = _TrainPredictor(model, 2.5, 15)
+    today = predictor(zeta, 2.5 / (60.0 / vtilde0), 60.0)
+    predictor.start = None
+    flown = predictor(zeta, 2.5 / (60.0 / vtilde0), 60.0, 0.0, 2.5, 0.0)
+    for before, after in zip(today[1:], flown[1:]):
+        np.testing.assert_array_equal(after, before)
+
+
+def test_friction_is_tried_on_cart_scenes_and_the_angle_is_a_prior():
+    from dashpot.scene import scene_from_mapping
+
+    angle = 12.0
+    cart = scene_from_mapping({"apparatus": {"incline_angle": angle}})
+    assert cart.tries_friction
+    prior = cart.flight_acceleration
+    assert prior.value == pytest.approx(9.80665 * math.sin(math.radians(angle)), rel=1e-12)
+    # Half a degree of the angle, carried to g sin θ.
+    assert prior.uncertainty == pytest.approx(
+        9.80665 * (math.sin(math.radians(angle + 1e-4)) - math.sin(math.radians(angle - 1e-4)))
+        / 2e-4 * 0.5, rel=1e-6)
+    assert scene_from_mapping({"sensor": "photogate", "reader": {"flag_length": 0.1}}
+                              ).tries_friction
+    assert not scene_from_mapping({"apparatus": {"incline_angle": angle},
+                                   "friction": False}).tries_friction
+    assert not scene_from_mapping({}).tries_friction
+    stated = scene_from_mapping({"sensor": "motion_sensor", "apparatus": {"g_eff": 2.0}})
+    assert stated.tries_friction and stated.flight_acceleration.uncertainty is None
+    assert scene_from_mapping({"friction": True}).as_dict()["friction"] is True
+    assert "friction" not in scene_from_mapping({}).as_dict()
 
 
 # ------------------------------------------------------------------- drag in the fits

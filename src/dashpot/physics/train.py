@@ -343,10 +343,12 @@ def _constant_restitution_speeds(eps, vtilde0, count, flight):
     a = 1/(εs)², b = c/s², so x_k = a^k x_0 + b(a^k − 1)/(a − 1).
     """
     powers = np.arange(count, dtype=float)[None, :]
-    if flight is None:
-        with np.errstate(under="ignore"):
-            return vtilde0[:, None] * eps[:, None] ** powers
-    ratio = np.sqrt(flight.down / flight.up)
+    ratio = 1.0 if flight is None else np.sqrt(flight.down / flight.up)
+    with np.errstate(under="ignore"):
+        # Without drag the speeds are geometric: u_k = ṽ0·(εs)^k (s = 1 under gravity).
+        geometric = vtilde0[:, None] * (eps * ratio)[:, None] ** powers
+    if flight is None or not np.any(flight.drag > 0.0):
+        return geometric
     log_a = (-2.0 * (np.log(eps) + np.log(ratio)))[:, None]
     b = (flight.drag / flight.up / ratio ** 2)[:, None]
     with np.errstate(all="ignore"):
@@ -356,7 +358,8 @@ def _constant_restitution_speeds(eps, vtilde0, count, flight):
         speeds = 1.0 / np.sqrt(inverse_square)
     speeds[:, 0] = vtilde0
     # A speed too small to represent (or ε = 0) ends the train, as under gravity.
-    return np.where(np.isfinite(speeds), speeds, 0.0)
+    return np.where((flight.drag > 0.0)[:, None], np.where(np.isfinite(speeds), speeds, 0.0),
+                    geometric)
 
 
 def impact_trains(model, zeta, vtilde0, count, *, start=None, rtol=1e-13, solver=collide,
