@@ -19,7 +19,8 @@ def _identifiability_notes(estimates, varied, correlation, params):
         param = params[name]
         if any(np.isfinite(bound) and abs(param.value - bound) <= 1e-3 * abs(bound)
                for bound in (param.min, param.max)):
-            notes.append(f"{labels.get(name, name)} ended at its bound: not determined by these data")
+            notes.append(f"{labels.get(name, name)} ended at its bound: not determined by "
+                         f"these data")
     omega0 = estimates.get("omega0")
     if omega0 is not None and omega0.status != "fixed" and math.isinf(omega0.high95):
         notes.append("omega0 (and so k) is not bounded above at 95 %: the data are consistent "
