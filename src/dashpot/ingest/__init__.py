@@ -13,6 +13,11 @@ column                 unit    meaning
 ``rebound_speed``      m/s     measured speed just after the impact (NaN if not measured)
 ``speed_uncertainty``  m/s     1σ uncertainty of the speeds (NaN if not measured)
 ``run``                –       run index for files holding several runs side by side (0 if one)
+``flag`` (optional)    –       "ok", or why the impact is less certain: "few_samples" (a motion
+                               sensor's reversal with fewer than two free-flight samples on a
+                               side: timed from what there is, speeds NaN where unmeasured),
+                               "inferred" (a contact whose reversal the samples do not show,
+                               placed where the flight before it must have ended)
 =====================  ======  =============================================================
 
 ``DataFrame.attrs`` holds ``source`` (the file), ``sensor`` (the reader's kind) and ``notes``
@@ -22,6 +27,8 @@ column                 unit    meaning
 
 IMPACT_COLUMNS = ("time", "time_uncertainty", "amplitude", "impact_speed", "rebound_speed",
                   "speed_uncertainty", "run")
+FLAG_COLUMN = "flag"
+"""Optional last column of a reader that grades its impacts (the motion sensor's)."""
 
 from pathlib import Path
 

@@ -53,7 +53,7 @@ from scipy.integrate import cumulative_trapezoid
 from .._validation import (BUMPER_POSITION_RANGE, FLAG_LENGTH_RANGE, GATE_DISTANCE_RANGE,
                            check_range)
 from ..errors import InputError
-from . import AUDIO_SUFFIXES, IMPACT_COLUMNS
+from . import AUDIO_SUFFIXES, FLAG_COLUMN, IMPACT_COLUMNS
 
 __all__ = ["read_phyphox", "read_timestamps", "read_motion_sensor", "read_photogate",
            "read_impact_table", "is_impact_table", "sniff_table", "TABLE_KINDS"]
@@ -467,7 +467,8 @@ def _check_times(path, table, times, rows, what="time", unit=" s"):
 
 
 def _impact_frame(path, sensor, notes, time, time_uncertainty, *, amplitude=None,
-                  impact_speed=None, rebound_speed=None, speed_uncertainty=None, run=None):
+                  impact_speed=None, rebound_speed=None, speed_uncertainty=None, run=None,
+                  flag=None):
     """The impact table of dashpot.ingest, sorted by time, with its attrs."""
     n = np.asarray(time).size
     nan = np.full(n, np.nan)
@@ -480,6 +481,8 @@ def _impact_frame(path, sensor, notes, time, time_uncertainty, *, amplitude=None
         "speed_uncertainty": nan if speed_uncertainty is None else speed_uncertainty,
         "run": np.zeros(n, dtype=int) if run is None else np.asarray(run, dtype=int),
     }, columns=list(IMPACT_COLUMNS))
+    if flag is not None:
+        frame[FLAG_COLUMN] = np.asarray(flag, dtype=object)
     frame = frame.sort_values(["time", "run"], kind="stable").reset_index(drop=True)
     frame.attrs.update(source=str(path), sensor=sensor, notes=list(notes))
     return frame
@@ -924,7 +927,7 @@ def _impact_columns(table):
     found = {}
     for j, column in enumerate(table.columns or ()):
         key = column.header.strip().lower()
-        if key in IMPACT_COLUMNS and key not in found:
+        if key in (*IMPACT_COLUMNS, FLAG_COLUMN) and key not in found:
             found[key] = j
     return found
 
@@ -1008,7 +1011,12 @@ def _read_impact_table(path, table):
         raise InputError(path, f"{table.where}{problem}", row=int(k) + 1,
                          column=table.columns[columns[name]].header)
 
-    values = {name: _numbers(path, table, j, what=name)[0] for name, j in columns.items()}
+    flag = None
+    if "flag" in columns:  # words, not numbers; an empty cell is an impact nobody flagged
+        cells = table.cells[:, columns["flag"]]
+        flag = np.where(cells == "", "ok", cells).astype(object)
+    values = {name: _numbers(path, table, j, what=name)[0] for name, j in columns.items()
+              if name != "flag"}
     time = values["time"]
     bad = ~np.isfinite(time)
     if bad.any():
@@ -1016,7 +1024,7 @@ def _read_impact_table(path, table):
         cell = table.cells[k, columns["time"]]
         refuse("time", k, "impact time is empty" if cell == "" else
                f"impact time '{cell}' is not a finite number")
-    for name in columns:
+    for name in values:
         if name == "time":
             continue
         value = values[name]
@@ -1059,7 +1067,8 @@ def _read_impact_table(path, table):
                          amplitude=values.get("amplitude"),
                          impact_speed=values.get("impact_speed"),
                          rebound_speed=values.get("rebound_speed"),
-                         speed_uncertainty=values.get("speed_uncertainty"), run=run)
+                         speed_uncertainty=values.get("speed_uncertainty"), run=run,
+                         flag=flag)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1225,8 +1234,8 @@ def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
 
 
 def _motion_run(run, bumper_position, notes):
-    """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed)."""
-    empty = tuple(np.empty(0) for _ in range(5))
+    """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag)."""
+    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
     time = run.time
     n = time.size
     if n < 12:
@@ -1289,10 +1298,21 @@ def _motion_run(run, bumper_position, notes):
     if not resolved.any():
         notes.append(f"run '{run.label or 0}': no velocity reversal at the bumper")
         return empty
-    # Reversals up to the last resolved one cut the record into flights.
-    keep = reversal & (i <= i[resolved][-1])
+    # Reversals up to the last resolved one cut the record into flights, and so do later ones
+    # while the cart still leaves the bumper by more than the noise (short flights of the
+    # last bounces: their velocity exceeds the threshold on a sample or two only). Once the
+    # position stays within 4σ of where the record ends, the cart rests and a reversal there
+    # would be noise.
+    if "position" in run.columns:
+        moved_at_all = np.flatnonzero(np.abs(s - np.median(s[-min(20, n):])) > 4.0 * sigma_x)
+        resting_from = moved_at_all[-1] + 1 if moved_at_all.size else 0
+    else:
+        resting_from = 0
+    keep = reversal & ((i <= i[resolved][-1]) | (ends[np.minimum(i + 1, count - 1)]
+                                                 < resting_from))
     toward_runs, away_runs = i[keep], away_of[keep]
     is_impact = resolved[keep]
+    real_reversal = np.ones(is_impact.size, dtype=bool)  # False: a contact put in below
     impacts = toward_runs.size
     # The contact starts where the velocity toward the bumper peaks (free motion speeds it up,
     # the bumper slows it) and ends where the velocity away from it peaks: samples between,
@@ -1326,6 +1346,7 @@ def _motion_run(run, bumper_position, notes):
         peaks = np.insert(peaks, missed + 1, unseen_peaks)
         troughs = np.insert(troughs, missed + 1, unseen_peaks + 2)
         is_impact = np.insert(is_impact, missed + 1, False)
+        real_reversal = np.insert(real_reversal, missed + 1, False)
         impacts = peaks.size
         mirrored = mirror(troughs)
     segment_lo = np.concatenate([[starts[toward_runs[0]]], troughs + guard + 1])
@@ -1338,10 +1359,17 @@ def _motion_run(run, bumper_position, notes):
 
     label = run.label or 0
 
-    def fit(labels):
-        """Least squares over the samples with a flight label (>= 2 per flight): one parabola
-        per flight with a common acceleration (the incline's g·sin θ), so that short flights
-        still count; one pass of 5σ outlier rejection. Returns a dict of the fit."""
+    def fit(labels, apex=None):
+        """Least squares over the samples with a flight label (>= 2 per flight).
+
+        Each flight is s(τ) = c + b·τ + a·τ²/2 about a reference time; `apex` (s, per flight)
+        makes the reference the flight's apex and gives the leg before it (away from the
+        bumper) and the leg after it (toward it) accelerations of their own, common to all
+        flights (rolling friction adds to the incline's pull going up and subtracts from it
+        going down [5]_); position and velocity stay continuous at the apex. Without `apex`,
+        one acceleration for both legs. One pass of 5σ outlier rejection. Returns a dict of
+        the fit; ``theta`` is always (a_away, a_toward, c_0, b_0, c_1, b_1, ...).
+        """
         def solve(selected):
             counts = np.bincount(labels[selected], minlength=impacts + 1)
             usable = counts >= 2
@@ -1352,15 +1380,31 @@ def _motion_run(run, bumper_position, notes):
             seg = labels[rows]
             reference = (np.bincount(seg, weights=time[rows], minlength=impacts + 1)
                          / np.maximum(counts, 1))
+            if apex is not None:
+                reference = np.where(np.isfinite(apex), apex, reference)
             tau = time[rows] - reference[seg]
-            design = np.zeros((rows.size, 1 + 2 * used.size))
-            design[:, 0] = 0.5 * tau ** 2
-            design[np.arange(rows.size), 1 + 2 * column[seg]] = 1.0
-            design[np.arange(rows.size), 2 + 2 * column[seg]] = tau
-            theta = (np.linalg.lstsq(design, s[rows], rcond=None)[0] if rows.size
-                     else np.zeros(1))
+            toward = tau >= 0
+            # Two accelerations only where both legs are sampled well enough to tell them apart.
+            split = apex is not None and min(int(toward.sum()), int((~toward).sum())) >= 3
+            n_acc = 2 if split else 1
+            design = np.zeros((rows.size, n_acc + 2 * used.size))
+            if split:
+                design[:, 0] = np.where(toward, 0.0, 0.5 * tau ** 2)
+                design[:, 1] = np.where(toward, 0.5 * tau ** 2, 0.0)
+            else:
+                design[:, 0] = 0.5 * tau ** 2
+            design[np.arange(rows.size), n_acc + 2 * column[seg]] = 1.0
+            design[np.arange(rows.size), n_acc + 1 + 2 * column[seg]] = tau
+            # Full parameters (a_away, a_toward, c, b, ...) from the fitted ones.
+            expand = np.zeros((2 + 2 * used.size, design.shape[1]))
+            expand[0, 0] = 1.0
+            expand[1, 1 if split else 0] = 1.0
+            expand[2:, n_acc:] = np.eye(2 * used.size)
+            fitted = (np.linalg.lstsq(design, s[rows], rcond=None)[0] if rows.size
+                      else np.zeros(design.shape[1]))
             return dict(rows=rows, usable=usable, column=column, reference=reference,
-                        design=design, theta=theta, residual=s[rows] - design @ theta)
+                        design=design, expand=expand, split=split, theta=expand @ fitted,
+                        residual=s[rows] - design @ fitted)
 
         result = solve(labels >= 0)
         if result["rows"].size == 0:
@@ -1399,72 +1443,112 @@ def _motion_run(run, bumper_position, notes):
             if same.sum() > 10 and residual @ residual > 0:
                 ratio += 2.0 * float(np.mean(residual[lag:][same] * residual[:-lag][same])
                                      / np.mean(residual ** 2))
+        expand = result["expand"]
         result["covariance"] = (max(ratio, 1.0) * result["variance"]
-                                * np.linalg.pinv(design.T @ design))
+                                * expand @ np.linalg.pinv(design.T @ design) @ expand.T)
         result["outliers"] = int(outliers.sum())
+        result["samples"] = np.bincount(seg, minlength=impacts + 1)
         result["first"] = np.full(impacts + 1, np.nan)
         result["last"] = np.full(impacts + 1, np.nan)
         np.fmin.at(result["first"], seg, time[rows])
         np.fmax.at(result["last"], seg, time[rows])
         return result
 
+    def apexes(result):
+        """Time (s) of each flight's apex, where its fitted velocity is zero (NaN if unfitted).
+
+        The velocity b + a·τ about the reference is zero before it on the leg away from the
+        bumper (b > 0) and after it on the leg toward it (b < 0).
+        """
+        theta, usable = result["theta"], result["usable"]
+        col = np.clip(result["column"], 0, None)
+        b = theta[3 + 2 * col]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = np.where(b > 0, -b / theta[0], -b / theta[1])
+        return np.where(usable, result["reference"] + shift, np.nan)
+
     def edge_parabola(result, segments, edge_times):
-        """(ok, c, b, cov) of each segment's parabola about an edge time, cov of (a, c, b)."""
+        """(ok, a, c, b, cov) of each segment's leg at an edge time, cov of (a, c, b).
+
+        The leg is the one the edge time falls on: toward the bumper after the apex (the
+        reference of a two-leg fit), away from it before.
+        """
         usable, column, theta = result["usable"], result["column"], result["theta"]
         ok = usable[segments]
         col = np.clip(column[segments], 0, None)
         delta = edge_times - result["reference"][segments]
-        a = theta[0]
-        c0, b0 = theta[1 + 2 * col], theta[2 + 2 * col]
+        leg = np.where(delta >= 0, 1, 0)
+        a = theta[leg]
+        c0, b0 = theta[2 + 2 * col], theta[3 + 2 * col]
         c = c0 + b0 * delta + 0.5 * a * delta ** 2
         b = b0 + a * delta
-        blocks = np.stack([np.zeros_like(col), 1 + 2 * col, 2 + 2 * col], axis=-1)
+        blocks = np.stack([leg, 2 + 2 * col, 3 + 2 * col], axis=-1)
         cov = result["covariance"][blocks[:, :, None], blocks[:, None, :]]
         jac = np.zeros((segments.size, 3, 3))
         jac[:, 0, 0] = 1.0
         jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = 0.5 * delta ** 2, 1.0, delta
         jac[:, 2, 0], jac[:, 2, 2] = delta, 1.0
-        return ok, c, b, jac @ cov @ np.swapaxes(jac, 1, 2)
+        return ok, a, c, b, jac @ cov @ np.swapaxes(jac, 1, 2)
 
     def crossings(result, bumper, var_bumper):
         """Contact start (incoming parabola reaches the bumper) and end (outgoing leaves it)."""
         k = np.arange(impacts)
         te_in, te_out = result["last"][k], result["first"][k + 1]
-        in_ok, c_in, b_in, cov_in = edge_parabola(result, k, te_in)
-        out_ok, c_out, b_out, cov_out = edge_parabola(result, k + 1, te_out)
-        a = result["theta"][0]
-        tau_in, v_in, sd_t_in, sd_v_in = _crossing(a, c_in, b_in, cov_in, bumper, var_bumper,
+        in_ok, a_in, c_in, b_in, cov_in = edge_parabola(result, k, te_in)
+        out_ok, a_out, c_out, b_out, cov_out = edge_parabola(result, k + 1, te_out)
+        tau_in, v_in, sd_t_in, sd_v_in = _crossing(a_in, c_in, b_in, cov_in, bumper, var_bumper,
                                                    incoming=True)
-        tau_out, v_out, _, sd_v_out = _crossing(a, c_out, b_out, cov_out, bumper, var_bumper,
-                                                incoming=False)
+        tau_out, v_out, sd_t_out, sd_v_out = _crossing(a_out, c_out, b_out, cov_out, bumper,
+                                                       var_bumper, incoming=False)
         return dict(t_in=np.where(in_ok, te_in + tau_in, np.nan),
                     t_out=np.where(out_ok, te_out + tau_out, np.nan),
                     v_in=np.where(in_ok, v_in, np.nan), v_out=np.where(out_ok, v_out, np.nan),
-                    sd_t_in=sd_t_in, sd_v_in=np.where(in_ok, sd_v_in, np.nan),
+                    sd_t_in=sd_t_in, sd_t_out=sd_t_out, sd_v_in=np.where(in_ok, sd_v_in, np.nan),
                     sd_v_out=np.where(out_ok, sd_v_out, np.nan))
 
     def meeting_bumper(result):
         """Median position where each impact's incoming and outgoing parabolas meet."""
         k = np.arange(impacts)
         te_in, te_out = result["last"][k], result["first"][k + 1]
-        in_ok, c_in, b_in, _ = edge_parabola(result, k, te_in)
-        out_ok, c_out, b_out, _ = edge_parabola(result, k + 1, te_out)
-        a = result["theta"][0]
-        # With a common acceleration the difference of the two parabolas is linear in time.
-        slope = b_in - b_out + a * (te_out - te_in)
-        const = (c_in - c_out - b_in * te_in + b_out * te_out
-                 - 0.5 * a * (te_out - te_in) * (te_in + te_out))
+        in_ok, a_in, c_in, b_in, _ = edge_parabola(result, k, te_in)
+        out_ok, a_out, c_out, b_out, _ = edge_parabola(result, k + 1, te_out)
+        # s_in(u) − s_out(u) = A·u² + B·u + C with u the time after te_in: the root between the
+        # two edges (the one nearer their middle); linear when the legs share the acceleration.
+        gap = te_out - te_in
+        quadratic = 0.5 * (a_in - a_out)
+        linear = b_in - b_out + a_out * gap
+        const = c_in - c_out + b_out * gap - 0.5 * a_out * gap ** 2
         with np.errstate(divide="ignore", invalid="ignore"):
-            meet = -const / slope
-        dtm = meet - te_in
-        meets = (c_in + b_in * dtm + 0.5 * a * dtm ** 2)[
+            root = np.sqrt(linear ** 2 - 4.0 * quadratic * const)
+            candidates = np.stack([(-linear + root) / (2.0 * quadratic),
+                                   (-linear - root) / (2.0 * quadratic)])
+            nearest = candidates[np.argmin(np.abs(np.nan_to_num(candidates - 0.5 * gap,
+                                                                nan=np.inf)), axis=0),
+                                 np.arange(impacts)]
+            meet = np.where(np.abs(quadratic * gap) < 1e-9 * np.abs(linear) + 1e-300,
+                            -const / linear, nearest)
+        meets = (c_in + b_in * meet + 0.5 * a_in * meet ** 2)[
             in_ok & out_ok & np.isfinite(meet) & is_impact]
         if meets.size == 0:
             return None, None
         spread = float(np.std(meets)) ** 2 / meets.size if meets.size > 1 else result["variance"]
         return float(np.median(meets)), spread
 
-    first = fit(segment)
+    def fit_legs(labels):
+        """The flights' fit with one acceleration, then with each leg's own about the apex
+        (twice, the second about the apexes the first found)."""
+        common = fit(labels)
+        if common is None:
+            return None
+        result = common
+        for _ in range(2):  # the apex moves by a fraction of a sample at most
+            legs = fit(labels, apex=apexes(result))
+            if legs is None or not legs["split"]:
+                return result
+            result = legs
+        return result
+
+    first = fit_legs(segment)
     if first is None:
         notes.append(f"run '{label}': no free motion between the impacts to fit")
         return empty
@@ -1509,27 +1593,41 @@ def _motion_run(run, bumper_position, notes):
     # samples whose noise made it peak: a small selection bias at the flight ends. Now each
     # flight runs from the fitted end of the previous contact (or the fitted release, the
     # descent's vertex) to the fitted start of the next contact, or at the latest to the
-    # fitted apex mirrored about the contact end.
+    # fitted apex mirrored about the contact end (scaled by √(a_away/a_toward): the leg
+    # toward the bumper lasts longer when friction slows it).
     cross = crossings(first, bumper, var_bumper)
-    theta, reference = first["theta"], first["reference"]
-    col = np.clip(first["column"], 0, None)
+    vertex = apexes(first)
     with np.errstate(divide="ignore", invalid="ignore"):
-        vertex = np.where(first["usable"], reference - theta[2 + 2 * col] / theta[0], np.nan)
+        legs_ratio = np.sqrt(first["theta"][0] / first["theta"][1])
+    legs_ratio = legs_ratio if np.isfinite(legs_ratio) and legs_ratio > 0 else 1.0
     lo_time = np.concatenate([[vertex[0]], cross["t_out"]])
     hi_time = np.concatenate([cross["t_in"], [np.inf]])
-    mirrored_time = np.concatenate([[np.inf], 2.0 * vertex[1:] - cross["t_out"]])
+    mirrored_time = np.concatenate([[np.inf], vertex[1:] + legs_ratio * (vertex[1:]
+                                                                          - cross["t_out"])])
     hi_time = np.fmin(hi_time, mirrored_time)
-    # Where a fit is missing keep the first pass's cut, and move no cut by more than a sample
-    # beyond it (a flight fitted on few samples may misplace its apex).
-    first_lo = time[np.clip(segment_lo, 0, n - 1)] - 1e-9
-    first_hi = time[np.clip(segment_hi, 0, n - 1)] + 1e-9
-    lo_time = np.where(np.isfinite(lo_time), np.fmax(lo_time, first_lo - dt), first_lo)
-    hi_time = np.where(np.isfinite(hi_time), np.fmin(hi_time, first_hi + dt), first_hi)
+    # No cut moves past the samples where the velocity turned (the contact lies between
+    # them); where a fit is missing, the cut is there, or the first pass's mirrored apex. A
+    # flight of a few samples then keeps the samples next to its contacts, which the first
+    # pass's guard left out: with a position column, a sample more than 3σ short of the
+    # bumper is off it, so those count as free flight.
+    reach = (guard + 1) * dt
+    turn_lo = np.fmax(time[np.clip(np.concatenate([[segment_lo[0]], troughs]), 0, n - 1)],
+                      time[np.clip(segment_lo, 0, n - 1)] - reach) - 1e-9
+    turn_hi = np.fmin(time[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
+                      time[np.clip(segment_hi, 0, n - 1)] + reach) + 1e-9
+    if "position" in run.columns:
+        # The last flight runs until the cart is back at rest (its apex mirrored, when fitted):
+        # its return may be too slow to pass the velocity threshold.
+        turn_hi[-1] = max(turn_hi[-1], time[np.clip(resting_from - 1, 0, n - 1)] + 1e-9)
+    lo_time = np.where(np.isfinite(lo_time), np.fmax(lo_time, turn_lo), turn_lo)
+    hi_time = np.where(np.isfinite(hi_time), np.fmin(hi_time, turn_hi), turn_hi)
     lo_time = np.maximum.accumulate(lo_time)
     refined = np.searchsorted(lo_time, time, side="right") - 1
     keep = (refined >= 0) & (time > lo_time[np.clip(refined, 0, None)]) \
         & (time < hi_time[np.clip(refined, 0, None)])
-    second = fit(np.where(keep, refined, -1))
+    if "position" in run.columns:
+        keep &= s < bumper - 3.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+    second = fit_legs(np.where(keep, refined, -1))
     result = second if second is not None else first
     if source == "meet":
         bumper, var_bumper = meeting_bumper(result)
@@ -1538,19 +1636,63 @@ def _motion_run(run, bumper_position, notes):
                      f"past the bumper by a long contact)")
     cross = crossings(result, bumper, var_bumper)
     resolved_count = int(is_impact.sum())
-    notes.append(f"run '{label}': free-motion acceleration toward the bumper "
-                 f"{result['theta'][0]:.4g} m/s² (the incline's g·sin θ), position noise "
-                 f"{np.sqrt(result['variance']) * 1e3:.3g} mm, {resolved_count} resolved "
-                 f"reversal(s) at the bumper ({impacts - resolved_count} other contact(s) "
-                 f"without a clear reversal), "
-                 f"{result['outliers']} outlying sample(s) left out")
-    found = np.isfinite(cross["t_in"]) & is_impact
-    if np.any(~found & is_impact):
-        notes.append(f"run '{label}': {int(np.sum(~found & is_impact))} reversal(s) without "
-                     f"enough free motion before them to time the impact were dropped")
+    a_away, a_toward = result["theta"][:2]
+    sd_away, sd_toward = np.sqrt(np.diag(result["covariance"])[:2])
+    accelerations = (f"{a_toward:.4g} ± {sd_toward:.2g} m/s² on the legs toward the bumper and "
+                     f"{a_away:.4g} ± {sd_away:.2g} m/s² on the legs away from it (the incline's "
+                     f"g·sin θ less and plus rolling friction)" if result["split"] else
+                     f"{a_toward:.4g} ± {sd_toward:.2g} m/s² on both legs (too few samples on "
+                     f"one leg to tell them apart)")
+    notes.append(f"run '{label}': free-motion acceleration toward the bumper {accelerations}, "
+                 f"position noise {np.sqrt(result['variance']) * 1e3:.3g} mm, "
+                 f"{resolved_count} resolved reversal(s) at the bumper "
+                 f"({impacts - resolved_count} other contact(s) with fewer than two samples "
+                 f"beyond the noise on a side), {result['outliers']} outlying sample(s) left out")
+    # Every reversal is reported; one whose incoming or outgoing flight has fewer than two
+    # free samples in the fit is flagged, timed by what it has: the incoming parabola, else the
+    # outgoing one (the contact end: late by the contact), else the midpoint of the samples
+    # where the velocity turned (1σ: their spacing/√12).
+    k = np.arange(impacts)
+    samples_in, samples_out = result["samples"][k], result["samples"][k + 1]
+    short = (samples_in < 2) | (samples_out < 2)
+    has_in, has_out = np.isfinite(cross["t_in"]), np.isfinite(cross["t_out"])
+    turn_lo, turn_hi = time[np.clip(peaks, 0, n - 1)], time[np.clip(troughs, 0, n - 1)]
+    impact_time = np.where(has_in, cross["t_in"], np.where(has_out, cross["t_out"],
+                                                            0.5 * (turn_lo + turn_hi)))
+    time_sd = np.where(has_in, cross["sd_t_in"], np.where(
+        has_out, np.hypot(cross["sd_t_out"], dt / np.sqrt(12.0)),
+        np.maximum(turn_hi - turn_lo, dt) / np.sqrt(12.0)))
+    # A fitted flight whose parabola never reaches the bumper position cannot time its
+    # contact (a bumper position given where the cart never is): such contacts are dropped.
+    timed = has_in | ((samples_in < 2) & (has_out | (samples_out < 2)))
+    # The train ends at its last well-sampled reversal (none: no train). Flagged contacts
+    # after it are the cart's last, smallest bounces, timed mostly by the noise (a 2 mm error
+    # is 20 ms at 0.1 m/s), and would end the train on intervals that are no bounce train.
+    good = np.flatnonzero(real_reversal & ~short & timed)
+    reported = (k <= (good[-1] if good.size else -1)) & timed
+    if np.any(~timed):
+        notes.append(f"run '{label}': {int(np.sum(~timed))} contact(s) whose fitted flight "
+                     f"never reaches the bumper position dropped")
+    if np.any(~reported & timed):
+        notes.append(f"run '{label}': {int(np.sum(~reported & timed))} last contact(s) after the "
+                     f"last reversal with two free-flight samples on each side left out (the "
+                     f"cart's smallest bounces, timed by the noise)")
+    flags = np.where(~real_reversal, "inferred", np.where(short, "few_samples", "ok"))[reported]
+    few = int(np.sum(short & real_reversal & reported))
+    if np.any(~real_reversal & reported):
+        notes.append(f"run '{label}': {int(np.sum(~real_reversal & reported))} contact(s) "
+                     f"without a visible reversal (a flight ending well before the next "
+                     f"reversal, its apex mirrored) flagged 'inferred'")
+    if few:
+        notes.append(f"run '{label}': {few} reversal(s) with fewer than two free-flight samples "
+                     f"on a side flagged 'few_samples' ({int(np.sum(~has_in & reported))} timed "
+                     f"by the outgoing flight or the turning samples, the incoming flight being "
+                     f"too short)")
     speed_sd = np.fmax(cross["sd_v_in"], cross["sd_v_out"])
-    return (cross["t_in"][found], cross["sd_t_in"][found], cross["v_in"][found],
-            cross["v_out"][found], speed_sd[found])
+    speed_sd = np.where(np.isfinite(speed_sd), speed_sd, np.fmin(cross["sd_v_in"],
+                                                                 cross["sd_v_out"]))
+    return (impact_time[reported], time_sd[reported], cross["v_in"][reported],
+            cross["v_out"][reported], speed_sd[reported], flags)
 
 
 def _table_of_kind(path, kind, missing, expected):
@@ -1670,10 +1812,10 @@ def read_motion_sensor(path, *, bumper_position=None):
     for number, run in enumerate(runs):  # loop over runs
         result = _motion_run(run, bumper_position, notes)
         parts.append(result + (np.full(result[0].size, number),))
-    merged = [np.concatenate([p[q] for p in parts]) for q in range(6)]
+    merged = [np.concatenate([p[q] for p in parts]) for q in range(7)]
     return _impact_frame(path, "motion_sensor", notes, merged[0], merged[1],
                          impact_speed=merged[2], rebound_speed=merged[3],
-                         speed_uncertainty=merged[4], run=merged[5])
+                         speed_uncertainty=merged[4], flag=merged[5], run=merged[6])
 
 
 # ---------------------------------------------------------------------------------------------
