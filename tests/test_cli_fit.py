@@ -2,11 +2,13 @@
 output file on bad input."""
 
 import hashlib
+import re
 import subprocess
 import sys
 
 import pytest
 from cli_run import run_cli
+from measurement_text import check_measurement, measurement_of
 
 from dashpot.store import read_fit
 from dashpot.synth.scene import write_scene
@@ -37,17 +39,25 @@ def test_fit_writes_the_file_and_prints_the_verdict(fitted):
     assert set(stored["fits"]) == {"Ia", "IIb"}
     verdict = stored["attrs"]["verdict"]
     lines = [line for line in fitted["out"].splitlines()
-             if not line.startswith("  note: ")]  # the data notes, tested elsewhere
-    assert lines[0] == f"{fitted['table']}: 15 impacts; {verdict} -> {fitted['output']}"
-    assert [line.split(":")[0].strip() for line in lines[1:]] == ["Ia", "IIb"]
-    # Each model's line reports the stored fit (the quality of the fit is tested elsewhere).
+             if not line.lstrip().startswith("note: ")]  # the notes, tested elsewhere
+    assert lines[0] == f"{fitted['table']}: 15 impacts -> {fitted['output']}"
+    assert lines[-1] == f"  selection: {verdict}"
+    models = [line.split(":")[0].strip() for line in lines[1:]
+              if re.match(r"^ +(Ia|IIb): ", line)]
+    assert models == ["Ia", "IIb"]
+    # Each model's line reports the stored fit, rounded to its uncertainty (the quality of
+    # the fit is tested elsewhere, the rounding in test_cli_report.py).
     for line, model in zip(lines[1:], ("Ia", "IIb")):
         attrs = stored["fits"][model]["attrs"]
         if attrs["success"]:
-            beta = stored["fits"][model]["parameters"].loc["beta"]
-            assert line == f"  {model:>6}: beta = {beta['value']:.4g} ± {beta['stderr']:.2g} 1/s"
+            parameters = stored["fits"][model]["parameters"]
+            for name, symbol in (("beta", "β"), ("k", "k")):
+                check_measurement(measurement_of(line, symbol), parameters.loc[name, "value"],
+                                  parameters.loc[name, "stderr"],
+                                  unit=parameters.loc[name, "unit"])
         else:
-            assert line == f"  {model:>6}: failed: {attrs['message']}"
+            assert line == f"  {model:>6}: failed: " + attrs["message"].removeprefix(
+                "fit failed: ")
     # Provenance: the impact table fitted, the scene used, the mass giving k.
     assert stored["attrs"]["input_file"] == "impacts.csv"
     assert stored["attrs"]["input_sha256"] == hashlib.sha256(

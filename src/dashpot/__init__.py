@@ -2,6 +2,7 @@
 
 from importlib.metadata import PackageNotFoundError, version
 
+from .fit_report import parameter_table, report_text
 from .physics import (
     MODELS,
     BounceSequence,
@@ -24,4 +25,4 @@ except PackageNotFoundError:  # running from a source tree without installation
 __all__ = ["MODELS", "BounceSequence", "Collision", "bounce_sequence", "collide",
            "contact_coefficients", "contact_from_restitution", "critical_velocity",
            "dimensionless_parameters", "natural_parameters", "restitution_from_contact",
-           "__version__"]
+           "parameter_table", "report_text", "__version__"]

@@ -1,5 +1,8 @@
 """One recording from file to fitted models: the steps the command line and the workflow share.
 
+Nothing here prints: the steps are logged to the ``dashpot.analysis`` logger (INFO: impacts
+read, each model fitted; the command line shows them with ``-v``).
+
 References
 ----------
 .. [1] S. P. Bartz, "Coefficient of restitution of a linear dashpot on a rigid surface".
@@ -7,6 +10,8 @@ References
 
 from __future__ import annotations
 
+import logging
+import time
 from pathlib import Path
 
 from .errors import InputError
@@ -16,6 +21,8 @@ from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
 
 __all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze"]
+
+logger = logging.getLogger(__name__)
 
 
 def scene_impacts(path, scene=None):
@@ -45,8 +52,12 @@ def scene_impacts(path, scene=None):
             impacts.attrs["notes"].append(
                 f"read as an impact table; the scene's sensor '{scene.sensor}' describes the "
                 f"recording it was made from")
-        return impacts
-    return read_impacts(path, kind=scene.sensor, **scene.reader)
+    else:
+        impacts = read_impacts(path, kind=scene.sensor, **scene.reader)
+    logger.info("%s: %d impacts (%s)", path, len(impacts), impacts.attrs.get("sensor", "?"))
+    for note in impacts.attrs.get("notes", []):
+        logger.debug("%s: %s", path, note)
+    return impacts
 
 
 def recording_note(path, scene):
@@ -106,13 +117,20 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     models = tuple(models or (scene or Scene()).models)
     noise = (scene or Scene()).noise if noise is None else noise
     steps = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)
-    report = None
+    done = iter(range(2, 2 + steps))
+    started = time.process_time()
     if progress is not None:
-        done = iter(range(2, 2 + steps))
         progress(1, 1 + steps, f"{len(impacts)} impacts")
 
-        def report(model):
-            progress(next(done), 1 + steps, f"fitted {model}")
+    def report(model):
+        step = next(done, steps + 1)
+        logger.info("fitted %s (%d of %d, %.2g s of CPU so far)", model, step - 1, steps,
+                    time.process_time() - started)
+        if progress is not None:
+            progress(step, 1 + steps, f"fitted {model}")
+
+    logger.info("fitting %s%s", ", ".join(models),
+                " and the fits under the noise model" if noise else "")
     try:
         scene_fit = fit_scene(impacts, scene, models, progress=report, noise=noise)
     except ValueError as error:

@@ -1,12 +1,16 @@
-"""The ``dashpot`` command: one recording analysed without Snakemake.
+"""The dashpot command: one recording analysed without Snakemake.
 
 Every failure is one line on standard error naming the file and the problem, with exit status
 2, and no output file is left behind: outputs are written to a temporary name and renamed.
+``-o -`` writes a table to standard output (the command's own lines then go to standard
+error). ``-v`` shows what the library logs (the steps of an analysis, the notes on how each
+fit was made), ``-q`` only errors.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import os
 import sys
@@ -15,10 +19,32 @@ from pathlib import Path
 
 from .errors import InputError
 from .physics.models import MODELS
+from .scene import STANDARD_GRAVITY
 
+STDOUT = "-"  # the output name that means standard output
 NOISE_HELP = ("also fit the restitution-law ladder and the models under bounce-to-bounce "
               "scatter and timing jitter, with their own selection (as the scene key "
               "noise: true; slower)")
+
+
+class _Console:
+    """Where the command's own lines go: standard output, standard error where a table is
+    written to standard output, nowhere under ``-q``."""
+
+    def __init__(self, args):
+        self.quiet = args.quiet
+        self.verbose = args.verbose > 0
+        self.stream = sys.stderr if getattr(args, "output", None) == STDOUT else sys.stdout
+
+    def say(self, text):
+        if not self.quiet and text:
+            print(text, file=self.stream)
+
+    def notes(self, notes):
+        """One indented line per note (None and empty notes skipped)."""
+        for note in notes:
+            if note:
+                self.say(f"  note: {note}")
 
 
 def _cannot_write(path, error):
@@ -37,11 +63,15 @@ def _cannot_write(path, error):
 def _write_csv_atomically(table, output, inputs):
     """Write `table` to `output` via a unique temporary file; never over one of the inputs.
 
-    Floats are written in their shortest round-trip form, so they read back bit for bit
-    (a fixed number of digits would round Unix-epoch times to whole seconds).
+    ``-`` writes to standard output. Floats are written in their shortest round-trip form, so
+    they read back bit for bit (a fixed number of digits would round Unix-epoch times to whole
+    seconds).
     """
     from .atomic import atomic_path
 
+    if str(output) == STDOUT:
+        table.to_csv(sys.stdout, index=False, lineterminator="\n")
+        return
     output = Path(output)
     for source in inputs:
         if output.resolve() == Path(source).resolve():
@@ -53,7 +83,12 @@ def _write_csv_atomically(table, output, inputs):
         raise _cannot_write(output, error) from None
 
 
-def _impacts(args):
+def _shown(output):
+    """How an output is named in the command's lines."""
+    return "standard output" if str(output) == STDOUT else str(output)
+
+
+def _impacts(args, console):
     from .ingest import read_impacts
 
     table = read_impacts(args.recording, kind=args.kind, flag_length=args.flag_length,
@@ -61,11 +96,11 @@ def _impacts(args):
                          bumper_position=args.bumper_position)
     _write_csv_atomically(table, args.output, [args.recording])
     notes = "; ".join(table.attrs.get("notes", []))
-    print(f"{args.recording}: {len(table)} impacts -> {args.output}" + (f" ({notes})" if notes
-                                                                           else ""))
+    console.say(f"{args.recording}: {len(table)} impacts -> {_shown(args.output)}"
+                + (f" ({notes})" if notes else ""))
 
 
-def _bounces(args):
+def _bounces(args, console):
     from .analysis import read_impact_table
     from .bounces import bounce_table
 
@@ -77,32 +112,42 @@ def _bounces(args):
         raise InputError(args.impacts, str(error)) from None
     _write_csv_atomically(table, args.output, [args.impacts])
     flagged = int((table["flag"] != "ok").sum())
-    print(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> {args.output}")
+    console.say(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> "
+                f"{_shown(args.output)}")
     # The table is written whatever the intervals look like (it is how one inspects them),
     # but a run that is no bounce train is said to be one, as `fit` refuses it.
-    _print_notes([*table.attrs.get("notes", []), *_not_bounce_trains(impacts)])
+    console.notes([*table.attrs.get("notes", []), *_not_bounce_trains(impacts)])
 
 
 def _not_bounce_trains(impacts):
     """One warning per run of `impacts` whose intervals are not a ball bouncing to rest."""
     from .plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 
-    warnings = []
+    found = []
     for run, group in impacts.groupby("run", sort=False):
         problem = bounce_train_problem(group["time"].to_numpy(float),
                                        group["time_uncertainty"].to_numpy(float))
         if problem:
             where = f"run {run}: " if impacts["run"].nunique() > 1 else ""
-            warnings.append(f"{where}{NOT_A_BOUNCE_TRAIN} ({problem}): `fit` refuses it")
-    return warnings
+            found.append(f"{where}{NOT_A_BOUNCE_TRAIN} ({problem}): `fit` refuses it")
+    return found
 
 
-def _fit(args):
+def _refuse_standard_output(args, what):
+    """`fit` and `analyze` write HDF5 files and figures, not a table: no ``-o -``."""
+    if str(args.output) == STDOUT:
+        raise InputError(STDOUT, f"standard output takes tables only (impacts, bounces); "
+                                 f"give the {what} to write")
+
+
+def _fit(args, console):
     from .analysis import analyze, recording_note
     from .fit.data import flight_notes
+    from .fit_report import report_text
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
+    _refuse_standard_output(args, "HDF5 file")
     scene = load_scene(args.scene) if args.scene else Scene()
     inputs = [args.impacts] + ([args.scene] if args.scene else [])
     if Path(args.output).resolve() in {Path(source).resolve() for source in inputs}:
@@ -116,33 +161,25 @@ def _fit(args):
                         config=_config(scene_fit))
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
-    print(f"{args.impacts}: {len(impacts)} impacts; {scene_fit.verdict} -> {args.output}")
-    _print_notes([recording_note(args.impacts, scene), *scene_fit.data.notes,
-                  *flight_notes(scene)])
-    for model, fit in scene_fit.results.items():
-        beta = fit.estimates.get("beta")
-        if fit.success and beta:
-            state = _contact_text(fit.estimates, "beta", "beta", "1/s")
-        else:
-            state = f"failed: {fit.message}"
-        print(f"  {model:>6}: {state}")
-    _print_noise(scene_fit)
+    console.say(f"{args.impacts}: {len(impacts)} impacts -> {args.output}")
+    console.say(report_text(scene_fit, notes=[recording_note(args.impacts, scene),
+                                              *flight_notes(scene)],
+                            verbose=console.verbose))
 
 
-def _analyze(args):
+def _analyze(args, console):
     import shutil
     import tempfile
-    from dataclasses import replace
-
     from tqdm import tqdm
 
-    from .figures import load_record, save_scene_figures
     from .analysis import analyze, recording_note
+    from .figures import load_record, save_scene_figures
     from .fit.data import flight_notes
-    from .pipeline import is_audio
+    from .fit_report import parameter_table, report_text
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
+    _refuse_standard_output(args, "folder")
     recording = Path(args.recording)
     if not recording.is_file():
         raise InputError(recording, "no such file")
@@ -153,7 +190,7 @@ def _analyze(args):
         raise InputError(out, "is a file; give the folder to write into")
     models = tuple(args.models or scene.models)
     with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
-              disable=None) as bar:
+              disable=True if console.quiet else None) as bar:
         def progress(step, total, text):
             bar.total = total + 2  # the fits (noise fits among them), then writing, figures
             bar.set_postfix_str(text)
@@ -178,10 +215,14 @@ def _analyze(args):
                                 config=_config(scene_fit))
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / h5.name, error) from None
+            _write_csv_atomically(parameter_table(scene_fit),
+                                  staging / f"{name}-parameters.csv", [recording])
             bar.update(1)
             bar.set_postfix_str("figures")
-            audio = impacts.attrs.get("sensor") == "audio" or is_audio(
-                replace(scene, recording=recording))
+            # The detection figure reads the sound itself: only where the impacts came from
+            # the audio reader (an impact table made from it is no sound, whatever the
+            # scene's sensor says).
+            audio = impacts.attrs.get("sensor") == "audio"
             try:
                 save_scene_figures(load_record(h5), staging / name,
                                    recording=recording if audio else None)
@@ -193,10 +234,12 @@ def _analyze(args):
             shutil.rmtree(staging, ignore_errors=True)
             if created:
                 _remove_if_empty(out)
-    _print_summary(recording, impacts, scene_fit, out / f"{name}.h5", out / name)
-    _print_notes([recording_note(recording, scene if args.scene else None),
-                  *scene_fit.data.notes, *flight_notes(scene)])
-    _print_noise(scene_fit)
+    console.say(f"{recording}: {len(impacts)} impacts -> {out / f'{name}.h5'}, "
+                f"{out / f'{name}-parameters.csv'}, figures in {out / name}/")
+    console.say(report_text(scene_fit, notes=[recording_note(recording,
+                                                             scene if args.scene else None),
+                                              *flight_notes(scene)],
+                            verbose=console.verbose))
 
 
 def _move_into_place(staging, out):
@@ -222,45 +265,6 @@ def _remove_if_empty(folder):
         pass
 
 
-def _print_notes(notes):
-    """One indented line per note (None and empty notes skipped)."""
-    for note in notes:
-        if note:
-            print(f"  note: {note}")
-
-
-def _contact_text(estimates, key, label, unit):
-    """'β = value ± error unit', or 'β not determined (reason)' where the data do not
-    determine ω0 (:func:`dashpot.fit.observability.not_determined`)."""
-    from .fit.observability import not_determined
-
-    reason = not_determined(estimates).get(key)
-    if reason:
-        return f"{label} {reason}"
-    estimate = estimates[key]
-    return f"{label} = {estimate.value:.4g} ± {estimate.stderr:.2g} {unit}"
-
-
-def _print_summary(recording, impacts, scene_fit, h5, figures):
-    """β, k and the ε range per model, and the selection's verdict, in a few lines."""
-    import numpy as np
-
-    print(f"{recording}: {len(impacts)} impacts -> {h5}, figures in {figures}/")
-    for model, fit in scene_fit.results.items():
-        if not fit.success:
-            print(f"  {model:>6}: failed: {fit.message}")
-            continue
-        parts = [_contact_text(fit.estimates, key, label, unit)
-                 for key, label, unit in (("beta", "β", "1/s"), ("k", "k", "N/m"))
-                 if key in fit.estimates]
-        eps = np.asarray(fit.predicted.get("restitution", []), dtype=float)
-        eps = eps[np.isfinite(eps) & (eps > 0)]
-        if eps.size:
-            parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
-        print(f"  {model:>6}: " + ", ".join(parts))
-    print(f"  selection: {scene_fit.verdict}")
-
-
 def _config(scene_fit):
     """The analysis configuration recorded in the scene file: the models, and the laws fitted
     under the noise model where they were."""
@@ -268,43 +272,6 @@ def _config(scene_fit):
     if scene_fit.noise_results:
         config["noise"] = list(scene_fit.noise_results)
     return config
-
-
-def _print_noise(scene_fit):
-    """One line per fit under the noise model and the noise verdict (nothing without them).
-
-    Each line: the law's parameters (ζ, ω0 and the ε range of a dashpot model), σ_ε and σ_j
-    with their 68 % intervals, and χ²/ν of the standardized innovations.
-    """
-    import numpy as np
-
-    from .physics.laws import LAWS
-    from .physics.models import MODELS
-
-    for law, fit in scene_fit.noise_results.items():
-        if not fit.success:
-            print(f"  noise {law:>18}: failed: {fit.message}")
-            continue
-        names = ("zeta", "omega0") if law in MODELS else LAWS[law].parameter_names
-        parts = []
-        for name in names:
-            estimate = fit.estimates[name]
-            unit = "" if estimate.unit in ("", "1") else f" {estimate.unit}"
-            parts.append(f"{name} = {estimate.value:.5g} ± {estimate.stderr:.2g}{unit}")
-        if law in MODELS:
-            eps = np.asarray(fit.predicted["restitution"], dtype=float)
-            eps = eps[np.isfinite(eps) & (eps > 0)]
-            if eps.size:
-                parts.append(f"ε {eps.min():.4f}–{eps.max():.4f}")
-        scatter, jitter = fit.estimates["sigma_eps"], fit.estimates["sigma_j"]
-        parts.append(f"σ_ε = {100 * scatter.value:.2g} % [{100 * scatter.low68:.2g}, "
-                     f"{100 * scatter.high68:.2g}]")
-        parts.append(f"σ_j = {1e6 * jitter.value:.3g} µs [{1e6 * jitter.low68:.3g}, "
-                     f"{1e6 * jitter.high68:.3g}]")
-        parts.append(f"χ²/ν = {fit.redchi:.3g}")
-        print(f"  noise {law:>18}: " + ", ".join(parts))
-    if scene_fit.noise_results:
-        print(f"  noise selection: {scene_fit.noise_verdict}")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -328,15 +295,93 @@ def _number(low, high, *, unit, low_inclusive=False):
     return number
 
 
+# Help of each subcommand: (one-line help, description, example). Plain text: argparse shows
+# it as it is, so no reST markup.
+COMMANDS = {
+    "impacts": (
+        "find the impacts in a recording or lab table",
+        "Find the impacts in a recording (WAV, FLAC, OGG, ...) or a lab export (phyphox, "
+        "timestamp table, motion sensor, photogate) and write one row per impact: time, "
+        "its 1-sigma uncertainty, amplitude and measured speeds where the sensor gives them.",
+        ["dashpot impacts drop.wav -o impacts.csv",
+         "dashpot impacts gate.csv --flag-length 0.02 -o - > impacts.csv"]),
+    "bounces": (
+        "intervals, speeds and ε from an impact table",
+        "Intervals, flight-time rebound speeds and per-bounce restitution ratios with their "
+        "uncertainties, run by run, from an impact table; missed and spurious impacts are "
+        "flagged, not dropped.",
+        ["dashpot bounces impacts.csv -o bounces.csv",
+         "dashpot bounces impacts.csv --g 2.90 -o -"]),
+    "fit": (
+        "fit β and k under every contact model; HDF5 out",
+        "Fit the contact models (default: the scene's, else all five) to an impact table or "
+        "a recording, compare them, write the HDF5 file and print each model's parameters "
+        "rounded to their uncertainty, its notes and the selection's verdict.",
+        ["dashpot fit impacts.csv --scene scene.yaml -o fit.h5",
+         "dashpot fit drop.wav --models Ib hybrid -o fit.h5"]),
+    "analyze": (
+        "one recording to an HDF5 file, a parameter table, figures and a summary",
+        "Do for one recording what the workflow does for a scene, without Snakemake: write "
+        "<name>.h5, <name>-parameters.csv (one row per model and parameter) and the figures "
+        "<name>/*.png|pdf into the output folder, and print the summary of the fits.",
+        ["dashpot analyze drop.wav --scene scene.yaml -o out/",
+         "dashpot analyze drop.wav -o out/ --noise -v"]),
+}
+
+
+def _epilog(examples):
+    """The examples under a help text (kept as written: the raw formatter does not wrap)."""
+    examples = list(examples)
+    return (f"example{'s' if len(examples) > 1 else ''}:\n"
+            + "\n".join(f"  {example}" for example in examples))
+
+
+def _wrapped(text):
+    """A description wrapped as argparse would (the raw formatter keeps it as given)."""
+    import textwrap
+
+    return textwrap.fill(text, width=79)
+
+
+def _verbosity_options(parser, default):
+    """-q and -v, on the command and on each subcommand (``dashpot fit ... -v`` works)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true",
+                       default=False if default else argparse.SUPPRESS,
+                       help="print nothing but errors")
+    group.add_argument("-v", "--verbose", action="count",
+                       default=0 if default else argparse.SUPPRESS,
+                       help="say what is done and how each fit was made (-vv: debugging)")
+
+
 def build_parser():
+    """The command's argument parser (subcommands impacts, bounces, fit, analyze)."""
+    from . import __version__
     from ._validation import (ACCELERATION_RANGE, BUMPER_POSITION_RANGE, FLAG_LENGTH_RANGE,
                               GATE_DISTANCE_RANGE)
 
-    parser = _Parser(prog="dashpot", description=__doc__.splitlines()[0])
-    commands = parser.add_subparsers(dest="command", required=True)
-    impacts = commands.add_parser("impacts", help="find the impacts in a recording or table")
+    parser = _Parser(prog="dashpot", formatter_class=argparse.RawDescriptionHelpFormatter,
+                     description=_wrapped("Bounce recordings to linear spring-dashpot "
+                                          "contact physics: find the impacts, the bounces, "
+                                          "fit the five contact models."),
+                     epilog=_epilog(example for *_, examples in COMMANDS.values()
+                                    for example in examples[:1]))
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    _verbosity_options(parser, default=True)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name):
+        summary, description, examples = COMMANDS[name]
+        sub = commands.add_parser(name, help=summary, description=_wrapped(description),
+                                  epilog=_epilog(examples),
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        _verbosity_options(sub, default=False)
+        return sub
+
+    impacts = command("impacts")
     impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
-    impacts.add_argument("-o", "--output", required=True, help="impact table to write (CSV)")
+    impacts.add_argument("-o", "--output", required=True,
+                         help="impact table to write (CSV; - for standard output)")
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
                                             "photogate"], help="reader (default: detected)")
     impacts.add_argument("--flag-length", type=_number(*FLAG_LENGTH_RANGE, unit="m"),
@@ -350,12 +395,15 @@ def build_parser():
                          help="bumper position in m, in [%g, %g] (motion sensor; default "
                               "inferred)" % BUMPER_POSITION_RANGE)
     impacts.set_defaults(run=_impacts)
-    bounces = commands.add_parser("bounces", help="intervals, speeds and ε from an impact table")
-    bounces.add_argument("impacts", help="impact table written by `dashpot impacts`")
-    bounces.add_argument("-o", "--output", required=True, help="bounce table to write (CSV)")
-    bounces.add_argument("--g", type=_number(*ACCELERATION_RANGE, unit="m/s²"), default=9.81,
+    bounces = command("bounces")
+    bounces.add_argument("impacts", help="impact table written by dashpot impacts")
+    bounces.add_argument("-o", "--output", required=True,
+                         help="bounce table to write (CSV; - for standard output)")
+    bounces.add_argument("--g", type=_number(*ACCELERATION_RANGE, unit="m/s²"),
+                         default=STANDARD_GRAVITY,
                          help="acceleration towards the surface in m/s², in (%g, %g] "
-                              "(default 9.81)" % ACCELERATION_RANGE)
+                              "(default %s, standard gravity)"
+                              % (*ACCELERATION_RANGE, STANDARD_GRAVITY))
     bounces.add_argument("--contact-duration",
                          type=_number(0.0, math.inf, unit="s", low_inclusive=True), default=0.0,
                          help="contact duration in s, if known; shorter than every interval "
@@ -367,19 +415,19 @@ def build_parser():
                               "of a light ball (--g is then its effective gravity): speeds "
                               "from the drag flight and a drag-corrected ε column")
     bounces.set_defaults(run=_bounces)
-    fit = commands.add_parser("fit", help="fit β and k under every contact model; HDF5 out")
-    fit.add_argument("impacts", help="impact table from `dashpot impacts`, or a recording")
+    fit = command("fit")
+    fit.add_argument("impacts", help="impact table from dashpot impacts, or a recording")
     fit.add_argument("-o", "--output", required=True, help="HDF5 file to write")
     fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
     fit.add_argument("--noise", action="store_true", help=NOISE_HELP)
     fit.set_defaults(run=_fit)
-    analyze = commands.add_parser(
-        "analyze", help="one recording to an HDF5 file, figures and a summary (no Snakemake)")
+    analyze = command("analyze")
     analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
     analyze.add_argument("-o", "--output", required=True,
-                         help="folder to write <name>.h5 and the figures <name>/*.png|pdf into")
+                         help="folder to write <name>.h5, <name>-parameters.csv and the "
+                              "figures <name>/*.png|pdf into")
     analyze.add_argument("--scene", help="scene.yaml: what is known of the apparatus "
                                          "(its name names the outputs)")
     analyze.add_argument("--models", nargs="+", choices=list(MODELS),
@@ -389,21 +437,45 @@ def build_parser():
     return parser
 
 
+def _log_level(args):
+    """-q: errors only; default: warnings; -v: the steps (INFO); -vv: debugging."""
+    if args.quiet:
+        return logging.ERROR
+    return {0: logging.WARNING, 1: logging.INFO}.get(args.verbose, logging.DEBUG)
+
+
 def main(argv=None):
     """Entry point of the ``dashpot`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
+    # The library logs to the "dashpot" logger and never prints: the command shows its
+    # records on standard error, as "dashpot <command>: <message>", for this run only.
+    logger = logging.getLogger("dashpot")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(f"dashpot {args.command}: %(message)s"))
+    saved_level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(_log_level(args))
 
     def note(message, category, *_):
         # A warning (e.g. an unusable cache: results computed without it) is a note, one line.
-        print(f"dashpot {args.command}: note: {message}", file=sys.stderr)
+        logger.warning("note: %s", message)
 
-    with warnings.catch_warnings():
-        warnings.showwarning = note
-        try:
-            args.run(args)
-        except InputError as error:
-            print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
-            return 2
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = note
+            try:
+                args.run(args, _Console(args))
+            except InputError as error:
+                print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
+                return 2
+            except BrokenPipeError:
+                # The reader of `-o -` left (`| head`): no traceback, and nothing more to
+                # stdout at exit (the Python documentation's recipe for SIGPIPE).
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                return 1
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(saved_level)
     return 0
 
 
