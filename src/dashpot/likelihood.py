@@ -58,11 +58,12 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .physics.flight import Flight
 
-__all__ = ["SimulatedTrain", "TrainFilter", "TrainModel"]
+__all__ = ["SimulatedTrain", "StepTable", "TrainFilter", "TrainModel"]
 
 LOG_TWO_PI = math.log(2.0 * math.pi)
 
@@ -182,6 +183,64 @@ class TrainModel:
         for value in out:
             broken = broken | ~np.isfinite(value)
         return tuple(np.where(broken, 0.0, value) for value in out) + (broken,)
+
+    def step(self, speed):
+        """The linearized step from impact speed(s) `speed` (m/s) to the next impact.
+
+        Returns
+        -------
+        duration, landing, duration_slope, landing_slope, timing_gain, speed_gain : ndarray
+            Time to the next impact D(u) = τ(u) + T(R(u)) in s, the next impact speed L(R(u))
+            in m/s, their slopes dD/du (s²/m) and d(L∘R)/du, and the shifts of the next
+            impact's time (T'(v)·v, s) and speed (L'(v)·v, m/s) per unit relative kick η of
+            the rebound speed v = R(u); all 0 where the step is not finite.
+        broken : ndarray of bool
+            Where it is not (a speed outside the float range, a captured ball).
+        """
+        return self._step(speed)
+
+    def tabulate(self, low, high, log_step):
+        """The step map of every parameter set tabulated on one grid of speeds, for
+        :meth:`StepTable.filter`.
+
+        Parameters
+        ----------
+        low, high : float
+            Speeds in m/s (0 < low < high) the grid must cover.
+        log_step : float
+            Spacing of the nodes in ln u: nodes u_j = low·exp(j·log_step) up to the first at
+            or above `high`.
+
+        Returns
+        -------
+        StepTable
+            Values and u-slopes at the nodes, members in the callables' batch order (the
+            callables are called once, on speeds of shape (nodes, 1) broadcast against their
+            parameters of shape (members,)).
+        """
+        if not (0.0 < low < high and log_step > 0.0):
+            raise ValueError(f"need 0 < low < high and log_step > 0; got low={low!r}, "
+                             f"high={high!r}, log_step={log_step!r}")
+        count = int(math.ceil(math.log(high / low) / log_step - 1e-9)) + 1
+        nodes = low * np.exp(log_step * np.arange(max(count, 2)))
+        out = self._step(nodes[:, None])
+        shape = np.broadcast_shapes(*(np.shape(a) for a in out))
+        duration, landing, f_tu, f_uu, g_t, g_u, broken = (
+            np.ascontiguousarray(np.broadcast_to(a, shape).T) for a in out)
+        # The noise gains enter only the variances: their slopes by finite differences in u
+        # (second order; exact where they are linear in u), where the values and slopes of D
+        # and L are the model's own.
+        gains = np.stack([g_t, g_u], axis=-1)
+        slope = np.gradient(gains, nodes, axis=1, edge_order=2)
+        values = np.stack([duration, landing, g_t, g_u], axis=-1)
+        slopes = np.concatenate([np.stack([f_tu, f_uu], axis=-1), slope], axis=-1)
+        # A node next to a broken one has a spoilt difference slope: unusable as well.
+        unusable = broken | ~np.all(np.isfinite(slopes), axis=-1)
+        unusable[:, 1:] |= broken[:, :-1]
+        unusable[:, :-1] |= broken[:, 1:]
+        return StepTable(log_low=math.log(low), log_step=float(log_step), nodes=nodes,
+                         values=np.where(unusable[..., None], 0.0, values),
+                         slopes=np.where(unusable[..., None], 0.0, slopes), unusable=unusable)
 
     def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
                detector_sigma=0.0, sigma_scale=1.0):
@@ -314,6 +373,247 @@ class TrainModel:
         measured = out["times"] + timing_sigma * rng.standard_normal(batch + (count,))
         return SimulatedTrain(times=measured, true_times=out["times"],
                               impact_speeds=out["speeds"], rebound_speeds=out["rebounds"])
+
+
+@dataclass(frozen=True)
+class StepTable:
+    """The step map of a batch of train models on a shared grid of speeds (SI units), from
+    :meth:`TrainModel.tabulate`, and the Kalman filter over it in a compiled loop.
+
+    Between two nodes the duration D(u) and the next impact speed L(u) are cubic Hermite
+    interpolants in u of the model's values and slopes at the nodes [4]_, so their error is
+    about Δu⁴·max|D⁗|/384 per interval: fourth order in the node spacing, and nothing for a
+    map linear in u (a constant ε under gravity). The slopes dD/du and dL/du the filter needs
+    are the interpolants' derivatives (third order); the noise gains, which enter the
+    variances only, are interpolated the same way from difference slopes. The nodes are
+    spaced evenly in ln u, so that the relative resolution is the same at every speed.
+
+    A parameter set whose filtered speed leaves the grid, or enters an interval next to a
+    node where the step is not finite (a captured ball), is not extrapolated: the filter
+    reports it in ``off_grid`` and the caller evaluates it directly (:meth:`TrainModel.filter`).
+
+    Attributes
+    ----------
+    log_low, log_step : float
+        ln of the first node's speed (m/s) and the spacing of the nodes in ln u.
+    nodes : ndarray, shape (nodes,)
+        Speeds of the nodes in m/s.
+    values : ndarray, shape (members, nodes, 4)
+        D (s), L (m/s), the timing gain T'(v)·v (s) and the speed gain L'(v)·v (m/s), as
+        returned by :meth:`TrainModel.step`.
+    slopes : ndarray, shape (members, nodes, 4)
+        Their u-slopes (s²/m, 1, s²/m, 1).
+    unusable : ndarray of bool, shape (members, nodes)
+        Nodes where the step is not finite, and their neighbours.
+
+    References
+    ----------
+    .. [4] F. N. Fritsch and R. E. Carlson, "Monotone piecewise cubic interpolation", SIAM J.
+       Numer. Anal. 17, 238-246 (1980), §2 (the cubic Hermite form and its error).
+    """
+
+    log_low: float
+    log_step: float
+    nodes: np.ndarray
+    values: np.ndarray
+    slopes: np.ndarray
+    unusable: np.ndarray
+
+    def interpolate(self, speed, members=None):
+        """The interpolated step at speeds `speed` (m/s) of members `members` (broadcast).
+
+        Returns
+        -------
+        duration, landing, duration_slope, landing_slope, timing_gain, speed_gain : ndarray
+            As :meth:`TrainModel.step`; NaN where the speed is off the grid or unusable.
+        """
+        members = np.zeros((), int) if members is None else members
+        speed, members = np.broadcast_arrays(np.asarray(speed, float),
+                                             np.asarray(members, np.intp))
+        out = np.empty((6, speed.size))
+        ok = np.empty(speed.size, np.bool_)
+        _interpolate_many(np.ascontiguousarray(speed).ravel(),
+                          np.ascontiguousarray(members).ravel(), self.log_low, self.log_step,
+                          self.nodes, self.values, self.slopes, self.unusable, out, ok)
+        return tuple(np.where(ok, value, np.nan).reshape(speed.shape) for value in out)
+
+    def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
+               detector_sigma=0.0, sigma_scale=1.0, members=None):
+        """The extended Kalman filter of :meth:`TrainModel.filter` over the tabulated step map.
+
+        Parameters
+        ----------
+        times, start_time, start_speed, process_sigma, jitter, detector_sigma, sigma_scale
+            As in :meth:`TrainModel.filter`, with at most one batch axis.
+        members : array_like of int, shape (batch,), optional
+            Which tabulated member (parameter set of the step map) each batch row uses;
+            default: row i uses member i.
+
+        Returns
+        -------
+        result : TrainFilter
+            As from :meth:`TrainModel.filter`; NaN in the rows off the grid.
+        off_grid : ndarray of bool, shape (batch,)
+            Rows whose filtered speed left the grid or met an unusable node: to be evaluated
+            directly.
+        stop_speed : ndarray, shape (batch,)
+            Where an off-grid row stopped: the speed (m/s) whose step the table could not
+            give (NaN elsewhere). Where the model's own step is not finite there (a captured
+            ball), the direct filter would stop there too, with −2 ln L = inf.
+        """
+        times = np.atleast_1d(np.asarray(times, dtype=float))
+        diffuse = start_time is None
+        members = np.arange(self.values.shape[0]) if members is None else members
+        t, u, process, jitter, scale, members = (
+            np.asarray(a) for a in np.broadcast_arrays(
+                np.nan if diffuse else start_time, start_speed, process_sigma, jitter,
+                sigma_scale, members))
+        if t.ndim > 1 or times.ndim > 2:
+            raise ValueError("StepTable.filter takes at most one batch axis")
+        count = times.shape[-1]
+        timing_variance = (scale[..., None] * np.asarray(detector_sigma, dtype=float)) ** 2 \
+            + jitter[..., None] ** 2
+        batch = np.broadcast_shapes(t.shape, times.shape[:-1], timing_variance.shape[:-1])
+        flat = (int(np.prod(batch)), count)
+        times = np.array(np.broadcast_to(times, batch + (count,)).reshape(flat))
+        timing_variance = np.array(np.broadcast_to(timing_variance,
+                                                   batch + (count,)).reshape(flat))
+        t, u, process = (np.array(np.broadcast_to(a, batch).reshape(-1), dtype=float)
+                         for a in (t, u, process))
+        members = np.array(np.broadcast_to(members, batch).reshape(-1), dtype=np.intp)
+        out = np.empty((5,) + flat)
+        scored = np.zeros(flat, np.bool_)
+        total = np.empty(flat[0])
+        off_grid = np.zeros(flat[0], np.bool_)
+        stop_speed = np.full(flat[0], np.nan)
+        _filter_table(times, timing_variance, t, diffuse, u, process, members, self.log_low,
+                      self.log_step, self.nodes, self.values, self.slopes, self.unusable, out,
+                      scored, total, off_grid, stop_speed)
+        out = out.reshape((5,) + batch + (count,))
+        result = TrainFilter(neg2_log_likelihood=total.reshape(batch), innovations=out[0],
+                             innovation_variance=out[1], predicted_times=out[2],
+                             predicted_speeds=out[3], filtered_speeds=out[4],
+                             scored=scored.reshape(batch + (count,)))
+        return result, off_grid.reshape(batch), stop_speed.reshape(batch)
+
+
+@numba.njit(cache=True)
+def _hermite(nodes, values, slopes, member, j, speed, quantity):
+    """Cubic Hermite interpolant of one tabulated quantity and its u-derivative at `speed`."""
+    left, right = nodes[j], nodes[j + 1]
+    width = right - left
+    s = (speed - left) / width
+    s2 = s * s
+    s3 = s2 * s
+    y0, y1 = values[member, j, quantity], values[member, j + 1, quantity]
+    m0, m1 = slopes[member, j, quantity] * width, slopes[member, j + 1, quantity] * width
+    value = ((2.0 * s3 - 3.0 * s2 + 1.0) * y0 + (s3 - 2.0 * s2 + s) * m0
+             + (3.0 * s2 - 2.0 * s3) * y1 + (s3 - s2) * m1)
+    slope = ((6.0 * s2 - 6.0 * s) * y0 + (3.0 * s2 - 4.0 * s + 1.0) * m0
+             + (6.0 * s - 6.0 * s2) * y1 + (3.0 * s2 - 2.0 * s) * m1) / width
+    return value, slope
+
+
+@numba.njit(cache=True)
+def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable):
+    """(found, D, L, dD/du, dL/du, timing gain, speed gain) from the table at `speed` (m/s);
+    found is false off the grid or in an interval with an unusable node."""
+    last = nodes.size - 1
+    if not (speed >= nodes[0] and speed <= nodes[last]):  # also false for NaN
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    j = min(int((math.log(speed) - log_low) / log_step), last - 1)
+    # The logarithm's rounding may put a speed next to a node one interval off.
+    if speed < nodes[j] and j > 0:
+        j -= 1
+    elif speed > nodes[j + 1] and j + 1 < last:
+        j += 1
+    if unusable[member, j] or unusable[member, j + 1]:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    duration, duration_slope = _hermite(nodes, values, slopes, member, j, speed, 0)
+    landing, landing_slope = _hermite(nodes, values, slopes, member, j, speed, 1)
+    timing_gain, _ = _hermite(nodes, values, slopes, member, j, speed, 2)
+    speed_gain, _ = _hermite(nodes, values, slopes, member, j, speed, 3)
+    return True, duration, landing, duration_slope, landing_slope, timing_gain, speed_gain
+
+
+@numba.njit(cache=True)
+def _interpolate_many(speed, members, log_low, log_step, nodes, values, slopes, unusable, out,
+                      ok):
+    for i in range(speed.size):
+        found, d, l, fd, fl, gt, gu = _step_at(speed[i], members[i], log_low, log_step, nodes,
+                                               values, slopes, unusable)
+        ok[i] = found
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = d, l, fd, fl, gt, gu
+
+
+@numba.njit(cache=True)
+def _filter_table(times, timing_variance, start_time, diffuse, start_speed, process, members,
+                  log_low, log_step, nodes, values, slopes, unusable, out, scored, total,
+                  off_grid, stop_speed):
+    """The loop of :meth:`TrainModel.filter`, row by row, over the tabulated step map.
+
+    out[0..4] receive the innovations, their variances, the predicted times and speeds and the
+    filtered speeds; the arithmetic is that of the numpy loop, step for step.
+    """
+    rows, count = times.shape
+    log_two_pi = math.log(2.0 * math.pi)
+    for b in range(rows):
+        t, u = start_time[b], start_speed[b]
+        member = members[b]
+        anchored = not diffuse
+        p_tt = p_tu = p_uu = 0.0
+        value = 0.0
+        broken = False
+        for n in range(count):
+            y = times[b, n]
+            timing = timing_variance[b, n]
+            observation = math.isfinite(y)
+            anchor = observation and not anchored
+            seen = observation and anchored
+            anchored = anchored or observation
+            out[2, b, n], out[3, b, n] = t, u
+            scored[b, n] = seen
+            if seen:
+                variance = p_tt + timing
+                innovation = y - t
+                out[0, b, n], out[1, b, n] = innovation, variance
+                if variance > 0.0:
+                    value += innovation * innovation / variance + math.log(variance) + log_two_pi
+                    gain_t, gain_u = p_tt / variance, p_tu / variance
+                    t, u = t + gain_t * innovation, u + gain_u * innovation
+                    keep = timing / variance
+                    p_uu = max(p_uu - gain_u * p_tu, 0.0)
+                    p_tt, p_tu = p_tt * keep, p_tu * keep
+                else:
+                    # No timing noise on a certain prediction: impossible, not a density.
+                    value = math.inf
+            else:
+                out[0, b, n], out[1, b, n] = math.nan, math.nan
+            if anchor:
+                t, p_tt, p_tu = y, timing, 0.0
+            out[4, b, n] = u
+            if n == count - 1:
+                break
+            found, duration, landing, f_tu, f_uu, g_t, g_u = _step_at(
+                max(u, 0.0), member, log_low, log_step, nodes, values, slopes, unusable)
+            if not found:
+                off_grid[b] = True
+                stop_speed[b] = max(u, 0.0)
+                break
+            g_t, g_u = g_t * process[b], g_u * process[b]
+            p_tt, p_tu, p_uu = (p_tt + 2.0 * f_tu * p_tu + f_tu * f_tu * p_uu + g_t * g_t,
+                                f_uu * (p_tu + f_tu * p_uu) + g_t * g_u,
+                                f_uu * f_uu * p_uu + g_u * g_u)
+            t, u = t + duration, landing
+            if not (math.isfinite(t) and math.isfinite(u)):
+                broken = True
+        if off_grid[b]:
+            total[b] = math.nan
+            for n in range(count):
+                for q in range(5):
+                    out[q, b, n] = math.nan
+        else:
+            total[b] = math.inf if broken or math.isnan(value) else value
 
 
 def _finite_speed(speed):

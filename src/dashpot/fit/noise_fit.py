@@ -83,11 +83,11 @@ import numpy as np
 
 from ..likelihood import TrainModel
 from ..physics.flight import drag_flight, gravity_flight
-from ..physics.laws import LAWS, VISCOELASTIC_C1, dashpot_contact_time
+from ..physics.laws import LAWS, VISCOELASTIC_C1, dashpot_contact_time, dashpot_step
 from ..physics.models import MODELS
 from ..scene import Scene
 from .results import Estimate, FitResult
-from .settings import Z68, Z95
+from .settings import ACCURACY_LEVELS, Z68, Z95
 from .start import _flight_ratio_start, _start_values
 
 __all__ = ["NoiseFitResult", "failed_noise_fit", "fit_noise_model", "fit_noise_models"]
@@ -108,6 +108,15 @@ PROFILE_OFFSETS = np.array([0.75, 1.5, 2.25, 3.0, 4.5])
 # Profile grids of a noise parameter at (or near) 0, where its curvature says nothing.
 FLAT_GRIDS = {"sigma_eps": np.geomspace(1e-5, 0.1, 2 * PROFILE_OFFSETS.size),
               "sigma_j": np.geomspace(1e-7, 1e-2, 2 * PROFILE_OFFSETS.size)}
+# Accuracy levels: spacing in ln u of the nodes of the tabulated step map (the exact level
+# evaluates the law at every step instead).
+GRID_LOG_STEPS = {"fast": 1.0 / 8.0, "standard": 1.0 / 32.0}
+# The grid spans the speeds the data imply (g·interval/2) widened by these factors; a filter
+# that leaves it is evaluated directly.
+GRID_BELOW, GRID_ABOVE = 1.0 / 16.0, 4.0
+# A level is accurate enough where, at the best fit, its −2 ln L is within this of the direct
+# evaluation's and its predicted times within this fraction of the smallest timing σ.
+LEVEL_LIKELIHOOD_TOLERANCE, LEVEL_TIMING_TOLERANCE = 0.01, 0.01
 
 
 @dataclass
@@ -133,7 +142,7 @@ class NoiseFitResult(FitResult):
     timing_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
-def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True):
+def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy="auto"):
     """Fit one restitution law or dashpot model under the two-source noise model.
 
     Parameters
@@ -149,6 +158,12 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True):
         deterministic train) or ``{"sigma_j": 0.0}`` (the detector's σ taken at its word).
     profile : bool, default True
         Profile-likelihood intervals of the law's parameters and σ_ε (else the Hessian's).
+    accuracy : {"auto", "fast", "standard", "exact"}, default "auto"
+        How the law and flight are evaluated in the filter (module notes, *Accuracy*):
+        "exact" at every step, "fast" and "standard" from a table of the step map with
+        nodes 1/8 and 1/32 apart in ln u; "auto" takes the cheapest level whose −2 ln L at
+        the best fit is within 0.01 of the direct evaluation's and whose predicted times are
+        within 1 % of the smallest timing σ (else it refits at the next level).
 
     Returns
     -------
@@ -157,24 +172,30 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True):
         (s), and for the dashpot models ``omega0`` (rad/s) and ``beta`` (1/s); see the module
         notes for the intervals, residuals and criteria. ``normalized_residuals`` are the
         standardized innovations (NaN for the first impact, which anchors the train).
+        ``accuracy`` is the level used; ``error_bound`` the largest relative error of the
+        tabulated step map (duration to the next impact and its speed) on the train's speeds
+        at the best fit (0 at "exact"), ``numerical_tolerance`` that times the number of
+        impacts; the notes give the differences to the direct evaluation at the best fit.
 
     Raises
     ------
     ValueError
         Unknown law, a fixed parameter the law does not have, or a negative fixed σ.
     """
-    return fit_noise_models([data], law, scene, fixed=fixed, profile=profile)[0]
+    return fit_noise_models([data], law, scene, fixed=fixed, profile=profile,
+                            accuracy=accuracy)[0]
 
 
-def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True):
+def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, accuracy="auto"):
     """Fit one law to each of several data sets of one scene, all in one batch.
 
     Parameters
     ----------
     datasets : sequence of FitData
         Trains of the same scene (the same g); each is fitted on its own.
-    law, scene, fixed, profile
-        As in :func:`fit_noise_model`.
+    law, scene, fixed, profile, accuracy
+        As in :func:`fit_noise_model`. With "auto" the batch is refitted at the next level
+        if any of its trains needs it.
 
     Returns
     -------
@@ -183,20 +204,31 @@ def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True):
     """
     if law not in LAWS:
         raise ValueError(f"law must be one of {', '.join(map(repr, LAWS))}; got {law!r}")
+    if accuracy not in ("auto", *ACCURACY_LEVELS):
+        raise ValueError(f"accuracy must be auto, {', '.join(ACCURACY_LEVELS)}; got "
+                         f"{accuracy!r}")
     datasets = list(datasets)
     if not datasets:
         return []
     scene = scene or Scene()
     fixed = dict(fixed or {})
-    problem = _Problem(datasets, law, scene, fixed)
-    return problem.solve(profile)
+    levels = ACCURACY_LEVELS if accuracy == "auto" else (accuracy,)
+    for level in levels:
+        problem = _Problem(datasets, law, scene, fixed, level)
+        results = problem.solve(profile)
+        if accuracy != "auto" or all(problem.accurate.values()):
+            break
+    return results
 
 
 class _Problem:
     """The fit of one law to a batch of trains: parameter layout, objective, starts."""
 
-    def __init__(self, datasets, law, scene, fixed):
+    def __init__(self, datasets, law, scene, fixed, level="exact"):
         self.datasets, self.law_name, self.law = datasets, law, LAWS[law]
+        self.level = level
+        self.accurate = {}  # train -> whether the level met its tolerances at the best fit
+        self.direct_rows = 0  # rows the tabulated filter left to the direct one
         self.g = float(datasets[0].g)
         if any(d.g != self.g for d in datasets):
             raise ValueError("every data set of one batch must have the same g")
@@ -224,6 +256,15 @@ class _Problem:
             self.notes.append(f"air drag: k_d = {k_d:.4g} 1/m and g_eff = {self.g:.5g} m/s² "
                               f"from the scene, held fixed")
         self.dashpot = law in MODELS
+        # The step map depends on every parameter but v0 and the noise: the rows of a batch
+        # that share these share one tabulated step map.
+        self.step_columns = [i for i, n in enumerate(self.names) if n not in NOISE_PARAMETERS]
+        implied = np.concatenate([0.5 * self.g * np.diff(d.times) / np.diff(d.index)
+                                  for d in datasets])
+        implied = implied[np.isfinite(implied) & (implied > 0.0)]
+        if implied.size == 0:
+            implied = np.array([1.0])
+        self.grid = (GRID_BELOW * float(np.min(implied)), GRID_ABOVE * float(np.max(implied)))
         bounds = [(p.lower, p.upper) for p in self.law.parameters]
         # v0 > 0; ln σ floored (see SIGMA_*_FLOOR), capped at 50 % scatter and 1 s.
         bounds += [(0.0, math.inf), (math.log(SIGMA_EPS_FLOOR), math.log(0.5)),
@@ -302,19 +343,123 @@ class _Problem:
 
         contact = None
         if self.dashpot:
-            zeta, v_star = law_params
-
-            def contact(speed):
-                return dashpot_contact_time(self.law_name, finite(speed), zeta, v_star, self.g)
+            rebound, contact = self._dashpot_maps(law_params, finite)
         return TrainModel(rebound, lambda v: self.flight(finite(v)), contact)
 
-    def run_filter(self, rows, trains, broken=None):
-        """Kalman filter of parameter rows (sets, P) against the trains at rows `trains`."""
+    def _dashpot_maps(self, law_params, finite=lambda speed: speed):
+        """Rebound and contact-time maps of a dashpot model sharing one collision per speed
+        array (the filter asks both at the same speeds, one after the other)."""
+        zeta, v_star = law_params
+        last = {}
+
+        def both(speed):
+            if last.get("speed") is not speed:
+                last["speed"] = speed
+                last["value"] = dashpot_step(self.law_name, finite(speed), zeta, v_star, self.g)
+            return last["value"]
+
+        return (lambda speed: both(speed)[:2]), (lambda speed: both(speed)[2:])
+
+    def step_model(self, law_rows):
+        """TrainModel of rows (sets, len(step_columns)) of the step map's parameters, for
+        tabulation (its callables take speeds of shape (nodes, 1))."""
+        law_params = [law_rows[:, i] for i in range(len(self.law.parameters))]
+        contact = None
+        if self.dashpot:
+            rebound, contact = self._dashpot_maps(law_params)
+        else:
+            def rebound(speed):
+                return self.law.rebound(speed, *law_params)
+        return TrainModel(rebound, self.flight, contact)
+
+    def run_filter(self, rows, trains, broken=None, level=None):
+        """Kalman filter of parameter rows (sets, P) against the trains at rows `trains`, at
+        accuracy `level` (default the problem's): rows whose filter leaves the tabulated
+        grid are evaluated directly."""
+        level = level or self.level
         broken = np.zeros(rows.shape[0], bool) if broken is None else broken
         process, jitter = (np.exp(rows[:, self.index(n)]) for n in ("sigma_eps", "sigma_j"))
-        return self.model(rows, broken).filter(
-            self.times[trains], start_time=None, start_speed=rows[:, self.index("v0")],
-            process_sigma=process, jitter=jitter, detector_sigma=self.detector[trains])
+        arguments = dict(start_time=None, start_speed=rows[:, self.index("v0")],
+                         process_sigma=process, jitter=jitter,
+                         detector_sigma=self.detector[trains])
+        if level == "exact":
+            return self.model(rows, broken).filter(self.times[trains], **arguments)
+        table, members = self.table(rows, level)
+        result, off, stop = table.filter(self.times[trains], members=members, **arguments)
+        if off.any():
+            # Where the model's own step is not finite at the speed the table stopped at (a
+            # captured ball), so is the direct filter's: the row is broken. The others are
+            # evaluated directly.
+            index = np.flatnonzero(off)
+            speeds = stop[index]
+            usable = np.isfinite(speeds)
+            captured = self.step_model(rows[index][:, self.step_columns]).step(
+                np.where(usable, speeds, 0.0))[-1]
+            captured = np.broadcast_to(captured, index.shape) & usable
+            broken[index[captured]] = True
+            result.neg2_log_likelihood[index[captured]] = np.inf
+            index = index[~captured]
+            if index.size:
+                self.direct_rows += index.size
+                part = np.zeros(index.size, bool)
+                direct = self.run_filter(rows[index], trains[index], part, "exact")
+                broken[index] = part
+                for name in ("neg2_log_likelihood", "innovations", "innovation_variance",
+                             "predicted_times", "predicted_speeds", "filtered_speeds",
+                             "scored"):
+                    getattr(result, name)[index] = getattr(direct, name)
+        return result
+
+    def table(self, rows, level):
+        """The step map of the distinct step parameters among `rows`, tabulated at `level`,
+        and which of them each row uses."""
+        keys = rows[:, self.step_columns]
+        unique, members = np.unique(keys, axis=0, return_inverse=True)
+        table = self.step_model(unique).tabulate(*self.grid, GRID_LOG_STEPS[level])
+        return table, members.reshape(-1)
+
+    def level_errors(self, row, t):
+        """How far the problem's level is from the direct evaluation at parameter row `row`
+        of train `t`.
+
+        Returns
+        -------
+        relative : float
+            Largest relative error of the tabulated duration to the next impact and of the
+            next impact speed, at the quarter points of the grid intervals holding the
+            train's speeds (where a cubic Hermite interpolant's error peaks).
+        likelihood : float
+            |Δ(−2 ln L)| between the level's filter and the direct one.
+        timing : float
+            Largest |Δ predicted time| in s.
+        direct : TrainFilter
+            The direct filter at the row.
+        """
+        direct = self.run_filter(row[None, :], np.array([t]), level="exact")
+        if self.level == "exact":
+            return 0.0, 0.0, 0.0, direct
+        tabulated = self.run_filter(row[None, :], np.array([t]))
+        table, _ = self.table(row[None, :], self.level)
+        speeds = direct.filtered_speeds[0]
+        speeds = speeds[np.isfinite(speeds) & (speeds > 0.0)]
+        inside = ((table.nodes[:-1] <= np.max(speeds, initial=0.0))
+                  & (table.nodes[1:] >= np.min(speeds, initial=np.inf)))
+        left, right = table.nodes[:-1][inside], table.nodes[1:][inside]
+        probes = np.concatenate([left + f * (right - left) for f in (0.25, 0.5, 0.75)])
+        relative = 0.0
+        if probes.size:
+            exact = self.step_model(row[None, self.step_columns]).step(probes[:, None])
+            approx = table.interpolate(probes, 0)
+            for q in (0, 1):
+                value = exact[q][:, 0]
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    error = np.abs(approx[q] - value) / np.abs(value)
+                relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
+        likelihood = abs(float(tabulated.neg2_log_likelihood[0])
+                         - float(direct.neg2_log_likelihood[0]))
+        timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
+                                        - direct.predicted_times[0]), initial=0.0))
+        return relative, likelihood, timing, direct
 
     def objective(self, rows, trains):
         """−2 ln L (priors included) of rows (B, R, P) against trains (B,) → (B, R); inf where
@@ -591,8 +736,22 @@ class _Problem:
             fit, fit_free = zero, [f for f in free if f != i_eps]
         if not np.isfinite(value):
             return self.failed(t, "fit failed: no finite likelihood from any start", notes)
-        # The filter at the best fit: innovations, predictions.
-        run = self.run_filter(params_row[None, :], np.array([t]))
+        # The filter at the best fit, evaluated directly: innovations, predictions; and how
+        # far the level's filter is from it there.
+        relative, likelihood, timing, run = self.level_errors(params_row, t)
+        timing_floor = float(np.min(np.sqrt(self.detector[t, data.index] ** 2
+                                            + math.exp(2.0 * params_row[self.index("sigma_j")]))))
+        self.accurate[t] = (likelihood <= LEVEL_LIKELIHOOD_TOLERANCE
+                            and timing <= LEVEL_TIMING_TOLERANCE * timing_floor)
+        if self.level == "exact":
+            notes.append("accuracy exact: the law and flight evaluated at every step")
+        else:
+            notes.append(
+                f"accuracy {self.level}: step map tabulated {1.0 / GRID_LOG_STEPS[self.level]:g} "
+                f"nodes per e-fold of speed, relative error {relative:.1e}; at the best fit "
+                f"-2 ln L within {likelihood:.1e} and predicted times within {timing:.1e} s "
+                f"({timing / timing_floor:.1e} of the smallest timing sigma) of the direct "
+                f"evaluation" + ("" if self.accurate[t] else " (more than the 0.01 allowed)"))
         observed = data.index
         z = run.standardized[0, observed]
         scored = run.scored[0, observed]
@@ -607,8 +766,9 @@ class _Problem:
         cov = full[np.ix_(keep, keep)]
         hessian_ok = bool(keep) or not fit_free
         for f in dropped:
-            notes.append(f"{self.names[f]}: no curvature of the likelihood at the best fit, not "
-                         f"determined by these data (its interval from the profile alone)")
+            notes.append(f"{self.names[f]}: no curvature of the likelihood at the best fit (or "
+                         f"at a bound), not determined by these data (its interval from the "
+                         f"profile alone)")
         sd = np.sqrt(np.abs(np.diag(cov)))
         sd_of = {self.names[fit_free[k]]: float(s) for k, s in zip(keep, sd)}
         estimates = {}
@@ -699,7 +859,8 @@ class _Problem:
                        "speeds": speeds, "restitution": law.eps,
                        "contact_durations": contact, "at_data": data.time_origin + predicted_at},
             eps_curve={"speed": curve_speed, "eps": curve.eps, "captured": curve.eps <= 0.0},
-            notes=notes, numerical_tolerance=0.0, error_bound=0.0, accuracy="exact",
+            notes=notes, numerical_tolerance=relative * data.count, error_bound=relative,
+            accuracy=self.level,
             intervals={"profile": {n: {"low68": estimates[n].low68,
                                        "high68": estimates[n].high68,
                                        "low95": estimates[n].low95,
@@ -716,7 +877,9 @@ class _Problem:
         none where the data do not see it (v* of a dashpot model near the gravity-free
         limit). Those are left out, the least curved first (in units of its own value or
         step), until the rest has a positive-definite Hessian; their rows and columns are
-        inf (their intervals come from their profiles).
+        inf (their intervals come from their profiles). So is a law's parameter the fit left
+        at one of its bounds (within the stencil's margin): the difference stencil there
+        is squeezed to rounding size, and the curvature it measures is noise.
 
         Returns
         -------
@@ -729,7 +892,11 @@ class _Problem:
         floors = {self.index("sigma_eps"): SIGMA_EPS_FLOOR, self.index("sigma_j"): SIGMA_J_FLOOR}
         keep = [k for k, f in enumerate(free)
                 if not (f in floors and row[f] <= math.log(floors[f]) + 1.0)]
-        dropped = []
+        law_count = len(self.law.parameters)
+        dropped = [f for f in free if f < law_count and (
+            row[f] - self.lower[f] <= 2.0 * (self.step_lower[f] - self.lower[f])
+            or self.upper[f] - row[f] <= 2.0 * (self.upper[f] - self.step_upper[f]))]
+        keep = [k for k in keep if free[k] not in dropped]
         # Curvature per squared unit of each parameter's own scale: comparable across them.
         scale = np.array([abs(row[f]) if f < self.index("sigma_eps") and row[f] != 0.0
                           else 1.0 for f in free])

@@ -66,9 +66,11 @@ References
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .._validation import check_nonnegative
@@ -76,7 +78,8 @@ from .contact import Damping, basis
 from .models import MODELS, collide
 
 __all__ = ["LADDER", "LAWS", "LawParameter", "Restitution", "RestitutionLaw",
-           "dashpot_contact_time", "hunt_crossley_restitution", "restitution"]
+           "dashpot_contact_time", "dashpot_step", "hunt_crossley_restitution",
+           "restitution"]
 
 VISCOELASTIC_C1 = 1.15344
 """First coefficient of the viscoelastic series, Ramírez et al. (1999), eq. for γ1."""
@@ -286,26 +289,36 @@ def viscoelastic_hertz(speed, kappa):
 
 # --- Hunt–Crossley ----------------------------------------------------------------------------
 
+@numba.njit(cache=True)
 def _psi(x):
     """ψ(x) = (ln(1 + x) − x)/x² and ψ'(x), for x > −1 (series where |x| is small)."""
-    small = np.abs(x) < _SERIES_LIMIT
-    xs = np.where(small, x, 0.0)
-    value = np.zeros(x.shape)
-    slope = np.zeros(x.shape)
-    # ψ = Σ_k (−1)^(k+1) x^k/(k + 2), ψ' = Σ_k (−1)^(k+1) k x^(k−1)/(k + 2), by Horner.
-    for k in range(_SERIES_TERMS - 1, -1, -1):
-        sign = -1.0 if k % 2 == 0 else 1.0
-        value = value * xs + sign / (k + 2)
-        if k >= 1:
-            slope = slope * xs + sign * k / (k + 2)
-    xl = np.where(small, 1.0, x)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        direct = (np.log1p(xl) - xl) / (xl * xl)
-        direct_slope = -1.0 / (xl * (1.0 + xl)) - 2.0 * direct / xl
-    return np.where(small, value, direct), np.where(small, slope, direct_slope)
+    if abs(x) < _SERIES_LIMIT:
+        # ψ = Σ_k (−1)^(k+1) x^k/(k + 2), ψ' = Σ_k (−1)^(k+1) k x^(k−1)/(k + 2), by Horner.
+        value = 0.0
+        slope = 0.0
+        for k in range(_SERIES_TERMS - 1, -1, -1):
+            sign = -1.0 if k % 2 == 0 else 1.0
+            value = value * x + sign / (k + 2)
+            if k >= 1:
+                slope = slope * x + sign * k / (k + 2)
+        return value, slope
+    direct = (math.log1p(x) - x) / (x * x)
+    return direct, -1.0 / (x * (1.0 + x)) - 2.0 * direct / x
 
 
-def _newton_in_bracket(value_and_slope, lower, upper, start, args, max_iter=100):
+@numba.njit(cache=True)
+def _mismatch(kind, x, a, b):
+    """The increasing function whose root is sought, and its slope: kind 0 is
+    ψ(d) − ε²ψ(−dε) in x = ε (a = d, b = ψ(d)), for 0 < d <= 1; kind 1 is
+    u + e^(−u) − 1 − (d − ln(1 + d)) in x = u = −ln(1 − dε) (a = d − ln(1 + d))."""
+    if kind == 0:
+        psi_e, dpsi_e = _psi(-a * x)
+        return b - x * x * psi_e, a * x * x * dpsi_e - 2.0 * x * psi_e
+    return x + math.expm1(-x) - a, -math.expm1(-x)
+
+
+@numba.njit(cache=True)
+def _newton_in_bracket(kind, lower, upper, start, a, b):
     """Root of an increasing function on [lower, upper] by Newton steps kept in the bracket.
 
     A step that leaves the current bracket is replaced by bisection, so the iteration always
@@ -313,38 +326,46 @@ def _newton_in_bracket(value_and_slope, lower, upper, start, args, max_iter=100)
     models' :func:`dashpot.physics.brackets._halley_in_bracket` needs f'' and f''' in closed
     form for its steps and its stopping estimate; the functions here have only f'.)
     """
-    root = start.copy()
-    tiny = np.finfo(float).eps
-    active = np.arange(root.size)
+    tiny = 2.220446049250313e-16
     x, lo, hi = start, lower, upper
-    for _ in range(max_iter):
-        if active.size == 0:
-            break
-        value, slope = value_and_slope(x, *args)
-        lo, hi = np.where(value < 0.0, x, lo), np.where(value > 0.0, x, hi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            candidate = x - value / slope
-        inside = (candidate >= lo) & (candidate <= hi) & np.isfinite(candidate)
-        new = np.where(inside, candidate, 0.5 * (lo + hi))
-        done = ((value == 0.0) | (np.abs(new - x) <= 4.0 * tiny * np.abs(x))
-                | (hi - lo <= 4.0 * tiny * np.abs(hi)))
-        root[active[done]] = new[done]
-        keep = ~done
-        active, x, lo, hi = active[keep], new[keep], lo[keep], hi[keep]
-        args = tuple(a[keep] for a in args)
-    root[active] = x
-    return root
+    for _ in range(100):
+        value, slope = _mismatch(kind, x, a, b)
+        if value < 0.0:
+            lo = x
+        elif value > 0.0:
+            hi = x
+        candidate = x - value / slope if slope != 0.0 else math.nan
+        new = candidate if (candidate >= lo and candidate <= hi) else 0.5 * (lo + hi)
+        if (value == 0.0 or abs(new - x) <= 4.0 * tiny * abs(x)
+                or hi - lo <= 4.0 * tiny * abs(hi)):
+            return new
+        x = new
+    return x
 
 
-def _psi_mismatch(eps, damping, psi_d):
-    """ψ(d) − ε²ψ(−dε) (increasing in ε) and its ε-slope, for 0 < d <= 1."""
-    psi_e, dpsi_e = _psi(-damping * eps)
-    return psi_d - eps * eps * psi_e, damping * eps * eps * dpsi_e - 2.0 * eps * psi_e
-
-
-def _log_gap_mismatch(u, excess):
-    """u + e^(−u) − 1 − (d − ln(1 + d)) and its u-slope, with u = −ln(1 − dε)."""
-    return u + np.expm1(-u) - excess, -np.expm1(-u)
+@numba.njit(cache=True)
+def _hunt_crossley_many(damping, eps, slope):
+    """ε(d) and dε/dd of :func:`hunt_crossley_restitution` at every d of `damping` (>= 0)."""
+    for i in range(damping.size):
+        d = damping[i]
+        if d == 0.0:
+            eps[i], slope[i] = 1.0, -2.0 / 3.0
+        elif d <= 1.0:
+            psi_d, dpsi_d = _psi(d)
+            e = _newton_in_bracket(0, 0.0, 1.0, 1.0 - 2.0 * d / 3.0, d, psi_d)
+            psi_e, dpsi_e = _psi(-d * e)
+            # Implicit slope of G(ε, d) = ε²ψ(−dε) − ψ(d) = 0.
+            g_eps = 2.0 * e * psi_e - d * e * e * dpsi_e
+            g_d = -e ** 3 * dpsi_e - dpsi_d
+            eps[i], slope[i] = e, -g_d / g_eps
+        else:
+            excess = d - math.log1p(d)
+            u = _newton_in_bracket(1, 0.0, excess + 1.0, excess + 1.0, excess, 0.0)
+            gap = -math.expm1(-u)  # 1 − e^(−u) = dε
+            # du/dd = (d/(1 + d))/(1 − e^(−u)); ε = (1 − e^(−u))/d.
+            du = d / (1.0 + d) / gap
+            eps[i] = gap / d
+            slope[i] = (math.exp(-u) * du - gap / d) / d
 
 
 def hunt_crossley_restitution(damping):
@@ -366,35 +387,13 @@ def hunt_crossley_restitution(damping):
     starting from 1 − 2d/3. For d > 1, 1 − dε is exponentially small (e^(−d) roughly) and would
     be lost to rounding: there the unknown is u = −ln(1 − dε), which solves the convex
     u + e^(−u) − 1 = d − ln(1 + d) on [0, d − ln(1 + d) + 1], and ε = (1 − e^(−u))/d. Both by
-    safeguarded Newton steps (5-8 evaluations).
+    safeguarded Newton steps (5-8 evaluations), point by point in a compiled loop.
     """
     d = check_nonnegative("damping", damping).astype(float)
-    shape = d.shape
-    d = d.ravel()
-    eps, slope = np.ones(d.shape), np.full(d.shape, -2.0 / 3.0)
-    mild = (d > 0.0) & (d <= 1.0)
-    dm = d[mild]
-    if dm.size:
-        psi_d, dpsi_d = _psi(dm)
-        eps_m = _newton_in_bracket(_psi_mismatch, np.zeros(dm.shape), np.ones(dm.shape),
-                                   1.0 - 2.0 * dm / 3.0, (dm, psi_d))
-        psi_e, dpsi_e = _psi(-dm * eps_m)
-        # Implicit slope of G(ε, d) = ε²ψ(−dε) − ψ(d) = 0.
-        g_eps = 2.0 * eps_m * psi_e - dm * eps_m * eps_m * dpsi_e
-        g_d = -eps_m ** 3 * dpsi_e - dpsi_d
-        eps[mild], slope[mild] = eps_m, -g_d / g_eps
-    strong = d > 1.0
-    ds = d[strong]
-    if ds.size:
-        excess = ds - np.log1p(ds)
-        u = _newton_in_bracket(_log_gap_mismatch, np.zeros(ds.shape), excess + 1.0,
-                               excess + 1.0, (excess,))
-        gap = -np.expm1(-u)  # 1 − e^(−u) = dε
-        # du/dd = (d/(1 + d))/(1 − e^(−u)); ε = (1 − e^(−u))/d.
-        du = ds / (1.0 + ds) / gap
-        eps[strong] = gap / ds
-        slope[strong] = (np.exp(-u) * du - gap / ds) / ds
-    return eps.reshape(shape), slope.reshape(shape)
+    flat = np.ascontiguousarray(d).ravel()
+    eps, slope = np.empty(flat.size), np.empty(flat.size)
+    _hunt_crossley_many(flat, eps, slope)
+    return eps.reshape(d.shape), slope.reshape(d.shape)
 
 
 def hunt_crossley(speed, chi):
@@ -485,6 +484,36 @@ def dashpot_contact_time(model, speed, zeta, v_star, g):
     omega0 = g.ravel() / v_star.ravel()
     # τ = (ω0τ)/ω0 and dτ/dv = (dω0τ/dṽ)·(1/ω0)·(1/v*) = (dω0τ/dṽ)/g.
     return (tau / omega0).reshape(shape), (tau_slope / g.ravel()).reshape(shape)
+
+
+def dashpot_step(model, speed, zeta, v_star, g):
+    """Rebound speed and contact duration of a dashpot model with their slopes, from one
+    evaluation of the collision (``rebound`` and :func:`dashpot_contact_time` each make one).
+
+    Parameters
+    ----------
+    model, speed, zeta, v_star, g
+        As in :func:`dashpot_contact_time`.
+
+    Returns
+    -------
+    rebound, rebound_slope : ndarray
+        R(v) = ε·v in m/s and dR/dv = dw/dṽ (dimensionless): as ``LAWS[model].rebound``.
+    duration, duration_slope : ndarray
+        τ in s (inf where captured) and dτ/dv in s²/m: as :func:`dashpot_contact_time`.
+    """
+    speed = check_nonnegative("speed", speed)
+    speed, zeta, v_star, g = np.broadcast_arrays(speed, _finite("zeta", zeta),
+                                                 _finite("v_star", v_star), _finite("g", g))
+    if np.any(zeta < 0.0) or np.any(v_star <= 0.0) or np.any(g <= 0.0):
+        raise ValueError(f"model {model}: zeta must be >= 0, v_star and g > 0; got "
+                         f"zeta={zeta!r}, v_star={v_star!r}, g={g!r}")
+    shape = speed.shape
+    eps, w_slope, tau, tau_slope = _dashpot_state(model, zeta.ravel(),
+                                                  (speed / v_star).ravel())
+    omega0 = g.ravel() / v_star.ravel()
+    return ((eps * speed.ravel()).reshape(shape), w_slope.reshape(shape),
+            (tau / omega0).reshape(shape), (tau_slope / g.ravel()).reshape(shape))
 
 
 # --- the registry -----------------------------------------------------------------------------
