@@ -21,7 +21,7 @@ from dashpot.physics.flight import gravity_flight
 from dashpot.physics.laws import LAWS
 from dashpot.scene import Scene
 from dashpot.store import write_scene_fit, write_summary
-from dashpot.summary import SUMMARY_COLUMNS, summary_from_records
+from dashpot.summary import SUMMARY_COLUMNS, TRUTH_SUMMARY_COLUMNS, summary_from_records
 
 G = 9.80665  # the default scene's g
 DETECTOR = 10e-6  # s, the detector's stated timing error
@@ -96,8 +96,8 @@ def test_summary_file_stores_the_jitter_in_seconds(scene_files, tmp_path):
     table = summary_from_records({"noisy": load_record(noisy_path)})
     write_summary(tmp_path / "summary.h5", tmp_path / "summary.csv", table)
     with h5py.File(tmp_path / "summary.h5", "r") as source:
-        assert source["summary"]["sigma_j"].attrs["unit"] == "s"
-        assert source["summary"]["sigma_eps"].attrs["unit"] == "1"
+        assert source["summary"]["sigma_j"].attrs["units"] == "s"
+        assert source["summary"]["sigma_eps"].attrs["units"] == "1"
     written = pd.read_csv(tmp_path / "summary.csv")
     assert sorted(written["model"]) == ["Ia", "noise:Ia", "noise:constant"]
 
@@ -105,8 +105,8 @@ def test_summary_file_stores_the_jitter_in_seconds(scene_files, tmp_path):
 def test_scene_without_noise_keeps_its_rows_and_gets_empty_noise_columns(scene_files):
     plain_path, _, _ = scene_files
     table = summary_from_records({"plain": load_record(plain_path)})
-    assert list(table.columns) == [*COLUMNS_WITHOUT_NOISE[:-2], *NOISE_COLUMNS, "status",
-                                   "problem"]
+    assert list(table.columns) == [*COLUMNS_WITHOUT_NOISE[:-2], *NOISE_COLUMNS,
+                                   *TRUTH_SUMMARY_COLUMNS, "status", "problem"]
     assert list(table["model"]) == ["Ia"]
     assert table["sigma_eps"].isna().all() and table["sigma_j"].isna().all()
     assert (table["noise_verdict"] == "").all()

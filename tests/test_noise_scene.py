@@ -167,7 +167,7 @@ def _file_tree(path):
             if isinstance(item, h5py.Group):
                 found[generic(name) + "/"] = None
             else:
-                found[generic(name)] = item.attrs["unit"]
+                found[generic(name)] = item.attrs["units"]
         source.visititems(visit)
     return found
 

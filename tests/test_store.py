@@ -140,8 +140,8 @@ def test_documented_groups_and_datasets(written):
     for name in groups:
         if name != "/":
             found[_generic(name) + "/"] = None
-    for name, (_, attrs) in datasets.items():
-        found[_generic(name)] = attrs["unit"]
+    for name, (values, attrs) in datasets.items():
+        found[_generic(name)] = (attrs["units"], _dtype_name(values.dtype))
     assert found == documented
     for table in ("impacts", "bounces", "selection", "fits/IIb/parameters"):
         listed = [path.rsplit("/", 1)[-1] for path in documented
@@ -161,19 +161,36 @@ def _generic(name):
     return "/" + "/".join(parts)
 
 
-def _documented_tree():
-    """path -> unit (None for groups) from the text block of docs/hdf5-layout.md."""
-    block = re.search(r"```text\n(.*?)```", DOCS.read_text(), flags=re.S).group(1)
+def _dtype_name(dtype):
+    """The type's name as docs/hdf5-layout.md writes it (string, bool, float64, int64)."""
+    if h5py.check_string_dtype(dtype):
+        return "string"
+    return "bool" if dtype == bool else dtype.name
+
+
+def _parse_tree(block):
+    """path -> (unit, type) (None for groups) of a text block of docs/hdf5-layout.md."""
     tree = {}
     for line in block.splitlines():
         path, _, rest = line.partition(" ")
+        rest = rest.strip()
         if path.endswith("/"):
             tree[path] = None
-        else:
-            unit = rest.strip()
-            unit = "see column 'unit'" if unit.startswith("see column") else unit.split()[0]
-            tree[path] = unit
+            continue
+        unit = "see column 'unit'" if rest.startswith("see column") else rest.split()[0]
+        tree[path] = (unit, rest[len(unit):].split()[0])
     return tree
+
+
+def _documented_tree():
+    """path -> (unit, type) (None for groups) from the first text block of the layout."""
+    return _parse_tree(re.search(r"```text\n(.*?)```", DOCS.read_text(), flags=re.S).group(1))
+
+
+def _truth_tree():
+    """path -> (unit, type) of the `truth` section's text block."""
+    section = DOCS.read_text().split("## `truth`", 1)[1].split("\n## ", 1)[0]
+    return _parse_tree(re.search(r"```text\n(.*?)```", section, flags=re.S).group(1))
 
 
 def test_every_dataset_has_a_unit(written):
@@ -181,12 +198,13 @@ def test_every_dataset_has_a_unit(written):
     assert len(datasets) > 50
     allowed = {"1", "s", "m/s", "rad/s", "1/s", "see column 'unit'"}
     for name, (_, attrs) in datasets.items():
-        assert "unit" in attrs, name
-        assert attrs["unit"] in allowed, (name, attrs["unit"])
-    assert datasets["impacts/time"][1]["unit"] == "s"
-    assert datasets["bounces/rebound_speed"][1]["unit"] == "m/s"
-    assert datasets["fits/IIb/predicted/contact_durations"][1]["unit"] == "s"
-    assert datasets["fits/IIb/eps_curve/speed"][1]["unit"] == "m/s"
+        # CF's attribute name only: nothing reads a second spelling.
+        assert "units" in attrs and "unit" not in attrs, name
+        assert attrs["units"] in allowed, (name, attrs["units"])
+    assert datasets["impacts/time"][1]["units"] == "s"
+    assert datasets["bounces/rebound_speed"][1]["units"] == "m/s"
+    assert datasets["fits/IIb/predicted/contact_durations"][1]["units"] == "s"
+    assert datasets["fits/IIb/eps_curve/speed"][1]["units"] == "m/s"
 
 
 def test_tables_read_back_with_plain_h5py_and_pandas(written):
@@ -255,7 +273,8 @@ def test_same_inputs_give_bit_identical_numbers(written):
         else:
             assert np.array_equal(values, other), name
         assert attrs.keys() == other_attrs.keys()
-        for key in attrs:
+        # The dimension-scale bookkeeping holds object references, which differ per file.
+        for key in set(attrs) - {"DIMENSION_LIST", "REFERENCE_LIST"}:
             assert np.array_equal(attrs[key], other_attrs[key]), (name, key)
     groups, other_groups = _groups(written["path"]), _groups(written["again"])
     for name, attrs in groups.items():
@@ -357,7 +376,7 @@ def test_failed_fit_is_stored_as_failed(written, tmp_path, monkeypatch):
         # The empty parameter table keeps numeric columns numeric, with their units.
         table = source["fits/Ib/parameters"]
         assert table["value"].dtype == np.float64 and table["value"].shape == (0,)
-        assert table["value"].attrs["unit"] == "see column 'unit'"
+        assert table["value"].attrs["units"] == "see column 'unit'"
         assert h5py.check_string_dtype(table["name"].dtype)
 
 
@@ -392,12 +411,18 @@ def test_write_summary(written, tmp_path):
     with h5py.File(tmp_path / "summary.h5", "r") as source:
         assert source.attrs["format"] == "dashpot-summary-1"
         table = source["summary"]
-        assert all("unit" in table[c].attrs for c in table.attrs["columns"])
-        assert table["beta"].attrs["unit"] == "1/s" and table["k"].attrs["unit"] == "N/m"
+        assert all("units" in table[c].attrs for c in table.attrs["columns"])
+        assert table["beta"].attrs["units"] == "1/s" and table["k"].attrs["units"] == "N/m"
         pd.testing.assert_frame_equal(_plain_table(table), summary)
     csv = pd.read_csv(tmp_path / "summary.csv")
-    assert list(csv.columns) == list(summary.columns) and len(csv) == len(MODELS)
-    np.testing.assert_allclose(csv["beta"], summary["beta"], rtol=1e-9)
+    # The CSV's headers carry the units; dimensionless and text columns keep bare names.
+    expected = {"beta": "beta [1/s]", "beta_stderr": "beta_stderr [1/s]", "k": "k [N/m]",
+                "omega0": "omega0 [rad/s]", "v0": "v0 [m/s]", "sigma_j": "sigma_j [s]",
+                "zeta": "zeta", "model": "model", "sigma_eps": "sigma_eps"}
+    headers = dict(zip(summary.columns, csv.columns))
+    assert {column: headers[column] for column in expected} == expected
+    assert len(csv.columns) == len(summary.columns) and len(csv) == len(MODELS)
+    np.testing.assert_allclose(csv["beta [1/s]"], summary["beta"], rtol=1e-9)
 
 
 def test_documented_example_reads_the_file(written, tmp_path, monkeypatch):

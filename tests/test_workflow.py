@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from dashpot.physics.models import MODELS
-from dashpot.store import read_fit
+from dashpot.store import csv_header, read_fit
 from dashpot.summary import SUMMARY_COLUMNS
 from dashpot.synth.scene import write_scene
 from workflow_run import copy_run, run_once
@@ -67,7 +67,7 @@ def _expected_outputs(workdir):
              "results/theory/restitution_vs_zeta.csv"]
     for name, spec in scenes.items():
         files += [f"results/{name}.h5", f"results/synthetic/{name}/truth.json",
-                  f"results/synthetic/{name}/scene.yaml"]
+                  f"results/synthetic/{name}/scene.yaml", f"results/truth/{name}.csv"]
         figures = SCENE_FIGURES + (("detection",) if spec["kind"] == "audio" else ())
         files += [f"results/plots/{name}/{f}.{ext}" for f in figures for ext in ("png", "pdf")]
         files += [f"results/logs/fit/{name}.log", f"results/benchmarks/fit/{name}.tsv"]
@@ -83,18 +83,33 @@ def test_default_run_writes_every_output(default_run):
     assert {"audio", "phyphox", "timestamps", "motion_sensor"} <= kinds
 
 
-def _documented_layout():
-    """Paths and units of docs/hdf5-layout.md's "Everything in the file" listing."""
-    text = (REPO / "docs" / "hdf5-layout.md").read_text(encoding="utf-8")
-    block = text.split("## Everything in the file", 1)[1].split("```text", 1)[1].split("```")[0]
+def _parse_block(block):
+    """(path, unit, type) of each line of a listing (unit and type None for groups)."""
     items = []
     for line in block.strip().splitlines():
-        parts = line.split()
-        path = parts[0]
-        unit = None if path.endswith("/") or len(parts) < 2 else (
-            "see column 'unit'" if parts[1] == "see" else parts[1])
-        items.append((path, unit))
+        path, _, rest = line.partition(" ")
+        rest = rest.strip()
+        if path.endswith("/"):
+            items.append((path, None, None))
+            continue
+        unit = "see column 'unit'" if rest.startswith("see column") else rest.split()[0]
+        items.append((path, unit, rest[len(unit):].split()[0]))
     return items
+
+
+def _documented_layout():
+    """Paths, units and types of docs/hdf5-layout.md's "Everything in the file" listing, and
+    of the `truth` group's (synthetic scenes)."""
+    text = (REPO / "docs" / "hdf5-layout.md").read_text(encoding="utf-8")
+    block = text.split("## Everything in the file", 1)[1].split("```text", 1)[1].split("```")[0]
+    truth = text.split("## `truth`", 1)[1].split("```text", 1)[1].split("```")[0]
+    return _parse_block(block) + _parse_block(truth)
+
+
+def _dtype_name(dtype):
+    if h5py.check_string_dtype(dtype):
+        return "string"
+    return "bool" if dtype == bool else dtype.name
 
 
 ROOT_ATTRIBUTES = ("format", "dashpot_version", "created", "scene", "config", "input_file",
@@ -110,13 +125,14 @@ def test_scene_files_follow_the_documented_layout(default_run):
             assert set(ROOT_ATTRIBUTES) <= set(f.attrs)
             json.loads(f.attrs["scene"])
             assert set(f["fits"]) == set(MODELS)
-            for path, unit in layout:
+            for path, unit, dtype in layout:
                 models = MODELS if "<model>" in path else ("",)
                 for model in models:
                     item = path.replace("<model>", model).rstrip("/") or "/"
                     assert item in f, f"{name}.h5 lacks {item}"
                     if unit is not None:
-                        assert f[item].attrs["unit"] == unit, item
+                        assert f[item].attrs["units"] == unit, item
+                        assert _dtype_name(f[item].dtype) == dtype, (name, item)
             # Only the root attribute `created` holds a time.
             for group in ("impacts", "bounces", "selection"):
                 columns = list(f[group].attrs["columns"])
@@ -127,7 +143,9 @@ def test_scene_files_follow_the_documented_layout(default_run):
 def test_summary_has_one_row_per_scene_and_model(default_run):
     scenes = _synthetic(default_run)
     table = pd.read_csv(default_run / "results" / "summary.csv")
-    assert list(table.columns) == list(SUMMARY_COLUMNS)
+    assert list(table.columns) == [csv_header(column) for column in SUMMARY_COLUMNS]
+    assert {"beta [1/s]", "k [N/m]", "omega0 [rad/s]", "v0 [m/s]", "sigma_j [s]",
+            "zeta"} <= set(table.columns)
     assert len(table) == len(scenes) * len(MODELS)
     assert set(table["scene"]) == set(scenes)
     assert (table.groupby("scene")["selected"].sum() == 1).all()
@@ -135,11 +153,32 @@ def test_summary_has_one_row_per_scene_and_model(default_run):
     with h5py.File(default_run / "results" / "summary.h5", "r") as f:
         assert f.attrs["format"] == "dashpot-summary-1"
         assert list(f["summary"].attrs["columns"]) == list(SUMMARY_COLUMNS)
-        assert f["summary"]["beta"].attrs["unit"] == "1/s"
+        assert f["summary"]["beta"].attrs["units"] == "1/s"
     # k only where the scene gives the mass: the cart.
     cart = table[table["scene"] == "paper-cart"]
-    assert cart["k"].notna().any()
-    assert table[table["scene"] != "paper-cart"]["k"].isna().all()
+    assert cart["k [N/m]"].notna().any()
+    assert table[table["scene"] != "paper-cart"]["k [N/m]"].isna().all()
+    # Every synthetic scene's rows carry its truth (from the config) and the pulls.
+    for name, spec in scenes.items():
+        rows = table[table["scene"] == name]
+        assert np.allclose(rows["beta_truth [1/s]"], spec["beta"])
+        assert np.allclose(rows["omega0_truth [rad/s]"], spec["omega0"])
+        generating = rows[rows["model"] == spec["model"]].iloc[0]
+        assert np.isfinite(generating["beta_pull"])
+
+
+def test_truth_tables_compare_the_generating_fit_with_the_config(default_run):
+    """results/truth/<scene>.csv (the report's table): truth from config.yaml, the fit's
+    value and error from the scene file, pull (value - truth)/stderr."""
+    for name, spec in _synthetic(default_run).items():
+        table = pd.read_csv(default_run / "results" / "truth" / f"{name}.csv",
+                            keep_default_na=False, na_values=[""]).set_index("parameter")
+        assert set(table["model"]) == {spec["model"]}
+        fit = read_fit(default_run / "results" / f"{name}.h5")["fits"][spec["model"]]
+        beta = fit["parameters"].loc["beta"]
+        row = table.loc["beta"]
+        assert row["truth"] == spec["beta"] and row["unit"] == "1/s"
+        assert row["pull"] == pytest.approx((beta["value"] - spec["beta"]) / beta["stderr"])
 
 
 def test_fits_recover_the_generating_beta(default_run):

@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from dashpot.store import csv_header
 from dashpot.synth.scene import write_scene
 from workflow_run import SNAKEMAKE, copy_run, run_once
 from workflow_run import snakemake as _snakemake
@@ -86,7 +87,8 @@ def _summary(workdir):
     table = pd.read_csv(workdir / "results" / "summary.csv", keep_default_na=False)
     with h5py.File(workdir / "results" / "summary.h5", "r") as source:
         assert source.attrs["format"] == "dashpot-summary-1"
-        assert list(source["summary"].attrs["columns"]) == list(table.columns)
+        # The CSV's headers are the HDF5 columns with their units: "beta [1/s]".
+        assert [csv_header(c) for c in source["summary"].attrs["columns"]] == list(table.columns)
     return table.groupby("scene").first()
 
 

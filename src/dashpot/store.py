@@ -1,14 +1,27 @@
 """One HDF5 file per scene: impacts, bounces, every model's fit and the selection table, and
 where they were asked for the fits under the noise model and their own selection table.
 
-The layout (``docs/hdf5-layout.md`` lists every item and unit) uses only groups, numeric and
-UTF-8 string datasets and attributes, so plain h5py reads it; every table is a group with one
-dataset per column (attribute ``columns`` keeps their order, each dataset an attribute
-``unit``), so ``pandas.DataFrame({c: group[c][()] for c in group.attrs["columns"]})`` rebuilds
-it; :func:`read_table` does exactly that. Files are built in memory, written to a unique
+The layout (``docs/hdf5-layout.md`` lists every item, its unit and its type) uses only
+groups, numeric and UTF-8 string datasets and attributes, so plain h5py reads it; every table
+is a group with one dataset per column (attribute ``columns`` keeps their order, each dataset a
+CF-style attribute ``units``), so ``pandas.DataFrame({c: group[c][()] for c in
+group.attrs["columns"]})`` rebuilds it; :func:`read_table` does exactly that. Numbers are
+float64 (NaN where unknown), counts int64, flags bool, text UTF-8 strings, whatever types the
+tables held in memory. One column of each table is an HDF5 dimension scale that the others are
+attached to (the netCDF-4 convention [1]_), so ``xarray.open_dataset(path, engine="h5netcdf",
+group="impacts")`` gives a dataset with a named dimension. Files are built in memory, written to a unique
 temporary name in the same folder and renamed, so an interrupted run, a full disk or a
 concurrent writer never leaves a half-written file; they carry no timestamps other than the
 root attribute ``created``: the same inputs give the same numbers bit for bit.
+
+A synthetic scene's file also holds the ``truth`` table (:mod:`dashpot.truth`): each contact
+parameter's true value beside the generating model's fit, with its pull.
+
+References
+----------
+.. [1] Unidata, "NetCDF-4 format: dimensions as HDF5 dimension scales", The NetCDF User's
+   Guide, and the CF Conventions 1.11, §3.1 (the ``units`` attribute; ``"1"`` for
+   dimensionless numbers).
 """
 
 from __future__ import annotations
@@ -27,7 +40,7 @@ from . import __version__
 from .atomic import atomic_path
 
 __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
-           "write_summary", "FORMAT"]
+           "write_summary", "csv_header", "FORMAT"]
 
 FORMAT = "dashpot-scene-1"
 IMPACT_UNITS = {"time": "s", "time_uncertainty": "s", "amplitude": "1", "impact_speed": "m/s",
@@ -41,7 +54,16 @@ SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "c
                    "akaike_weight": "1", "rank": "1"}
 SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N/m",
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s",
-                 "sigma_j": "s"}
+                 "sigma_j": "s", "beta_truth": "1/s", "omega0_truth": "rad/s",
+                 "v0_truth": "m/s"}
+IMPACT_DTYPES = {**dict.fromkeys(IMPACT_UNITS, "float64"), "run": "int64"}
+TRUTH_UNITS = {"truth": "see column 'unit'", "value": "see column 'unit'",
+               "stderr": "see column 'unit'", "low95": "see column 'unit'",
+               "high95": "see column 'unit'"}
+# The column of each table that is its dimension scale (its coordinate for xarray).
+TABLE_SCALES = {"impacts": "time", "bounces": "bounce", "selection": "model",
+                "noise_selection": "model", "parameters": "name", "intervals": "method",
+                "truth": "parameter", "summary": "scene"}
 INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds", "samples",
                     "autocorrelation_steps", "converged")
 NOISE_SELECTION_UNITS = {**SELECTION_UNITS, "sigma_j": "s"}
@@ -78,24 +100,60 @@ def _new_hdf5(path, **options):
         temporary.write_bytes(image)
 
 
-def _dataset(group, name, values, unit):
+def _is_number(value):
+    return (value is None or isinstance(value, (int, float, np.integer, np.floating))) \
+        and not isinstance(value, (bool, np.bool_))
+
+
+def _typed(values, dtype=None):
+    """`values` as the array to store: `dtype` if given, else float64 for an object column
+    that holds only numbers and missing values (a column of None and NaN is numeric, never
+    the text "nan"), strings for other object columns, anything else as it is."""
     values = np.asarray(values)
+    if dtype is not None:
+        return values.astype(dtype) if dtype != "float64" else pd.to_numeric(
+            pd.Series(values.ravel()), errors="raise").to_numpy(np.float64).reshape(values.shape)
+    if values.dtype.kind == "O" and values.size and all(map(_is_number, values.ravel())):
+        return np.array([np.nan if v is None else v for v in values.ravel()],
+                        dtype=np.float64).reshape(values.shape)
+    return values
+
+
+def _dataset(group, name, values, unit, dtype=None):
+    values = _typed(values, dtype)
     if values.dtype.kind in "OUS":
         values = np.asarray([str(v) for v in values.ravel()], dtype=object).reshape(values.shape)
         dataset = group.create_dataset(name, data=values, dtype=h5py.string_dtype(),
                                        track_times=False)
     else:
         dataset = group.create_dataset(name, data=values, track_times=False)
-    dataset.attrs["unit"] = unit
+    dataset.attrs["units"] = unit
     return dataset
 
 
-def _table(parent, name, table, units):
-    group = parent.create_group(name)
+def _table(parent, name, table, units, dtypes=None, *, kind=None):
+    """A table group: one dataset per column, in order; the column ``TABLE_SCALES[kind]``
+    (`kind` defaults to `name`) a dimension scale that every other column is attached to."""
+    group = parent.create_group(name, track_order=True)
     group.attrs["columns"] = list(map(str, table.columns))
+    dtypes = dtypes or {}
     for column in table.columns:
-        _dataset(group, str(column), table[column].to_numpy(), units.get(column, "1"))
+        _dataset(group, str(column), table[column].to_numpy(), units.get(column, "1"),
+                 dtypes.get(column))
+    scale = TABLE_SCALES.get(kind or name)
+    if scale in group:
+        group[scale].make_scale(scale)
+        for column in group.attrs["columns"]:
+            if column != scale:
+                group[column].dims[0].attach_scale(group[scale])
     return group
+
+
+def _attach(group, dataset):
+    """Attach a dataset that is not a listed column to its table's dimension scale."""
+    for name in group:
+        if group[name].is_scale:
+            dataset.dims[0].attach_scale(group[name])
 
 
 def read_table(group):
@@ -151,10 +209,16 @@ def _write_noise_fit(group, fit):
                               "(NaN for the first, which anchors the train): independent "
                               "N(0, 1) under the model")
     _eps_curve(group, fit)
-    _dataset(group, "outliers", np.asarray(fit.outliers, dtype=np.int64), "1").attrs[
-        "meaning"] = "positions in residuals/* of the innovations with |z| > 4 (kept in the fit)"
-    _dataset(group, "timing_sigma", fit.timing_sigma, "s").attrs["meaning"] = (
-        "total 1-sigma timing noise of each fitted impact, sqrt(detector sigma^2 + sigma_j^2)")
+    outliers = _dataset(group, "outliers", np.asarray(fit.outliers, dtype=np.int64), "1")
+    outliers.attrs["meaning"] = ("positions in residuals/* of the innovations with |z| > 4 "
+                                 "(kept in the fit)")
+    timing = _dataset(group, "timing_sigma", np.asarray(fit.timing_sigma, dtype=float), "s")
+    timing.attrs["meaning"] = ("total 1-sigma timing noise of each fitted impact, "
+                               "sqrt(detector sigma^2 + sigma_j^2)")
+    # Each its own dimension (a netCDF coordinate variable), so that xarray opens the tables
+    # below this group without inventing dimensions.
+    outliers.make_scale("outliers")
+    timing.make_scale("timing_sigma")
 
 
 def _parameters_and_residuals(group, fit, normalized_meaning):
@@ -170,9 +234,14 @@ def _parameters_and_residuals(group, fit, normalized_meaning):
     table = _table(group, "parameters", parameters, {})
     # Each row has its own unit: the numeric columns carry the row's "unit" column.
     for column in ("value", "stderr", "low68", "high68", "low95", "high95"):
-        table[column].attrs["unit"] = "see column 'unit'"
-    correlation = _dataset(group, "correlation", fit.correlation, "1")
+        table[column].attrs["units"] = "see column 'unit'"
+    correlation = _dataset(group, "correlation", np.asarray(fit.correlation, dtype=float), "1")
     correlation.attrs["parameters"] = list(fit.varied)
+    # Its rows and columns named by the varied parameters, as two dimension scales.
+    for axis, name in enumerate(("varied", "varied_with")):
+        names = _dataset(group, name, np.asarray(list(fit.varied), dtype=object), "1")
+        names.make_scale(name)
+        correlation.dims[axis].attach_scale(names)
     residuals = group.create_group("residuals")
     _dataset(residuals, "time", fit.time_residuals, "s").attrs["meaning"] = (
         "observed minus predicted impact time")
@@ -190,7 +259,7 @@ def _eps_curve(group, fit):
             _dataset(curve, name, fit.eps_curve[name], unit)
 
 
-def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
+def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, truth=None):
     """Write one scene's impacts, bounces, fits and selection to an HDF5 file, atomically.
 
     Parameters
@@ -204,6 +273,9 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
         The recording, whose SHA-256 is stored as provenance.
     config : dict, optional
         Analysis configuration to record.
+    truth : pandas.DataFrame, optional
+        A synthetic scene's truth against fit (:func:`dashpot.truth.truth_comparison`),
+        stored as the table ``truth`` with its attributes ``model`` and ``source``.
     """
     with _new_hdf5(path, track_order=True) as out:
         out.attrs["format"] = FORMAT
@@ -222,7 +294,7 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
                     Path(input_path).resolve() == Path(recording).resolve())
         out.attrs["verdict"] = scene_fit.verdict
         table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
-        group = _table(out, "impacts", table, IMPACT_UNITS)
+        group = _table(out, "impacts", table, IMPACT_UNITS, IMPACT_DTYPES)
         group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
         # data.excluded counts rows of the fitted (first) run only.
         run = impacts["run"].to_numpy() if "run" in impacts else np.zeros(len(table))
@@ -230,13 +302,18 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None):
         used = np.zeros(len(table), bool)
         used[fitted_rows] = True
         used[fitted_rows[scene_fit.data.excluded]] = False
-        _dataset(group, "used_in_fit", used, "1")
+        _attach(group, _dataset(group, "used_in_fit", used, "1"))
         _table(out, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
         fits = out.create_group("fits")
         for model, fit in scene_fit.results.items():
             _write_fit(fits.create_group(model), fit)
         selection = _table(out, "selection", scene_fit.selection, SELECTION_UNITS)
         selection.attrs["verdict"] = scene_fit.verdict
+        if truth is not None:
+            # Only for a synthetic scene: other files have the layout they always had.
+            compared = _table(out, "truth", truth, TRUTH_UNITS)
+            compared.attrs["model"] = str(truth.attrs.get("model", ""))
+            compared.attrs["source"] = str(truth.attrs.get("source", ""))
         if scene_fit.noise_results:
             # Only where asked for: a file without them has the layout it always had.
             noise_fits = out.create_group("noise_fits")
@@ -258,7 +335,9 @@ def read_fit(path):
         ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays);
         where the file holds fits under the noise model also ``noise_selection`` (DataFrame),
         its ``noise_verdict`` (str) and ``noise_fits``: law -> dict as in ``fits`` without
-        ``intervals``, with ``outliers`` and ``timing_sigma`` (arrays).
+        ``intervals``, with ``outliers`` and ``timing_sigma`` (arrays); where it holds the
+        truth of a synthetic scene also ``truth`` (DataFrame, attributes ``model`` and
+        ``source``).
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
@@ -273,6 +352,10 @@ def read_fit(path):
                 **{name: {key: group[name][key][()] for key in group[name]}
                    for name in ("residuals", "predicted", "eps_curve")},
             }
+        if "truth" in source:
+            out["truth"] = read_table(source["truth"])
+            out["truth"].attrs.update({key: str(source["truth"].attrs.get(key, ""))
+                                       for key in ("model", "source")})
         if "noise_fits" in source:
             out["noise_selection"] = read_table(source["noise_selection"])
             out["noise_verdict"] = str(source["noise_selection"].attrs.get("verdict", ""))
@@ -290,11 +373,31 @@ def read_fit(path):
     return out
 
 
+def csv_header(column, units=None):
+    """A column's CSV header: its name with its unit in brackets (``beta [1/s]``), or the bare
+    name where it has none or is dimensionless (``zeta``, ``model``).
+
+    Parameters
+    ----------
+    column : str
+        Column name, as in the HDF5 table (where a ``/`` could not be part of a name).
+    units : dict, optional
+        Column -> unit; default :data:`SUMMARY_UNITS`.
+    """
+    unit = (SUMMARY_UNITS if units is None else units).get(column, "1")
+    return column if unit == "1" else f"{column} [{unit}]"
+
+
 def write_summary(path_h5, path_csv, summary):
-    """Cross-scene summary (one row per scene and model) as HDF5 and CSV, each atomically."""
+    """Cross-scene summary (one row per scene and model) as HDF5 and CSV, each atomically.
+
+    The HDF5 table's columns carry their units as attributes; the CSV's headers carry them in
+    brackets (:func:`csv_header`: ``beta [1/s]``, ``k [N/m]``, ``sigma_j [s]``).
+    """
     with _new_hdf5(path_h5) as out:
         out.attrs["format"] = "dashpot-summary-1"
         out.attrs["dashpot_version"] = __version__
         _table(out, "summary", summary, SUMMARY_UNITS)
     with atomic_path(path_csv) as temporary:
-        summary.to_csv(temporary, index=False)  # shortest round-trip floats
+        # Shortest round-trip floats.
+        summary.rename(columns=csv_header).to_csv(temporary, index=False)

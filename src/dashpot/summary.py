@@ -4,7 +4,8 @@
 workflow's summary step only has the scene files. :func:`summary_from_records` rebuilds from
 :func:`dashpot.store.read_fit` dicts exactly what ``summary_table`` reads (each fit's success,
 reduced χ² and estimates, the selection table and the verdict) and calls it, so the summary
-of stored files and of fits in memory are the same table.
+of stored files and of fits in memory are the same table; a stored synthetic scene adds its
+truth and each fit's pulls against it (:mod:`dashpot.truth`), which only the file holds.
 
 A workflow summary must also be honest about scenes it could not use: :func:`summary_from_files`
 opens and checks every file (a damaged one becomes one row naming it, not a traceback) and
@@ -18,20 +19,28 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import h5py
+import numpy as np
 import pandas as pd
 
 from .select import summary_table
 from .store import FORMAT, read_fit
+from .truth import TRUTH_PARAMETERS, pulls
 
-__all__ = ["SUMMARY_COLUMNS", "STATUSES", "summary_from_records", "summary_from_files",
+__all__ = ["SUMMARY_COLUMNS", "TRUTH_SUMMARY_COLUMNS", "STATUSES", "summary_from_records", "summary_from_files",
            "scene_file_problem"]
+
+TRUTH_SUMMARY_COLUMNS = tuple(f"{name}_{kind}" for name in TRUTH_PARAMETERS
+                              for kind in ("truth", "pull"))
+"""A synthetic scene's true parameters and each row's pulls against them."""
 
 SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "delta_aic",
                    "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
                    "k_note", "omega0",
                    "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
-                   "sigma_eps", "sigma_j", "noise_verdict", "status", "problem")
-"""Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`)."""
+                   "sigma_eps", "sigma_j", "noise_verdict", *TRUTH_SUMMARY_COLUMNS, "status",
+                   "problem")
+"""Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`; the
+CSV's headers carry them, :func:`dashpot.store.csv_header`)."""
 
 STATUSES = {
     "ok": "fitted from the scene's current inputs",
@@ -90,13 +99,38 @@ def summary_from_records(records):
         determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
         ``noise_verdict``: empty for the deterministic fits' rows, except the noise verdict of a
         scene with fits under the noise model, which also has one row per noise fit (model
-        ``"noise:<law>"``). No scenes give an empty table with these columns.
+        ``"noise:<law>"``); then for a synthetic scene (its file holds the ``truth`` table)
+        the true β (1/s), ω0 (rad/s), ζ and v0 (m/s) on each of its rows as ``*_truth`` and
+        the pull of the row's fit against each as ``*_pull`` (NaN for fits under the noise
+        model and where the fit's error is not finite and positive; see
+        :mod:`dashpot.truth`). No scenes give an empty table with these columns.
     """
     table = summary_table({name: _scene_view(record) for name, record in records.items()})
     if table.empty:
         return _empty_table()
-    table = table.assign(status="ok", problem="")
+    table = table.assign(status="ok", problem="", **_truth_columns(table, records))
     return table[list(SUMMARY_COLUMNS)].reset_index(drop=True)
+
+
+def _truth_columns(table, records):
+    """The ``*_truth`` and ``*_pull`` columns of the summary rows `table` (NaN where none)."""
+    columns = {name: np.full(len(table), np.nan) for name in TRUTH_SUMMARY_COLUMNS}
+    for row, (scene, model) in enumerate(zip(table["scene"], table["model"])):
+        truth = records[scene].get("truth")
+        if truth is None:
+            continue
+        true_values = truth.set_index("parameter")["truth"]
+        fit = records[scene]["fits"].get(model)
+        estimates = fit["parameters"] if fit is not None else None
+        for name in TRUTH_PARAMETERS:
+            if name not in true_values:
+                continue
+            columns[f"{name}_truth"][row] = true_values[name]
+            if estimates is not None and name in estimates.index:
+                columns[f"{name}_pull"][row] = pulls(estimates.loc[name, "value"],
+                                                     estimates.loc[name, "stderr"],
+                                                     true_values[name])
+    return columns
 
 
 def _empty_table():

@@ -153,6 +153,7 @@ for _name in FAILED_FITS:
         print(f"dashpot: results/{_name}.h5 is stale: {FAILED_FITS[_name]} (kept from an "
               f"earlier run until the scene's recording or scene.yaml changes)", file=sys.stderr)
 AUDIO_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["audio"]]
+SYNTHETIC_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["source"] == "synthetic"]
 SCENE_FIGURES = ["intervals", "restitution", "selection"]
 THEORY_FIGURES = ["contact_time", "restitution", "critical_speed", "restitution_vs_speed"]
 
@@ -180,6 +181,14 @@ def fit_input(wildcards):
     if scene["scene_file"]:
         inputs["scene"] = scene["scene_file"]
     return inputs
+
+
+def truth_file(wildcards):
+    """The truth.json of a synthetic scene (written by rule simulate into the folder that is
+    the fit's input), else "" (a real scene has no truth)."""
+    if SCENES[wildcards.scene]["source"] != "synthetic":
+        return ""
+    return f"results/synthetic/{wildcards.scene}/truth.json"
 
 
 def config_scene(wildcards):
@@ -228,10 +237,12 @@ def broken_scene_problem(wildcards):
 
 
 def all_outputs():
-    """Every file of a full run: scene files, summary, figures, theory; broken scenes' jobs."""
+    """Every file of a full run: scene files, summary, synthetic scenes' truth tables,
+    figures, theory; broken scenes' jobs."""
     outputs = expand("results/{scene}.h5", scene=RUNNABLE_SCENES)
     outputs += expand("results/logs/fit/{scene}.broken", scene=BROKEN_SCENES)
     outputs += ["results/summary.h5", "results/summary.csv"]
+    outputs += expand("results/truth/{scene}.csv", scene=SYNTHETIC_SCENES)
     if config.get("scene_plots", True):
         outputs += expand("results/plots/{scene}/{figure}.{ext}", scene=RUNNABLE_SCENES,
                           figure=SCENE_FIGURES, ext=["png", "pdf"])

@@ -11,6 +11,7 @@ rule fit:
         update("results/{scene}.h5"),
     params:
         mapping=config_scene,
+        truth=truth_file,
     log:
         "results/logs/fit/{scene}.log",
     benchmark:
@@ -40,3 +41,25 @@ rule broken_scene:
         "../envs/dashpot.yaml"
     script:
         "../scripts/broken_scene.py"
+
+
+rule truth_table:
+    """A synthetic scene's truth against the generating model's fit, as a table for the report
+    (the same rows as the scene file's `truth` group, units in the headers)."""
+    input:
+        "results/{scene}.h5",
+    output:
+        report(
+            "results/truth/{scene}.csv",
+            caption="../report/truth.rst",
+            category="Summary",
+            labels={"table": "truth against fit: {scene}"},
+        ),
+    log:
+        "results/logs/truth_table/{scene}.log",
+    wildcard_constraints:
+        scene=_names_pattern(SYNTHETIC_SCENES),
+    conda:
+        "../envs/dashpot.yaml"
+    script:
+        "../scripts/truth_table.py"

@@ -4,6 +4,7 @@ from dashpot.analysis import analyze
 from dashpot.joblog import job_log
 from dashpot.pipeline import workflow_scene
 from dashpot.store import write_scene_fit
+from dashpot.truth import truth_comparison
 
 snakemake = globals()["snakemake"]  # injected by Snakemake's script directive
 name = snakemake.wildcards.scene
@@ -19,6 +20,14 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
     for model, fit in scene_fit.results.items():
         log.info("%s: %s", model, fit.message)
     log.info("verdict: %s", scene_fit.verdict)
+    # A synthetic scene's truth.json: its fit of the generating model against the truth.
+    truth = truth_comparison(snakemake.params.truth, scene_fit) if snakemake.params.truth \
+        else None
+    if truth is not None:
+        for row in truth.itertuples():
+            log.info("truth %s = %.6g %s: pull %.2f %s", row.parameter, row.truth, row.unit,
+                     row.pull, row.note)
     write_scene_fit(snakemake.output[0], scene_fit, impacts, input_path=scene.recording,
                     config={"models": list(scene_fit.results),
-                            "scene_source": snakemake.input.get("scene") or "config.yaml"})
+                            "scene_source": snakemake.input.get("scene") or "config.yaml"},
+                    truth=truth)
