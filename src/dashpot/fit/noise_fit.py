@@ -346,27 +346,30 @@ class _Problem:
             rebound, contact = self._dashpot_maps(law_params, finite)
         return TrainModel(rebound, lambda v: self.flight(finite(v)), contact)
 
-    def _dashpot_maps(self, law_params, finite=lambda speed: speed):
+    def _dashpot_maps(self, law_params, finite=lambda speed: speed, level="exact"):
         """Rebound and contact-time maps of a dashpot model sharing one collision per speed
-        array (the filter asks both at the same speeds, one after the other)."""
+        array (the filter asks both at the same speeds, one after the other); the collision
+        exact or from the surrogate tables of `level`."""
         zeta, v_star = law_params
         last = {}
 
         def both(speed):
             if last.get("speed") is not speed:
                 last["speed"] = speed
-                last["value"] = dashpot_step(self.law_name, finite(speed), zeta, v_star, self.g)
+                last["value"] = dashpot_step(self.law_name, finite(speed), zeta, v_star, self.g,
+                                             level)
             return last["value"]
 
         return (lambda speed: both(speed)[:2]), (lambda speed: both(speed)[2:])
 
-    def step_model(self, law_rows):
+    def step_model(self, law_rows, level="exact"):
         """TrainModel of rows (sets, len(step_columns)) of the step map's parameters, for
-        tabulation (its callables take speeds of shape (nodes, 1))."""
+        tabulation (its callables take speeds of shape (nodes, 1)); a dashpot model's
+        collisions from the surrogate tables of `level` unless it is "exact"."""
         law_params = [law_rows[:, i] for i in range(len(self.law.parameters))]
         contact = None
         if self.dashpot:
-            rebound, contact = self._dashpot_maps(law_params)
+            rebound, contact = self._dashpot_maps(law_params, level=level)
         else:
             def rebound(speed):
                 return self.law.rebound(speed, *law_params)
@@ -415,7 +418,7 @@ class _Problem:
         and which of them each row uses."""
         keys = rows[:, self.step_columns]
         unique, members = np.unique(keys, axis=0, return_inverse=True)
-        table = self.step_model(unique).tabulate(*self.grid, GRID_LOG_STEPS[level])
+        table = self.step_model(unique, level).tabulate(*self.grid, GRID_LOG_STEPS[level])
         return table, members.reshape(-1)
 
     def level_errors(self, row, t):

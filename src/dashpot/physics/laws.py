@@ -407,10 +407,17 @@ def hunt_crossley(speed, chi):
 
 # --- dashpot models ---------------------------------------------------------------------------
 
-def _dashpot_state(model, zeta, vtilde):
-    """ε, dw/dṽ (w = εṽ), contact time ω0τ and dτ/dṽ of a dashpot model (dimensionless)."""
+def _dashpot_state(model, zeta, vtilde, level="exact"):
+    """ε, dw/dṽ (w = εṽ), contact time ω0τ and dτ/dṽ of a dashpot model (dimensionless), from
+    the exact collision or (level "fast", "standard") its certified surrogate tables."""
     vtilde = np.maximum(vtilde, np.finfo(float).tiny)  # ṽ = 0: the limit, captured or not
-    hit = collide(model, zeta, vtilde)
+    if level == "exact":
+        hit = collide(model, zeta, vtilde)
+    else:
+        # Imported here: the surrogate loads numba tables that only these levels need.
+        from .surrogate import surrogate_collide
+
+        hit = surrogate_collide(model, zeta, vtilde, level=level)
     eps, tau = hit.eps, hit.contact_time
     w_slope = eps.copy()
     tau_slope = np.zeros(eps.shape)
@@ -486,7 +493,7 @@ def dashpot_contact_time(model, speed, zeta, v_star, g):
     return (tau / omega0).reshape(shape), (tau_slope / g.ravel()).reshape(shape)
 
 
-def dashpot_step(model, speed, zeta, v_star, g):
+def dashpot_step(model, speed, zeta, v_star, g, level="exact"):
     """Rebound speed and contact duration of a dashpot model with their slopes, from one
     evaluation of the collision (``rebound`` and :func:`dashpot_contact_time` each make one).
 
@@ -494,6 +501,11 @@ def dashpot_step(model, speed, zeta, v_star, g):
     ----------
     model, speed, zeta, v_star, g
         As in :func:`dashpot_contact_time`.
+    level : {"exact", "fast", "standard"}, default "exact"
+        The exact collision, or the surrogate tables of that level
+        (:func:`dashpot.physics.surrogate.surrogate_collide`: certified relative errors of
+        ε, 1 − ε and the contact time about 1e-6 and 1e-9; the slopes follow from their
+        contact time and release speed by the same formulas).
 
     Returns
     -------
@@ -510,7 +522,7 @@ def dashpot_step(model, speed, zeta, v_star, g):
                          f"zeta={zeta!r}, v_star={v_star!r}, g={g!r}")
     shape = speed.shape
     eps, w_slope, tau, tau_slope = _dashpot_state(model, zeta.ravel(),
-                                                  (speed / v_star).ravel())
+                                                  (speed / v_star).ravel(), level)
     omega0 = g.ravel() / v_star.ravel()
     return ((eps * speed.ravel()).reshape(shape), w_slope.reshape(shape),
             (tau / omega0).reshape(shape), (tau_slope / g.ravel()).reshape(shape))
