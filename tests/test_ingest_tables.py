@@ -287,19 +287,21 @@ def test_long_noisy_rest_tail_after_bouncing(tmp_path, stiff):
 
 def test_hand_written_pasco_file_in_cm(tmp_path):
     # A cart sliding down (a = 0.5 m/s²) hits the bumper at 200 cm at 0.5 m/s at t = 2 s and
-    # leaves at 0.4 m/s, instantly; PASCO layout with position in cm, 10 Hz, no noise.
-    t = np.round(np.arange(0.0, 6.0, 0.1), 1)
-    before, after = 2.0 - t, t - 2.0
+    # leaves at 0.4 m/s, instantly; back at t = 3.6 s at 0.4 m/s, it leaves at 0.3 m/s and is
+    # back to rest at t = 4.8 s. PASCO layout with position in cm, 10 Hz, no noise.
+    t = np.round(np.arange(0.0, 7.0, 0.1), 1)
+    before, after, second = 2.0 - t, t - 2.0, t - 3.6
     s = np.where(t < 1.0, 0.25, np.where(t <= 2.0, 0.5 * before - 0.25 * before ** 2,
-                 np.where(t < 3.6, 0.4 * after - 0.25 * after ** 2, 0.0)))
+                 np.where(t < 3.6, 0.4 * after - 0.25 * after ** 2,
+                          np.where(t < 4.8, 0.3 * second - 0.25 * second ** 2, 0.0))))
     text = "Time (s) Run #1,Position (cm) Run #1\n" + "\n".join(
         f"{a:.1f},{200 - 100 * b:.4f}" for a, b in zip(t, s)) + "\n"
     (tmp_path / "cart.csv").write_text(text)
     frame = read_motion_sensor(tmp_path / "cart.csv")
-    assert len(frame) == 1
-    assert frame["time"].iloc[0] == pytest.approx(2.0, abs=2e-3)
-    assert frame["impact_speed"].iloc[0] == pytest.approx(0.5, rel=5e-3)
-    assert frame["rebound_speed"].iloc[0] == pytest.approx(0.4, rel=5e-3)
+    assert frame["time"].tolist() == pytest.approx([2.0, 3.6], abs=2e-3)
+    assert frame["impact_speed"].tolist() == pytest.approx([0.5, 0.4], rel=5e-3)
+    assert frame["rebound_speed"].tolist() == pytest.approx([0.4, 0.3], rel=5e-3)
+    assert frame["flag"].tolist() == ["ok", "ok"]
 
 
 # ------------------------------------------------------------------------------ photogate

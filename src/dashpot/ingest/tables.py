@@ -1233,7 +1233,7 @@ def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     return tau, speed, np.sqrt(var_t), np.sqrt(var_v)
 
 
-def _motion_run(run, bumper_position, notes):
+def _motion_run(run, bumper_position, notes, legs):
     """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag)."""
     empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
     time = run.time
@@ -1349,7 +1349,9 @@ def _motion_run(run, bumper_position, notes):
         real_reversal = np.insert(real_reversal, missed + 1, False)
         impacts = peaks.size
         mirrored = mirror(troughs)
-    segment_lo = np.concatenate([[starts[toward_runs[0]]], troughs + guard + 1])
+    # The release: the first sample moving toward the bumper beyond the noise may still be
+    # the held cart's (its central difference reaches a sample after the release).
+    segment_lo = np.concatenate([[starts[toward_runs[0]] + guard], troughs + guard + 1])
     segment_hi = np.concatenate([peaks - guard - 1, [last_end]])
     segment_hi[1:] = np.minimum(segment_hi[1:], mirrored)
     index = np.arange(n)
@@ -1638,6 +1640,8 @@ def _motion_run(run, bumper_position, notes):
     resolved_count = int(is_impact.sum())
     a_away, a_toward = result["theta"][:2]
     sd_away, sd_toward = np.sqrt(np.diag(result["covariance"])[:2])
+    legs.append(dict(label=str(run.label), toward=float(a_toward), toward_sd=float(sd_toward),
+                     away=float(a_away), away_sd=float(sd_away), separate=bool(result["split"])))
     accelerations = (f"{a_toward:.4g} ± {sd_toward:.2g} m/s² on the legs toward the bumper and "
                      f"{a_away:.4g} ± {sd_away:.2g} m/s² on the legs away from it (the incline's "
                      f"g·sin θ less and plus rolling friction)" if result["split"] else
@@ -1805,17 +1809,35 @@ def read_motion_sensor(path, *, bumper_position=None):
                                f"velocity column")
     vendor = ("Vernier" if any(":" in c.header for c in table.columns) else
               "PASCO" if any(re.search(r"run\s*#", c.header, re.I) for c in table.columns)
-              else "unlabelled")
+              else "Tracker" if "Tracker" in table.variant else "unlabelled")
     notes = [f"file variant: {table.variant}; {vendor} column layout, {len(runs)} run(s): "
              + ", ".join(f"run {k} = '{r.label or '(unlabelled)'}'" for k, r in enumerate(runs))]
-    parts = []
+    if any(c.unit is None and c.name in _POSITION_NAMES for c in table.columns):
+        notes.append("position column without a unit: read in m (Tracker writes its calibrated "
+                     "world units, usually m, without naming them)")
+    parts, legs = [], []
     for number, run in enumerate(runs):  # loop over runs
-        result = _motion_run(run, bumper_position, notes)
+        before = len(legs)
+        result = _motion_run(run, bumper_position, notes, legs)
         parts.append(result + (np.full(result[0].size, number),))
+        if len(legs) > before:
+            legs[-1] = dict(run=number, **legs[-1])
+        if "column" in run.columns and len([c for c in table.columns if c.run == run.label
+                                            and c.name in _POSITION_NAMES]) > 1:
+            notes.append(f"run {number}: position read from column '{run.columns['column']}' "
+                         f"(the coordinate that moves most)")
     merged = [np.concatenate([p[q] for p in parts]) for q in range(7)]
-    return _impact_frame(path, "motion_sensor", notes, merged[0], merged[1],
-                         impact_speed=merged[2], rebound_speed=merged[3],
-                         speed_uncertainty=merged[4], flag=merged[5], run=merged[6])
+    counts = [p[0].size for p in parts]
+    if max(counts) == 1:
+        where = " in every run" if len(runs) > 1 else ""
+        raise InputError(path, f"{table.where}motion but no bounce: a single reversal at the "
+                               f"bumper{where} (a cart pushed by hand, or caught after one hit); "
+                               f"a bounce train needs at least two impacts")
+    frame = _impact_frame(path, "motion_sensor", notes, merged[0], merged[1],
+                          impact_speed=merged[2], rebound_speed=merged[3],
+                          speed_uncertainty=merged[4], flag=merged[5], run=merged[6])
+    frame.attrs["accelerations"] = legs
+    return frame
 
 
 # ---------------------------------------------------------------------------------------------

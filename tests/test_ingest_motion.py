@@ -1,0 +1,407 @@
+"""Motion-sensor and video-tracker exports as the lab tools write them, against a cart simulated here.
+
+The cart is simulated in this file with its own closed-form kinematics (not dashpot.synth): it
+is released from rest on an incline, slides toward a bumper with acceleration ``a_toward``,
+rebounds instantly with a fixed restitution, climbs against ``a_away`` (rolling friction makes
+the two differ: |a| is larger going up), and so on until the rebound is too slow to leave the
+bumper, where it stays. The true impact times, impact and rebound speeds are known exactly.
+
+Files are written as PASCO Capstone writes its multi-run export (``Time (s) Run #1``,
+``Position (m) Run #1``, ``Velocity (m/s) Run #1``, ``Acceleration (m/s²) Run #1`` per run,
+the derivatives blank at a run's first and last samples, shorter runs blank at the end,
+numbers with a fixed number of decimals), the same table re-saved from a spreadsheet (pandas'
+shortest float text, so a zeroed start is written ``0.0``), as .xlsx, as legacy .xls (xlwt,
+BIFF8) and as .ods; and as Tracker writes its data export (a first line naming the track, a
+``t  x  y`` tab-separated header, numbers as ``0.000000000E0``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cli_run import run_cli
+from dashpot.errors import InputError
+from dashpot.ingest import read_impacts
+from dashpot.ingest.tables import read_motion_sensor, sniff_table
+
+SEED = 20261125  # chosen once (the date these tests were written); never tuned
+G = 9.81
+INCLINE = math.radians(5.0)
+
+
+def simulate_cart(*, a_toward, a_away, v_release=0.0, drop=0.6, restitution=0.78,
+                  v_stick=0.2, lead=0.5, rest_tail=2.0):
+    """Closed-form run of a cart bouncing on a bumper down an incline.
+
+    Distance from the bumper d(t) >= 0 (m). Released at t = lead from d = drop with speed
+    v_release toward the bumper; toward the bumper it accelerates at a_toward, away from it
+    it decelerates at a_away (m/s²). Impacts are instantaneous: v_out = restitution·v_in; a
+    rebound slower than v_stick (m/s) does not leave the bumper (the cart stays).
+
+    Returns (d(t) as a function of an array of times, truth dict with impact_times,
+    impact_speeds, rebound_speeds, end time).
+    """
+    # Release: d = drop − v0·τ − a·τ²/2 reaches 0 at τ = (−v0 + √(v0² + 2a·drop))/a.
+    v_in = math.sqrt(v_release ** 2 + 2 * a_toward * drop)
+    t_hit = lead + (v_in - v_release) / a_toward
+    times, speeds, rebounds = [t_hit], [v_in], []
+    pieces = [(lead, t_hit, "release", v_release)]
+    while True:
+        v_out = restitution * v_in
+        if v_out < v_stick:
+            rebounds.append(0.0)
+            break
+        rebounds.append(v_out)
+        t_up = v_out / a_away  # climbing to the apex
+        height = v_out ** 2 / (2 * a_away)
+        t_down = math.sqrt(2 * height / a_toward)
+        pieces.append((t_hit, t_hit + t_up + t_down, "flight", v_out))
+        t_hit = t_hit + t_up + t_down
+        v_in = a_toward * t_down
+        times.append(t_hit)
+        speeds.append(v_in)
+    end = t_hit + rest_tail
+
+    def distance(t):
+        t = np.asarray(t, dtype=float)
+        d = np.where(t < lead, drop, 0.0)
+        for start, stop, kind, v in pieces:  # a dozen closed-form pieces
+            tau = t - start
+            inside = (t >= start) & (t < stop)
+            if kind == "release":
+                value = drop - v * tau - 0.5 * a_toward * tau ** 2
+            else:
+                t_up = v / a_away
+                up = v * tau - 0.5 * a_away * tau ** 2
+                apex = v ** 2 / (2 * a_away)
+                down = apex - 0.5 * a_toward * (tau - t_up) ** 2
+                value = np.where(tau < t_up, up, down)
+            d = np.where(inside, value, d)
+        return np.maximum(d, 0.0)
+
+    truth = dict(impact_times=np.array(times), impact_speeds=np.array(speeds),
+                 rebound_speeds=np.array(rebounds), end=end)
+    return distance, truth
+
+
+def capstone_run(distance, end, *, rate, noise, rng, sensor_to_bumper=1.2, zeroed=True):
+    """Time and position columns of one Capstone run (sensor at the top of the incline).
+
+    Position is the sensor's reading (m, growing toward the bumper), noise-added, zeroed at
+    the first sample as Capstone's "zero sensor" does, rounded to the 0.1 mm Capstone shows.
+    """
+    time = np.arange(0.0, end, 1.0 / rate)
+    reading = sensor_to_bumper - distance(time) + noise * rng.standard_normal(time.size)
+    if zeroed:
+        reading = reading - reading[0]
+    return time, np.round(reading, 4)
+
+
+def capstone_table(runs):
+    """The multi-run table as Capstone lays it out: per run time, position, velocity and
+    acceleration (derivatives blank at the run's ends), shorter runs blank at the end.
+
+    `runs` is a list of (time, position). Returns a DataFrame of floats (NaN = blank).
+    """
+    length = max(t.size for t, _ in runs)
+    columns = {}
+    for k, (time, position) in enumerate(runs, start=1):
+        dt = time[1] - time[0]
+        velocity = np.full(time.size, np.nan)
+        velocity[1:-1] = (position[2:] - position[:-2]) / (2 * dt)
+        acceleration = np.full(time.size, np.nan)
+        acceleration[2:-2] = (velocity[3:-1] - velocity[1:-3]) / (2 * dt)
+        for name, values in ((f"Time (s) Run #{k}", time), (f"Position (m) Run #{k}", position),
+                             (f"Velocity (m/s) Run #{k}", velocity),
+                             (f"Acceleration (m/s²) Run #{k}", acceleration)):
+            padded = np.full(length, np.nan)
+            padded[:values.size] = values
+            columns[name] = padded
+    return pd.DataFrame(columns)
+
+
+def write_capstone_csv(frame, path):
+    """As Capstone writes its CSV: comma separated, fixed decimals per quantity, blank cells."""
+    decimals = {"Time": 2, "Position": 4, "Velocity": 3, "Acceleration": 2}
+    text = [",".join(frame.columns)]
+    formats = [decimals[c.split()[0]] for c in frame.columns]
+    for row in frame.to_numpy():  # writing the fixture, a few hundred rows
+        text.append(",".join("" if math.isnan(v) else f"{v:.{d}f}" for v, d in zip(row, formats)))
+    path.write_text("\r\n".join(text) + "\r\n", encoding="utf-8")
+
+
+def write_spreadsheet(frame, path):
+    """The same table saved from a spreadsheet program: .csv (shortest float text), .xlsx,
+    .xls (BIFF8 via xlwt) or .ods (odfpy); blanks stay blank."""
+    rounded = frame.copy()
+    for column in rounded.columns:
+        rounded[column] = rounded[column].round(4)
+    suffix = path.suffix
+    if suffix == ".csv":
+        rounded.to_csv(path, index=False)
+    elif suffix == ".xlsx":
+        rounded.to_excel(path, index=False, sheet_name="Data", engine="openpyxl")
+    elif suffix == ".ods":
+        rounded.to_excel(path, index=False, sheet_name="Data", engine="odf")
+    elif suffix == ".xls":
+        import xlwt
+
+        book = xlwt.Workbook()
+        sheet = book.add_sheet("Data")
+        for j, name in enumerate(rounded.columns):
+            sheet.write(0, j, name)
+        values = rounded.to_numpy()
+        for (i, j) in zip(*np.nonzero(np.isfinite(values))):  # fixture cells, not analysis
+            sheet.write(int(i) + 1, int(j), float(values[i, j]))
+        book.save(str(path))
+    else:
+        raise ValueError(suffix)
+
+
+def check_run(found, truth, *, time_tolerance, speed_tolerance):
+    """Count equality with the true reversals; each time and speed within the tolerances."""
+    rebounded = truth["rebound_speeds"] > 0  # the last contact, where the cart stays, is no
+    times = truth["impact_times"][rebounded]  # reversal
+    assert len(found) == times.size, (found["time"].to_numpy(), times)
+    np.testing.assert_allclose(found["time"], times, atol=time_tolerance, rtol=0)
+    np.testing.assert_allclose(found["impact_speed"], truth["impact_speeds"][rebounded],
+                               rtol=speed_tolerance)
+    measured_out = found["rebound_speed"].to_numpy()
+    known = np.isfinite(measured_out)
+    assert known[:-1].all()  # only the last rebound's flight may be cut by the record's end
+    np.testing.assert_allclose(measured_out[known], truth["rebound_speeds"][rebounded][known],
+                               rtol=speed_tolerance)
+
+
+# A 5° incline with rolling friction: μ·g·cos θ ≈ 0.04 m/s² makes the legs differ by ~10 %.
+FRICTION = 0.04
+A_TOWARD = G * math.sin(INCLINE) - FRICTION
+A_AWAY = G * math.sin(INCLINE) + FRICTION
+
+
+@pytest.fixture(scope="module")
+def capstone_three_runs():
+    """Three runs of different lengths (drops 0.6, 0.4, 0.5 m), 20 Hz, 1 mm noise."""
+    rng = np.random.default_rng(SEED)
+    runs, truths = [], []
+    for drop in (0.6, 0.4, 0.5):
+        distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=drop)
+        runs.append(capstone_run(distance, truth["end"], rate=20.0, noise=1e-3, rng=rng))
+        truths.append(truth)
+    return capstone_table(runs), truths
+
+
+FORMATS = ["capstone-csv", "resaved-csv", "xlsx", "xls", "ods"]
+
+
+def write_format(frame, folder, variant):
+    """The three-run table in one of FORMATS; returns the path."""
+    if variant == "capstone-csv":
+        path = folder / "capstone.csv"
+        write_capstone_csv(frame, path)
+    else:
+        path = folder / ("resaved.csv" if variant == "resaved-csv" else f"capstone.{variant}")
+        write_spreadsheet(frame, path)
+    return path
+
+
+def z_scores(found, truth):
+    """(time error / stated σ, relative speed errors, speed error / stated σ) of one run."""
+    rebounded = truth["rebound_speeds"] > 0
+    sigma_v = found["speed_uncertainty"].to_numpy()
+    dt = (found["time"].to_numpy() - truth["impact_times"][rebounded])
+    dv_in = found["impact_speed"].to_numpy() - truth["impact_speeds"][rebounded]
+    dv_out = found["rebound_speed"].to_numpy() - truth["rebound_speeds"][rebounded]
+    return dict(time=dt / found["time_uncertainty"].to_numpy(),
+                speed=np.concatenate([dv_in / sigma_v, dv_out / sigma_v]),
+                relative=np.concatenate([dv_in / truth["impact_speeds"][rebounded],
+                                         dv_out / truth["rebound_speeds"][rebounded]]))
+
+
+@pytest.mark.parametrize("variant", FORMATS)
+def test_capstone_three_runs_every_reversal_in_every_file_type(tmp_path, capstone_three_runs,
+                                                               variant):
+    """Capstone's multi-run export (derivatives blank at each run's ends, runs of different
+    lengths blank at the end) in each file type a lab saves it as: every run is read, and in
+    each every reversal is found (count equality), the first one included, timed within 4 of
+    its stated σ, speeds within 4σ and 3 %."""
+    frame, truths = capstone_three_runs
+    path = write_format(frame, tmp_path, variant)
+    if variant == "resaved-csv":
+        # A spreadsheet writes the zeroed start as '0.0': one cell's digits must not set the
+        # resolution (it would be 0.1 m and hide every bounce).
+        assert ",0.0," in path.read_text()
+    impacts = read_motion_sensor(path)
+    assert sniff_table(path) == "motion_sensor"
+    assert sorted(impacts["run"].unique()) == [0, 1, 2]
+    assert (impacts["flag"] == "ok").all()
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        rebounded = truth["rebound_speeds"] > 0
+        assert len(found) == rebounded.sum()  # every reversal, none invented
+        scores = z_scores(found, truth)
+        assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
+        assert np.all(np.abs(scores["speed"][np.isfinite(scores["speed"])]) <= 4.0)
+        assert np.nanmax(np.abs(scores["relative"])) <= 0.03
+        assert found["time_uncertainty"].max() <= 5e-3
+    notes = " ".join(impacts.attrs["notes"])
+    assert "3 run(s)" in notes and "run 2 = 'Run #3'" in notes
+    if variant == "xls":
+        assert "Excel 97-2003" in notes
+    if variant == "ods":
+        assert "OpenDocument" in notes
+
+
+@pytest.mark.parametrize("rate", [20.0, 30.0, 50.0])
+def test_five_degree_incline_every_bounce_timed_from_the_first(tmp_path, rate):
+    """A cart released from rest on a 5° incline, sampled at 20-50 Hz: the first bounce (after
+    the release, which is free motion too) and every later one with a rebound of at least
+    0.2 m/s are timed; the count equals the true number of reversals."""
+    rng = np.random.default_rng([SEED, int(rate)])
+    distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=0.5)
+    time, position = capstone_run(distance, truth["end"], rate=rate, noise=1e-3, rng=rng)
+    path = tmp_path / "run.csv"
+    write_capstone_csv(capstone_table([(time, position)]), path)
+    found = read_motion_sensor(path)
+    rebounded = truth["rebound_speeds"] > 0
+    assert len(found) == rebounded.sum()
+    assert (found["flag"] == "ok").all()
+    scores = z_scores(found, truth)
+    assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
+    # The first impact, the fastest, within 2 ms (its flight is the longest).
+    assert abs(found["time"].iloc[0] - truth["impact_times"][0]) < 2e-3
+
+
+def test_leg_accelerations_are_measured_separately(tmp_path):
+    """Rolling friction on an incline: 1.96 m/s² toward the bumper, 2.05 m/s² away from it.
+    Both are recovered within 3σ and told apart, and the impact speed of each bounce is not
+    forced to equal the rebound speed before it: v_in(k+1)/v_out(k) = √(1.96/2.05)."""
+    rng = np.random.default_rng([SEED, 2])
+    runs, truths = [], []
+    for drop in (0.6, 0.45, 0.5):
+        distance, truth = simulate_cart(a_toward=1.96, a_away=2.05, drop=drop)
+        runs.append(capstone_run(distance, truth["end"], rate=20.0, noise=1e-3, rng=rng))
+        truths.append(truth)
+    path = tmp_path / "legs.csv"
+    write_capstone_csv(capstone_table(runs), path)
+    impacts = read_motion_sensor(path)
+    legs = impacts.attrs["accelerations"]
+    assert [leg["run"] for leg in legs] == [0, 1, 2]
+    for leg in legs:
+        assert leg["separate"]
+        assert abs(leg["toward"] - 1.96) <= 3 * leg["toward_sd"]
+        assert abs(leg["away"] - 2.05) <= 3 * leg["away_sd"]
+        assert (leg["away"] - leg["toward"]) / math.hypot(leg["away_sd"], leg["toward_sd"]) > 3
+    ratios, sigmas = [], []
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run]
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        v_in, v_out = found["impact_speed"].to_numpy(), found["rebound_speed"].to_numpy()
+        sigma = found["speed_uncertainty"].to_numpy()
+        ratio = v_in[1:] / v_out[:-1]
+        ratios.append(ratio)
+        sigmas.append(ratio * np.hypot(sigma[1:] / v_in[1:], sigma[:-1] / v_out[:-1]))
+    ratios, sigmas = np.concatenate(ratios), np.concatenate(sigmas)
+    weights = 1 / sigmas ** 2
+    mean = np.sum(weights * ratios) / np.sum(weights)
+    error = np.sum(weights) ** -0.5
+    expected = math.sqrt(1.96 / 2.05)  # v_in² = 2·a_toward·h, v_out² = 2·a_away·h
+    assert abs(mean - expected) <= 3 * error
+    assert (1.0 - mean) > 3 * error  # one acceleration for both legs would give 1
+
+
+def test_release_too_close_to_the_bumper_is_flagged_not_dropped(tmp_path):
+    """A cart pushed at 0.5 m/s from 3 cm before the bumper has at most one sample of free
+    flight before its first impact: that impact is reported, flagged 'few_samples', and
+    timed by its outgoing flight within 4 of its (larger) stated σ."""
+    rng = np.random.default_rng([SEED, 3])
+    runs, truths = [], []
+    for _ in range(3):
+        distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=0.03,
+                                        v_release=0.5, lead=0.5 + rng.uniform(0, 0.05))
+        runs.append(capstone_run(distance, truth["end"], rate=20.0, noise=1e-3, rng=rng))
+        truths.append(truth)
+    path = tmp_path / "push.csv"
+    write_capstone_csv(capstone_table(runs), path)
+    impacts = read_motion_sensor(path)
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        assert found["flag"].iloc[0] == "few_samples"
+        assert (found["flag"].iloc[1:] == "ok").all()
+        assert np.isnan(found["impact_speed"].iloc[0])  # no incoming flight to measure it
+        scores = z_scores(found, truth)
+        assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
+    assert any("flagged 'few_samples'" in note for note in impacts.attrs["notes"])
+
+
+def test_motion_without_a_bounce_is_one_line_exit_2(tmp_path):
+    """A cart pushed by hand into the bumper and caught after it came back once: one
+    reversal, no bounce train. `dashpot impacts` says so in one line naming the file, exit
+    status 2, and writes nothing."""
+    rng = np.random.default_rng([SEED, 5])
+    distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=0.4,
+                                    restitution=0.5, v_stick=0.3)
+    assert (truth["rebound_speeds"] > 0).sum() == 1
+    time, position = capstone_run(distance, truth["end"], rate=20.0, noise=1e-3, rng=rng)
+    path = tmp_path / "push.csv"
+    write_capstone_csv(capstone_table([(time, position)]), path)
+    output = tmp_path / "impacts.csv"
+    status, out, err = run_cli(["impacts", str(path), "-o", str(output)])
+    assert status == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and str(path) in lines[0] and "no bounce" in lines[0], err
+    assert "Traceback" not in err and not output.exists()
+    with pytest.raises(InputError, match=r"push\.csv: motion but no bounce"):
+        read_impacts(path)
+
+
+# --------------------------------------------------------------------------------- Tracker
+
+def java_scientific(value):
+    """A number as Tracker's data export writes it (Java DecimalFormat "0.000000000E0")."""
+    mantissa, exponent = f"{value:.9E}".split("E")
+    return f"{mantissa}E{int(exponent)}"
+
+
+@pytest.fixture(scope="module")
+def tracked_ball():
+    """A ball dropped from 0.8 m, filmed at 30 frames/s and tracked: x drifts by a pixel, y
+    is the height (m) with 1.5 mm of marking noise; bounces until the rebound is 1 m/s."""
+    rng = np.random.default_rng([SEED, 7])
+    distance, truth = simulate_cart(a_toward=G, a_away=G, drop=0.8, restitution=0.8,
+                                    v_stick=1.0, lead=0.3, rest_tail=1.0)
+    time = np.arange(0.0, truth["end"], 1 / 30)
+    height = distance(time) + 1.5e-3 * rng.standard_normal(time.size)
+    x = 0.312 + 1e-3 * rng.standard_normal(time.size)
+    return time, x, height, truth
+
+
+@pytest.mark.parametrize("layout", ["tracker-txt", "t-y-csv"])
+def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
+    time, x, height, truth = tracked_ball
+    if layout == "tracker-txt":
+        # Tracker's File > Export > Data: the track's name, then a tab-separated header.
+        path = tmp_path / "ball.txt"
+        lines = ["mass_A", "t\tx\ty"] + ["\t".join(java_scientific(v) for v in row)
+                                         for row in zip(time, x, height)]
+        path.write_text("\n".join(lines) + "\n")
+    else:
+        path = tmp_path / "ball.csv"
+        path.write_text("t,y\n" + "".join(f"{a:.4f},{b:.5f}\n" for a, b in zip(time, height)))
+    assert sniff_table(path) == "motion_sensor"
+    found = read_impacts(path)
+    rebounded = truth["rebound_speeds"] > 0
+    assert len(found) == rebounded.sum()
+    scores = z_scores(found, truth)
+    assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
+    assert np.nanmax(np.abs(scores["relative"])) <= 0.05
+    notes = " ".join(found.attrs["notes"])
+    assert "read in m" in notes
+    if layout == "tracker-txt":
+        assert "track 'mass_A'" in notes and "Tracker column layout" in notes
+        assert "from column 'y'" in notes
