@@ -2,7 +2,6 @@
 
 import io
 import os
-import time
 
 import numpy as np
 import pytest
@@ -177,15 +176,12 @@ def test_critical_speed_ib_runs_off_the_top_without_inf():
     # Drawing the log axis with NaN and 1e300 values: test_figure_has_labelled_axes_and_renders.
 
 
-def test_detection_figure_handles_600k_points_quickly():
+def test_detection_figure_decimates_600k_points():
+    # Its speed is measured in benchmarks/bench_plots.py.
     time_s, envelope, impacts = _detection_inputs(600_000)
-    # CPU time of this process, not wall time: other jobs on the machine do not count.
-    start = time.process_time()
     fig = plots.detection_figure(time_s, envelope, impacts, sample_time=time_s,
                                  samples=envelope - 0.01, tail_count=8)
     _render(fig)
-    elapsed = time.process_time() - start
-    assert elapsed < 3.0, f"took {elapsed:.2f} s of CPU time"
     overview, close = fig.axes
     drawn = [line for line in overview.get_lines() if line.get_label() == "envelope"][0]
     assert len(drawn.get_ydata()) <= 5000

@@ -76,6 +76,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+import platformdirs
 from scipy.special import expit, lambertw
 
 from .._validation import check_model, check_nonnegative, check_positive
@@ -495,11 +496,14 @@ def _without_cache(directory, model, level, error):
 
 
 def cache_dir(directory=None):
-    """Cache directory: `directory`, else $DASHPOT_CACHE_DIR, else ~/.cache/dashpot."""
+    """Cache directory: `directory`, else $DASHPOT_CACHE_DIR, else the platform's user cache
+    folder for dashpot from platformdirs (``~/.cache/dashpot`` on Linux or under
+    $XDG_CACHE_HOME, ``~/Library/Caches/dashpot`` on macOS, ``%LOCALAPPDATA%\\dashpot\\Cache``
+    on Windows)."""
     if directory is not None:
         return Path(directory)
     env = os.environ.get(_CACHE_ENV)
-    return Path(env) if env else Path.home() / ".cache" / "dashpot"
+    return Path(env) if env else platformdirs.user_cache_path("dashpot", appauthor=False)
 
 
 def _cache_path(directory, params):
@@ -560,7 +564,8 @@ def load_surrogate(model, level="fast", *, directory=None, overrides=None):
     model : {"Ib", "IIb", "hybrid"}
     level : {"fast", "standard"}
     directory : path-like, optional
-        Cache directory (default: $DASHPOT_CACHE_DIR, else ~/.cache/dashpot).
+        Cache directory (default: $DASHPOT_CACHE_DIR, else the user cache folder; see
+        :func:`cache_dir`).
     overrides : dict, optional
         Build parameters replacing the level's (see :func:`build_surrogate`).
 
@@ -729,7 +734,8 @@ def surrogate_collide(model, zeta, vtilde, *, level="fast", directory=None):
     level : {"fast", "standard"}, default "fast"
         Table accuracy (:data:`LEVELS`): certified relative errors ≲ 1e-6 or ≲ 1e-9.
     directory : path-like, optional
-        Cache directory of the tables (default $DASHPOT_CACHE_DIR, else ~/.cache/dashpot).
+        Cache directory of the tables (default $DASHPOT_CACHE_DIR, else the user cache
+        folder; see :func:`cache_dir`).
         The first use of a model and level builds its table (seconds) and caches it.
 
     Returns
