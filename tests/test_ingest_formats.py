@@ -1,0 +1,148 @@
+"""File formats as labs have them: legacy Excel and OpenDocument workbooks, more audio
+containers, and recordings that cannot be decoded here.
+
+phyphox's "Excel" export is a legacy BIFF8 ``.xls`` (one sheet per export set). The workbooks
+here are built sheet by sheet from the ``.xlsx`` that dashpot.synth writes (read back with
+openpyxl, not with dashpot's readers) and saved with xlwt (BIFF8) and pandas' odf writer (.ods),
+so that every phyphox layout the reader supports is checked in all three workbook types against
+the times the writer returns. Audio in AIFF, CAF, AU and MP3 is written by libsndfile itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import openpyxl
+import pandas as pd
+import pytest
+import soundfile as sf
+import xlwt
+
+import dashpot
+from cli_run import run_cli
+from dashpot.errors import InputError
+from dashpot.ingest import read_impacts
+from dashpot.ingest.tables import read_phyphox, sniff_table
+from dashpot.synth.audio import impact_sound
+from dashpot.synth.tables import write_phyphox_collision, write_phyphox_stopwatch
+
+STIFF = dict(model="Ib", beta=8.0, omega0=300.0, g=0.5, v0=0.5, v_min=0.05)
+
+
+@pytest.fixture(scope="module")
+def stiff():
+    return dashpot.bounce_sequence(**STIFF)
+
+
+def sheets_of(xlsx):
+    """{sheet name: rows of cell values} of an .xlsx, read with openpyxl."""
+    book = openpyxl.load_workbook(xlsx, read_only=True, data_only=True)
+    sheets = {sheet.title: [list(row) for row in sheet.iter_rows(values_only=True)]
+              for sheet in book.worksheets}
+    book.close()
+    return sheets
+
+
+def save_as(sheets, path):
+    """The same sheets as a legacy .xls (xlwt, BIFF8) or an .ods (pandas' odf writer).
+
+    Empty cells and NaN padding stay empty, as a spreadsheet shows them.
+    """
+    def cell(value):
+        if value is None or (isinstance(value, float) and np.isnan(value)):
+            return None
+        if isinstance(value, str) and value.strip().lower() == "nan":
+            return None
+        return value
+
+    if path.suffix == ".xls":
+        book = xlwt.Workbook()
+        for name, rows in sheets.items():  # a few sheets of a few rows
+            sheet = book.add_sheet(name)
+            for i, row in enumerate(rows):
+                for j, value in enumerate(row):
+                    if cell(value) is not None:
+                        sheet.write(i, j, cell(value))
+        book.save(str(path))
+    else:
+        with pd.ExcelWriter(path, engine="odf") as writer:
+            for name, rows in sheets.items():
+                frame = pd.DataFrame([[cell(v) for v in row] for row in rows[1:]],
+                                     columns=rows[0])
+                frame.to_excel(writer, sheet_name=name, index=False)
+    return path
+
+
+LAYOUTS = ["clicks", "multiple", "simple", "collision"]
+
+
+@pytest.mark.parametrize("suffix", [".xls", ".ods"])
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_phyphox_workbooks_in_every_layout(tmp_path, stiff, layout, suffix):
+    xlsx = tmp_path / "export.xlsx"
+    if layout == "collision":
+        truth = write_phyphox_collision(xlsx, stiff.impact_times[:4], excel=True)
+    else:
+        truth = write_phyphox_stopwatch(xlsx, stiff.impact_times,
+                                        layout="clicks" if layout == "clicks" else "multiple",
+                                        excel=True)
+    sheets = sheets_of(xlsx)
+    if layout == "simple":  # a workbook holding the "Simple" set only
+        sheets.pop("Multiple")
+    path = save_as(sheets, tmp_path / f"export{suffix}")
+    if suffix == ".xls":
+        assert path.read_bytes()[:8] == b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # OLE2 / BIFF8
+    frame = read_phyphox(path)
+    expected = np.array(truth["impact_times"])
+    if layout == "simple":
+        expected = expected[:2]  # Start and Stop
+    assert len(frame) == expected.size
+    # The workbook cells hold the floats themselves: exact to rounding.
+    np.testing.assert_allclose(frame["time"], expected, rtol=1e-12, atol=0)
+    assert sniff_table(path) == "phyphox"
+    variant = "Excel 97-2003 (.xls)" if suffix == ".xls" else "OpenDocument spreadsheet"
+    assert variant in frame.attrs["notes"][1 if layout == "clicks" else 0]
+    # Identical to reading the .xlsx it was made from.
+    if layout != "simple":
+        np.testing.assert_array_equal(frame["time"], read_phyphox(xlsx)["time"])
+
+
+def test_damaged_legacy_workbook_is_one_line(tmp_path):
+    path = tmp_path / "export.xls"
+    path.write_bytes(b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 600)
+    with pytest.raises(InputError, match=r"export\.xls: not a readable Excel 97-2003 \(\.xls\) "
+                                         r"workbook") as error:
+        read_phyphox(path)
+    assert "\n" not in str(error.value)
+
+
+# ------------------------------------------------------------------------------------ audio
+
+@pytest.mark.parametrize(("suffix", "container", "subtype", "rate"),
+                         [("aiff", "AIFF", "PCM_16", 44100), ("aif", "AIFF", "PCM_24", 48000),
+                          ("caf", "CAF", "PCM_24", 48000), ("caf", "CAF", "FLOAT", 44100),
+                          ("au", "AU", "PCM_16", 22050), ("mp3", "MP3", "MPEG_LAYER_III", 44100)])
+def test_audio_containers_libsndfile_reads(tmp_path, suffix, container, subtype, rate):
+    times, speeds = np.array([0.0, 0.2, 0.36, 0.49]), np.array([1.0, 0.9, 0.8, 0.72])
+    samples, onsets = impact_sound(times, speeds, sample_rate=rate, snr_db=45.0, seed=2)
+    path = tmp_path / f"train.{suffix}"
+    sf.write(str(path), samples, rate, format=container, subtype=subtype)
+    table = read_impacts(path)
+    # MP3 (lossy) smears a transient over its 576-sample granule; the others are exact.
+    tolerance = 1e-3 if suffix == "mp3" else 0.2e-3
+    assert len(table) == onsets.size
+    np.testing.assert_allclose(table["time"], onsets, atol=tolerance, rtol=0)
+
+
+@pytest.mark.parametrize("suffix", [".m4a", ".mp4", ".avi", ".mov", ".aac"])
+def test_media_libsndfile_cannot_read_get_the_conversion_command(tmp_path, suffix):
+    path = tmp_path / f"bounce{suffix}"
+    path.write_bytes(b"\x00\x00\x00\x20ftypM4A \x00\x00\x00\x00" + bytes(200))
+    output = tmp_path / "impacts.csv"
+    status, out, err = run_cli(["impacts", str(path), "-o", str(output)])
+    assert status == 2 and not output.exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert str(path) in lines[0]
+    assert f"ffmpeg -i bounce{suffix} -vn -c:a pcm_s16le bounce.wav" in lines[0]
+    with pytest.raises(InputError, match="convert its sound to WAV"):
+        read_impacts(path, kind="audio")
