@@ -111,7 +111,8 @@ def test_values_are_printed_rounded_to_their_uncertainty(runs):
                               unit=None if name == "zeta" else row["unit"])
         eps = stored["fits"][model]["predicted"]["restitution"]
         eps = np.asarray(eps, float)[np.isfinite(eps)]
-        assert f"ε {eps.min():.4f}–{eps.max():.4f}" in line
+        low, high = f"{eps.min():.4f}", f"{eps.max():.4f}"
+        assert (f"ε {low}, " if low == high else f"ε {low}–{high}, ") in line
     assert f"  selection: {stored['attrs']['verdict']}" in runs["fit"][1].splitlines()
 
 

@@ -304,7 +304,7 @@ COMMANDS = {
         "timestamp table, motion sensor, photogate) and write one row per impact: time, "
         "its 1-sigma uncertainty, amplitude and measured speeds where the sensor gives them.",
         ["dashpot impacts drop.wav -o impacts.csv",
-         "dashpot impacts gate.csv --flag-length 0.02 -o - > impacts.csv"]),
+         "dashpot impacts gate.csv --flag-length 0.02 -o -"]),
     "bounces": (
         "intervals, speeds and ε from an impact table",
         "Intervals, flight-time rebound speeds and per-bounce restitution ratios with their "

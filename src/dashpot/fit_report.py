@@ -236,7 +236,8 @@ def fit_line(fit):
              for name in _shown_names(fit)]
     eps = _restitution_range(fit)
     if eps is not None:
-        parts.append(f"ε {eps[0]:.4f}–{eps[1]:.4f}")
+        low, high = f"{eps[0]:.4f}", f"{eps[1]:.4f}"
+        parts.append(f"ε {low}" if low == high else f"ε {low}–{high}")
     if math.isfinite(fit.redchi):
         parts.append(f"χ²/ν = {_number(fit.redchi)}")
     return ", ".join(parts)
