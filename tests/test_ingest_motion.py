@@ -1,4 +1,5 @@
-"""Motion-sensor and video-tracker exports as the lab tools write them, against a cart simulated here.
+"""Motion-sensor and video-tracker exports as the lab tools write them, against a cart
+simulated here.
 
 The cart is simulated in this file with its own closed-form kinematics (not dashpot.synth): it
 is released from rest on an incline, slides toward a bumper with acceleration ``a_toward``,
@@ -160,21 +161,6 @@ def write_spreadsheet(frame, path):
         book.save(str(path))
     else:
         raise ValueError(suffix)
-
-
-def check_run(found, truth, *, time_tolerance, speed_tolerance):
-    """Count equality with the true reversals; each time and speed within the tolerances."""
-    rebounded = truth["rebound_speeds"] > 0  # the last contact, where the cart stays, is no
-    times = truth["impact_times"][rebounded]  # reversal
-    assert len(found) == times.size, (found["time"].to_numpy(), times)
-    np.testing.assert_allclose(found["time"], times, atol=time_tolerance, rtol=0)
-    np.testing.assert_allclose(found["impact_speed"], truth["impact_speeds"][rebounded],
-                               rtol=speed_tolerance)
-    measured_out = found["rebound_speed"].to_numpy()
-    known = np.isfinite(measured_out)
-    assert known[:-1].all()  # only the last rebound's flight may be cut by the record's end
-    np.testing.assert_allclose(measured_out[known], truth["rebound_speeds"][rebounded][known],
-                               rtol=speed_tolerance)
 
 
 # A 5° incline with rolling friction: μ·g·cos θ ≈ 0.04 m/s² makes the legs differ by ~10 %.

@@ -55,7 +55,8 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
         Audio recording (WAV, FLAC, OGG, MP3, AIFF, CAF, ...: see ``AUDIO_SUFFIXES``) or lab
         table (CSV/TSV/semicolon text, .xlsx, .xls, .ods, Tracker text export).
     kind : {"audio", "phyphox", "timestamps", "motion_sensor", "photogate"}, optional
-        Reader to use; by default audio from the file suffix, tables by their headers.
+        Reader to use; by default audio from the file suffix, tables by their headers
+        ("motion_sensor" also reads Tracker's video-analysis exports).
     flag_length : float, optional
         Length of the flag interrupting a photogate, in m (required for photogate logs).
     gate_distance : float, optional
@@ -73,8 +74,9 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     Raises
     ------
     InputError
-        The file does not exist, is not a supported recording, its content is unusable, or
-        it holds no impact (an empty table is never returned: its reader's notes say why).
+        The file does not exist, is not a supported recording (a phone's .m4a or a video:
+        the message gives the ffmpeg command that extracts a WAV), its content is unusable,
+        or it holds no impact (an empty table is never returned: its reader's notes say why).
     """
     impacts = _read(path, kind, flag_length, gate_distance, unit, bumper_position)
     if impacts.empty:

@@ -1,4 +1,5 @@
-"""Readers of tabular lab files: phyphox exports, impact-time lists, motion sensors, photogates.
+"""Readers of tabular lab files: phyphox exports, impact-time lists, motion sensors, video
+trackers, photogates.
 
 Every reader returns the impact table of :mod:`dashpot.ingest` (one row per impact, SI units,
 sorted by time) with ``attrs`` ``source``, ``sensor`` (the kind, as :func:`sniff_table` names
@@ -7,12 +8,16 @@ file, the 1-based data row (counted after the header) where that applies, and th
 
 Text tables are sniffed, not configured: the separator is the one of tab, semicolon or comma
 that splits the first lines into the same number (> 1) of fields, and the decimal mark is a
-comma when the separator is not and numbers like ``1,25`` occur. Excel workbooks (``.xlsx``)
-are read sheet by sheet and zip archives (phyphox's CSV export) member by member.
+comma when the separator is not and numbers like ``1,25`` occur. A first line that is a single
+word above a separated header names a Tracker track (``mass_A``) and is skipped. Workbooks —
+Excel ``.xlsx``, legacy Excel 97-2003 ``.xls`` (BIFF8, phyphox's "Excel" export) and
+OpenDocument ``.ods`` — are read sheet by sheet through pandas' calamine engine, and zip
+archives (phyphox's CSV export) member by member.
 
 Column headers are read in the exporting program's own words: a name, a unit in parentheses or
 brackets, and a run label either in front (Vernier: ``Latest: Time (s)``, ``Run 2: Position
-(m)``) or behind (PASCO Capstone: ``Time (s) Run #1``).
+(m)``) or behind (PASCO Capstone: ``Time (s) Run #1``). Tracker writes bare names (``t``,
+``x``, ``y``) in its calibrated units (s and, usually, m).
 
 References
 ----------
@@ -34,6 +39,10 @@ References
 .. [6] W. K. Newey and K. D. West, "A simple, positive semi-definite, heteroskedasticity and
    autocorrelation consistent covariance matrix", Econometrica 55, 703-708 (1987): least-squares
    uncertainties under serially correlated noise via the long-run variance.
+.. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
+   "Datatable view": the data export is tab-delimited text, a first line with the track name,
+   a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
+   blank at a track's first and last steps.
 """
 
 from __future__ import annotations
@@ -545,15 +554,16 @@ def sniff_table(path):
     Parameters
     ----------
     path : str or os.PathLike
-        A CSV/TSV/semicolon text table, an .xlsx workbook or a phyphox zip export.
+        A CSV/TSV/semicolon text table (a Tracker data export included), a workbook (.xlsx,
+        .xls, .ods) or a phyphox zip export.
 
     Returns
     -------
     str
         One of ``TABLE_KINDS``: "phyphox" (Acoustic Stopwatch or (In)elastic collision export),
-        "motion_sensor" (time with position and/or velocity, PASCO or Vernier), "photogate"
-        (time with a gate state) or "timestamps" (one column of impact times, optionally
-        their uncertainties, or a header-less column of numbers).
+        "motion_sensor" (time with position and/or velocity, PASCO, Vernier or Tracker),
+        "photogate" (time with a gate state) or "timestamps" (one column of impact times,
+        optionally their uncertainties, or a header-less column of numbers).
 
     Raises
     ------
@@ -1717,16 +1727,21 @@ def _table_of_kind(path, kind, missing, expected):
 
 
 def read_motion_sensor(path, *, bumper_position=None):
-    """Impacts of a cart on a bumper from a PASCO Capstone or Vernier motion-sensor export.
+    """Impacts of a cart (or ball) from a motion-sensor or video-tracker position export.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Text table or workbook with, per run, a time column and a position and/or velocity
-        column in the export's words: PASCO ``Time (s) Run #1``, ``Position (m) Run #1``,
-        ``Velocity (m/s) Run #1``; Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``,
-        ``Latest: Velocity (m/s)``. Several runs side by side; shorter runs padded with empty
-        cells. Units m/cm/mm, m/s/cm/s/mm/s, s/ms.
+        Text table or workbook (.xlsx, .xls, .ods) with, per run, a time column and a position
+        and/or velocity column in the export's words: PASCO Capstone ``Time (s) Run #1``,
+        ``Position (m) Run #1``, ``Velocity (m/s) Run #1`` (and ``Acceleration`` columns, not
+        used); Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``, ``Latest: Velocity
+        (m/s)``; Tracker's data export (a first line naming the track, ``t``, ``x``, ``y``
+        without units [7]_) or any ``t,y`` table. Several runs side by side. Blanks at a
+        column's start or end are normal (a derivative starts a sample or two after the
+        position; shorter runs end early); a blank between a column's values is an error. The
+        position is read when there is one, and the velocity beside it is then not used. Units
+        m/cm/mm, m/s/cm/s/mm/s, s/ms; a position without a unit is read in m.
     bumper_position : float, optional
         Position reading (m, the file's axis) at which the cart touches the bumper, if known
         from the scene, in [-20, 20] m. Otherwise estimated (see Notes).
@@ -1737,14 +1752,19 @@ def read_motion_sensor(path, *, bumper_position=None):
         Impact table of :mod:`dashpot.ingest`: ``time`` (s, the file's clock) of each contact
         start, ``impact_speed`` and ``rebound_speed`` (m/s) and their common 1σ
         ``speed_uncertainty`` (the larger of the two), ``run`` the 0-based order of the run in
-        the file (``notes`` map it to the run's label).
+        the file (``notes`` map it to the run's label; every run is returned), and ``flag``:
+        "ok", "few_samples" (fewer than two free-flight samples on a side of the reversal) or
+        "inferred" (a contact whose reversal the samples do not show). ``attrs
+        ['accelerations']`` lists per run the free-motion accelerations toward the bumper on
+        the legs toward it and away from it (m/s², with 1σ).
 
     Raises
     ------
     InputError
         Empty file, not a table, no time column or no position/velocity column, bad cells,
-        missing/negative/non-increasing times (row named), a value missing inside a run,
-        duplicated rows, unknown units.
+        missing/negative/non-increasing times (row named), a value missing between the values
+        of the column read, duplicated rows, unknown units; motion without a bounce (no run
+        with more than one reversal at the bumper).
     ValueError
         If `bumper_position` is not a finite number in [-20, 20] m.
 
@@ -1754,46 +1774,56 @@ def read_motion_sensor(path, *, bumper_position=None):
     by the contact and by the derivative. They are not used. Instead:
 
     1. Velocity: central differences of the position (noise σ_v = σ_x/(√2·Δt), with σ_x
-       from the third differences, which vanish for free motion [4]_); the vendor's own
-       velocity column is used only when there is no position (then integrated for one).
+       from the third differences, which vanish for free motion [4]_, and no smaller than the
+       column's resolution over √12, the resolution being the smallest change between
+       consecutive readings); the vendor's own velocity column is used only when there is no
+       position (then integrated for one).
     2. Orientation: the median change of velocity while moving points toward the bumper
        (free motion accelerates toward it and is most of the record).
-    3. Reversals toward → away at most two (plus guard) samples apart end the flights; an
-       *impact* is reported where at least two samples beyond ±4σ_v move toward the bumper
-       and two away. A resting cart's noise cannot produce that (it would take four samples
-       beyond 4σ with the right signs), so the resting tail yields no impact; reversals at
-       the top of the incline go the other way and are apexes.
+    3. Reversals toward → away at most two (plus guard) samples apart end the flights. One
+       with at least two samples beyond ±4σ_v toward the bumper and two away is *resolved*: a
+       resting cart's noise cannot produce that (four samples beyond 4σ with the right signs).
+       Reversals after the last resolved one count while the position still leaves the bumper
+       by more than 4σ_x (the last, short flights); reversals at the top of the incline go
+       the other way and are apexes.
     4. Flights, first pass: from the peak velocity away from the bumper after a contact
        (where it ended) to the peak velocity toward it before the next (where it starts),
-       less a guard sample; and no later than the apex (first velocity toward the bumper)
-       mirrored about the contact end, as free flight is symmetric. Where that mirror falls
-       well short of the next reversal, a slow contact showed no clear reversal in between:
-       an unreported contact is put there, so the next impact gets its own incoming flight.
-    5. Fit: all flight samples by least squares, one parabola per flight with a common
-       acceleration (g·sin θ of the incline; friction, which differs up and down the slope,
-       is neglected) [5]_; samples 5σ off their parabola, and the rest of the flight beyond
-       them, are left out (a contact the reversals missed). Covariance s²(AᵀA)⁻¹, scaled by
-       the residuals' long-run variance ratio 1 + 2Σρ_k when the noise is correlated [6]_.
+       less a guard sample (the release's first moving sample too); and no later than the
+       apex mirrored about the contact end. Where that mirror falls well short of the next
+       reversal, a slow contact showed no clear reversal in between: a contact is put there
+       (flagged "inferred"), so the next impact gets its own incoming flight.
+    5. Fit: all flight samples by least squares, each flight s(τ) = c + b·τ + a·τ²/2 about its
+       apex with one acceleration for the legs away from the bumper and another for the legs
+       toward it, common to all flights of the run (on an incline rolling friction adds to the
+       pull going up and subtracts from it going down [5]_), position and velocity continuous
+       at the apex; first with a single acceleration, then twice about the apexes found. Both
+       are reported; with fewer than three samples on either kind of leg, one acceleration.
+       Samples 5σ off their parabola, and the rest of the flight beyond them, are left out
+       (a contact the reversals missed). Covariance s²(AᵀA)⁻¹, scaled by the residuals'
+       long-run variance ratio 1 + 2Σρ_k when the noise is correlated [6]_.
     6. Second pass: each flight is cut again at the *fitted* contact times (and the fitted
-       release, the descent's vertex), which do not depend on single noisy samples, and
-       refitted.
+       release), never past the samples where the velocity turned, keeping the samples next
+       to a contact whose position is more than 3σ short of the bumper (off it), and refitted.
     7. Impact time: where the incoming parabola reaches the bumper position, i.e. the start
        of contact (the convention of :func:`dashpot.bounce_sequence`); the outgoing parabola
-       leaves it at the end of contact. Fitted *velocities* are parallel lines of slope
-       g·sin θ on both sides, so they never cross; it is the position that pins the time.
-       The bumper position is the ``bumper_position`` argument; else the median of the
-       second half of the final stretch in which the position stays within 4σ of where the
-       record ends (the cart at rest; it includes a soft bumper's static compression
-       g·sin θ/ω0², which makes the times late by that distance over the impact speed);
-       else the median point where incoming and outgoing parabolas meet (past the bumper by
-       a long contact; noted).
-    8. Speeds: the parabolas' slopes at those crossings, √(b² + 2a·D) with D the distance
-       left; 1σ by linear propagation of the fit covariance and of the bumper position's
-       uncertainty.
+       leaves it at the end of contact. The bumper position is the ``bumper_position``
+       argument; else the median of the second half of the final stretch in which the
+       position stays within 4σ of where the record ends (the cart at rest; it includes a
+       soft bumper's static compression g·sin θ/ω0², which makes the times late by that
+       distance over the impact speed); else the median point where incoming and outgoing
+       parabolas meet (past the bumper by a long contact; noted).
+    8. Speeds: each leg's slope at those crossings, √(b² + 2a·D) with D the distance left and
+       a that leg's acceleration, so the impact speed of a bounce and the rebound speed of
+       the one before are measured separately; 1σ by linear propagation of the fit covariance
+       and of the bumper position's uncertainty.
 
-    Reversals whose incoming flight has fewer than two free samples are dropped (noted); an
-    impact whose outgoing flight is too short keeps its time and impact speed with a NaN
-    rebound speed.
+    Every reversal is reported. One whose incoming or outgoing flight has fewer than two free
+    samples in the fit is flagged "few_samples" and timed by what it has: the incoming
+    parabola, else the outgoing one (the contact end), else the midpoint of the samples where
+    the velocity turned (1σ: their spacing/√12); the speed it cannot measure is NaN. The
+    train ends at its last reversal with two free samples on each side: flagged contacts
+    after it (the smallest bounces, timed by the noise) are left out, noted; so is a contact
+    whose fitted flight never reaches the bumper position.
     """
     if bumper_position is not None:
         bumper_position = check_range("bumper_position", bumper_position,
