@@ -28,6 +28,7 @@ from dashpot.store import (
     write_summary,
 )
 from dashpot.synth.scene import write_scene
+from dashpot.truth import truth_comparison
 
 MODELS = ("Ia", "IIb")
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "hdf5-layout.md"
@@ -191,6 +192,33 @@ def _truth_tree():
     """path -> (unit, type) of the `truth` section's text block."""
     section = DOCS.read_text().split("## `truth`", 1)[1].split("\n## ", 1)[0]
     return _parse_tree(re.search(r"```text\n(.*?)```", section, flags=re.S).group(1))
+
+
+def test_truth_table_is_stored_as_documented(written, tmp_path):
+    """A synthetic scene's truth against fit: the `truth` group of the layout's own section,
+    read back by read_fit, and absent from files written without it."""
+    truth_json = written["recording"].parent / "truth.json"
+    table = truth_comparison(truth_json, written["scene_fit"])
+    path = tmp_path / "truth.h5"
+    write_scene_fit(path, written["scene_fit"], written["impacts"], truth=table)
+    datasets = _datasets(path)
+    found = {_generic(name): (attrs["units"], _dtype_name(values.dtype))
+             for name, (values, attrs) in datasets.items() if name.startswith("truth/")}
+    documented = _truth_tree()
+    assert found == {path: item for path, item in documented.items() if item is not None}
+    with h5py.File(path, "r") as source:
+        assert list(source["truth"].attrs["columns"]) == [
+            p.rsplit("/", 1)[1] for p in documented if not p.endswith("/")]
+        assert source["truth"].attrs["model"] == "IIb"
+        assert source["truth"].attrs["source"] == "truth.json"
+    stored = read_fit(path)["truth"]
+    pd.testing.assert_frame_equal(stored, table)
+    assert stored.attrs == {"model": "IIb", "source": "truth.json"}
+    # The scene's generator (write_scene above): β = 30 1/s, ω0 = 3000 rad/s, v0 = 1.5 m/s.
+    truths = stored.set_index("parameter")["truth"]
+    assert truths.to_dict() == pytest.approx({"beta": 30, "omega0": 3000, "zeta": 0.01,
+                                              "v0": 1.5})
+    assert "truth" not in read_fit(written["path"])
 
 
 def test_every_dataset_has_a_unit(written):
