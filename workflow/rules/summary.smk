@@ -1,5 +1,6 @@
 rule summary:
-    """One row per scene and model: β, k, ω0, ζ, v0 with errors and the model selection.
+    """One row per scene and model: β, k, ω0, ζ, v0 with errors and the model selection, and
+    for synthetic scenes their truth and each fit's pulls (summary.csv: units in the headers).
 
     Scenes that are not up to date (broken, or whose last fit failed) are listed with their
     status and problem, so a broken scene never stops the summary (see summary_input).
