@@ -155,7 +155,7 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
         np.ascontiguousarray(zeta), np.ascontiguousarray(vtilde0), count, table.coef,
         table.x_start, table.x_step, table.y_start, table.y_step, table.critical_coef,
         table.critical_start, table.critical_step, ZETA_MAX[model], table.y_max,
-        model == "Ib", model != "IIb", *_flight_arrays(flight, zeta.size))
+        model == "Ib", model != "IIb", *_flight_arrays(flight))
     error_bound = np.zeros(zeta.size)
     evaluations = 1
     rest = np.flatnonzero(outcome != _DONE)
@@ -175,10 +175,13 @@ def surrogate_trains(model, zeta, vtilde0, count, *, level="fast", start=None, r
                         flight)
 
 
-def _flight_arrays(flight, trains):
-    """The kernel's flight arguments: contiguous (up, down, drag) and whether to use them."""
+_NO_FLIGHT = np.zeros(0)  # the kernel's flight arrays where it flies gravity's flight
+
+
+def _flight_arrays(flight):
+    """The kernel's flight arguments: contiguous (up, down, drag) and whether to use them
+    (empty arrays, not read, under gravity: nothing allocated per call)."""
     if flight is None:
-        unused = np.ones(trains)
-        return unused, unused, np.zeros(trains), False
+        return _NO_FLIGHT, _NO_FLIGHT, _NO_FLIGHT, False
     return (*(np.ascontiguousarray(value, dtype=float)
               for value in (flight.up, flight.down, flight.drag)), True)
