@@ -22,10 +22,11 @@ from .flight import (  # noqa: E402
     effective_gravity,
     gravity_flight,
     incline_flight,
+    track_flight,
 )
 
 __all__ += ["Flight", "drag_constant", "drag_flight", "effective_gravity", "gravity_flight",
-            "incline_flight"]
+            "incline_flight", "track_flight"]
 from .laws import (  # noqa: E402
     LADDER,
     LAWS,
