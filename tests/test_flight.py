@@ -22,6 +22,7 @@ from dashpot.physics.flight import (
     incline_flight,
     rise_time,
     terminal_speed,
+    track_flight,
 )
 
 G = 9.81
@@ -205,5 +206,51 @@ def test_arrays_broadcast_to_one_shape():
     (lambda: drag_constant(0.0, 0.04, 0.45, 1.2), "mass"),
 ])
 def test_bad_arguments_name_themselves(call, name):
+    with pytest.raises(ValueError, match=f"^{name} must"):
+        call()
+
+
+def track_reference(speed, up, down, drag):
+    """Duration and landing speed of the track flight at 40 digits, from the textbook steps:
+    rise t = atan(w)/√(k a_up) to h = ln(1 + w²)/2k, fall from rest cosh(√(k a_down)t) = e^(kh),
+    landing at √(a_down/k)·tanh(√(k a_down)t); without drag, uniform acceleration."""
+    with mpmath.workdps(40):
+        u, up, down, k = (mpmath.mpf(value) for value in (speed, up, down, drag))
+        if k == 0:
+            height = u * u / (2 * up)
+            fall = mpmath.sqrt(2 * height / down)
+            return u / up + fall, down * fall
+        w = u * mpmath.sqrt(k / up)
+        height = mpmath.log1p(w * w) / (2 * k)
+        fall = mpmath.acosh(mpmath.exp(k * height)) / mpmath.sqrt(k * down)
+        return (mpmath.atan(w) / mpmath.sqrt(k * up) + fall,
+                mpmath.sqrt(down / k) * mpmath.tanh(mpmath.sqrt(k * down) * fall))
+
+
+@pytest.mark.parametrize("up, down", [(2.95, 2.84), (9.6, 9.6), (1.0, 0.5)])
+@pytest.mark.parametrize("drag", [0.0, 1e-9, 0.125, 3.0])
+@pytest.mark.parametrize("speed", [1e-3, 0.7, 2.3, 50.0])
+def test_track_flight_keeps_its_digits(speed, up, down, drag):
+    flight = track_flight(speed, up, down, drag)
+    duration, landing = track_reference(speed, up, down, drag)
+    assert float(flight.duration) == pytest.approx(float(duration), rel=4e-15)
+    assert float(flight.landing_speed) == pytest.approx(float(landing), rel=4e-15)
+
+
+def test_track_flight_holds_the_drag_and_incline_laws():
+    speeds = np.array([0.0, 0.3, 2.3, 17.0])
+    for track, other in ((track_flight(speeds, 9.6, 9.6, 0.125), drag_flight(speeds, 9.6, 0.125)),
+                         (track_flight(speeds, 2.95, 2.84), incline_flight(speeds, 2.95, 2.84))):
+        for name in ("duration", "landing_speed", "duration_slope", "landing_slope"):
+            np.testing.assert_allclose(getattr(track, name), getattr(other, name), rtol=1e-15)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: track_flight(-1.0, 2.0, 1.9, 0.0), "speed"),
+    (lambda: track_flight(1.0, 0.0, 1.9, 0.0), "up"),
+    (lambda: track_flight(1.0, 2.0, -1.0, 0.0), "down"),
+    (lambda: track_flight(1.0, 2.0, 1.9, -0.1), "drag"),
+])
+def test_track_flight_bad_arguments_name_themselves(call, name):
     with pytest.raises(ValueError, match=f"^{name} must"):
         call()
