@@ -190,7 +190,8 @@ def _analyze(args, console):
         raise InputError(out, "is a file; give the folder to write into")
     models = tuple(args.models or scene.models)
     with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
-              disable=True if console.quiet else None) as bar:
+              # -v logs each step on standard error: a bar there would break its lines.
+              disable=True if console.quiet or console.verbose else None) as bar:
         def progress(step, total, text):
             bar.total = total + 2  # the fits (noise fits among them), then writing, figures
             bar.set_postfix_str(text)
