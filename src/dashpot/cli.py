@@ -170,9 +170,11 @@ def _fit(args, console):
 def _analyze(args, console):
     import shutil
     import tempfile
+
     from tqdm import tqdm
 
     from .analysis import analyze, recording_note
+    from .atomic import atomic_path
     from .figures import load_record, save_scene_figures
     from .fit.data import flight_notes
     from .fit_report import parameter_table, report_text
@@ -216,8 +218,12 @@ def _analyze(args, console):
                                 config=_config(scene_fit))
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / h5.name, error) from None
-            _write_csv_atomically(parameter_table(scene_fit),
-                                  staging / f"{name}-parameters.csv", [recording])
+            parameters = f"{name}-parameters.csv"
+            try:
+                with atomic_path(staging / parameters) as temporary:
+                    parameter_table(scene_fit).to_csv(temporary, index=False)
+            except OSError as error:
+                raise _cannot_write(out / parameters, error) from None
             bar.update(1)
             bar.set_postfix_str("figures")
             # The detection figure reads the sound itself: only where the impacts came from
@@ -236,7 +242,7 @@ def _analyze(args, console):
             if created:
                 _remove_if_empty(out)
     console.say(f"{recording}: {len(impacts)} impacts -> {out / f'{name}.h5'}, "
-                f"{out / f'{name}-parameters.csv'}, figures in {out / name}/")
+                f"{out / parameters}, figures in {out / name}/")
     console.say(report_text(scene_fit, notes=[recording_note(recording,
                                                              scene if args.scene else None),
                                               *flight_notes(scene)],
