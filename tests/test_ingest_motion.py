@@ -242,6 +242,24 @@ def test_capstone_three_runs_every_reversal_in_every_file_type(tmp_path, capston
         assert "OpenDocument" in notes
 
 
+def test_blanks_only_matter_between_the_values_read(tmp_path, capstone_three_runs):
+    """Capstone's unused velocity column may have blanks anywhere (the position is read); a
+    blank between the position values of a run is an error naming the row and the column."""
+    frame, _ = capstone_three_runs
+    reference = read_motion_sensor(write_format(frame, tmp_path, "capstone-csv"))
+    holed = frame.copy()
+    holed.loc[40:42, "Velocity (m/s) Run #2"] = np.nan  # inside run 2, not read
+    path = tmp_path / "velocity-gap.csv"
+    write_capstone_csv(holed, path)
+    np.testing.assert_array_equal(read_motion_sensor(path)["time"], reference["time"])
+    holed.loc[57, "Position (m) Run #2"] = np.nan
+    path = tmp_path / "position-gap.csv"
+    write_capstone_csv(holed, path)
+    with pytest.raises(InputError, match=r"position-gap\.csv, row 58: Position \(m\) Run #2 is "
+                                         r"missing inside the run"):
+        read_motion_sensor(path)
+
+
 @pytest.mark.parametrize("rate", [20.0, 30.0, 50.0])
 def test_five_degree_incline_every_bounce_timed_from_the_first(tmp_path, rate):
     """A cart released from rest on a 5° incline, sampled at 20-50 Hz: the first bounce (after
@@ -260,6 +278,35 @@ def test_five_degree_incline_every_bounce_timed_from_the_first(tmp_path, rate):
     assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
     # The first impact, the fastest, within 2 ms (its flight is the longest).
     assert abs(found["time"].iloc[0] - truth["impact_times"][0]) < 2e-3
+
+
+@pytest.mark.parametrize("rate", [20.0, 50.0])
+def test_many_small_bounces_found_down_to_the_noise(tmp_path, rate):
+    """ε = 0.9 on a 5° incline: 16 reversals, the last rebounds under 0.1 m/s (bounces of a
+    few mm, 1 mm noise). Three runs side by side. Every impact reported is a distinct true
+    one timed within 4 of its stated σ, and every reversal rebounding at 0.15 m/s or more
+    (bounces of 12 mm, 12σ of the noise, and more) is found."""
+    rng = np.random.default_rng([SEED, 11, int(rate)])
+    runs, truths = [], []
+    for _ in range(3):
+        distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=0.5,
+                                        restitution=0.9, v_stick=0.08,
+                                        lead=0.5 + rng.uniform(0, 0.05))
+        runs.append(capstone_run(distance, truth["end"], rate=rate, noise=1e-3, rng=rng))
+        truths.append(truth)
+    path = tmp_path / "many.csv"
+    write_capstone_csv(capstone_table(runs), path)
+    impacts = read_motion_sensor(path)
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run]
+        rebounded = truth["rebound_speeds"] > 0
+        times = truth["impact_times"][rebounded]
+        distance = np.abs(found["time"].to_numpy()[:, None] - times[None, :])
+        nearest = distance.argmin(axis=1)
+        assert np.unique(nearest).size == nearest.size  # none counted twice, none invented
+        assert np.all(distance.min(axis=1) <= 4.0 * found["time_uncertainty"].to_numpy())
+        clear = np.flatnonzero(truth["rebound_speeds"][rebounded] >= 0.15)
+        assert set(clear) <= set(nearest), (clear, nearest)
 
 
 def test_leg_accelerations_are_measured_separately(tmp_path):

@@ -1639,6 +1639,16 @@ def _motion_run(run, bumper_position, notes, legs):
         & (time < hi_time[np.clip(refined, 0, None)])
     if "position" in run.columns:
         keep &= s < bumper - 3.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+        # One flight is one excursion from the bumper: where a cut spans several (bounces too
+        # small to show a reversal), only its longest run of off-bumper samples is kept.
+        same = np.concatenate([[False], keep[:-1] & keep[1:] & (refined[:-1] == refined[1:])])
+        excursion = np.where(keep, np.cumsum(keep & ~same), 0)
+        if excursion.max() > 0:
+            length = np.bincount(excursion)[1:]
+            owner = refined[np.flatnonzero(keep & ~same)]
+            order = np.lexsort((-length, owner))
+            longest = order[np.concatenate([[True], owner[order][1:] != owner[order][:-1]])]
+            keep &= np.isin(excursion, longest + 1)
     second = fit_legs(np.where(keep, refined, -1))
     result = second if second is not None else first
     if source == "meet":
@@ -1705,8 +1715,125 @@ def _motion_run(run, bumper_position, notes, legs):
     speed_sd = np.fmax(cross["sd_v_in"], cross["sd_v_out"])
     speed_sd = np.where(np.isfinite(speed_sd), speed_sd, np.fmin(cross["sd_v_in"],
                                                                  cross["sd_v_out"]))
-    return (impact_time[reported], time_sd[reported], cross["v_in"][reported],
-            cross["v_out"][reported], speed_sd[reported], flags)
+    found = (impact_time[reported], time_sd[reported], cross["v_in"][reported],
+             cross["v_out"][reported], speed_sd[reported], flags)
+    if "position" in run.columns and reported.any() and result["split"]:
+        # The last bounces: too slow for a velocity reversal beyond the noise, but each still
+        # an excursion from the bumper of two samples or more.
+        tail = _tail_excursions(time, s, bumper, var_bumper, sigma_x, result,
+                                float(impact_time[reported][-1]))
+        if tail[0].size:
+            notes.append(f"run '{label}': {tail[0].size} later contact(s) between excursions "
+                         f"from the bumper of two or more samples, too slow for a velocity "
+                         f"reversal beyond the noise, timed by parabolas with the fitted leg "
+                         f"accelerations")
+            found = tuple(np.concatenate([a, b]) for a, b in zip(found, tail))
+    # Past the last resolved reversal the bounces shrink into the noise: the train ends where
+    # an impact's timing noise exceeds a quarter of the change between successive intervals,
+    # (1 − r)·interval/4 with r the median interval ratio so far, beyond which intervals
+    # would no longer shrink bounce by bounce (a ratio above 1 would be a 3σ event before).
+    times, sigmas = found[0], found[1]
+    resolved_times = impact_time[reported & real_reversal & is_impact]
+    trailing = times > (resolved_times[-1] if resolved_times.size else np.inf)
+    if times.size >= 4 and trailing.any():
+        intervals = np.diff(times)
+        ratio = float(np.median(intervals[1:][~trailing[2:]] / intervals[:-1][~trailing[2:]])) \
+            if np.any(~trailing[2:]) else np.nan
+        if np.isfinite(ratio) and ratio < 1.0:
+            noisy = trailing[1:] & (sigmas[1:] > (1.0 - ratio) * intervals / 4.0)
+            if noisy.any():
+                cut = int(np.flatnonzero(noisy)[0]) + 1
+                notes.append(f"run '{label}': {times.size - cut} last contact(s) left out: their "
+                             f"timing noise exceeds a quarter of the change between successive "
+                             f"intervals (median interval ratio {ratio:.3f})")
+                found = tuple(a[:cut] for a in found)
+    return found
+
+
+def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
+    """Contacts after time `after` found as excursions of the position from the bumper.
+
+    An excursion is a run of two or more consecutive samples more than 4σ short of the bumper
+    (a resting cart's noise makes one sample in 30 000 do that, two in a row almost never).
+    The first excursion after `after` is the flight that follows the last contact found; each
+    later one follows a contact of its own. Each excursion is fitted with its own position and
+    velocity and the run's leg accelerations (fixed), about its apex (found by iterating);
+    a contact is timed where the parabola before it reaches the bumper, with speeds from
+    both parabolas, as in read_motion_sensor. Excursions stop at the first of fewer than two
+    samples.
+
+    Returns arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag).
+    """
+    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=object),)
+    margin = 4.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+    off = (s < bumper - margin) & (time > after)
+    starts, ends, values = _runs_of(off.astype(np.int8))
+    starts, ends = starts[values == 1], ends[values == 1]
+    long_enough = ends - starts + 1 >= 2
+    if not long_enough.any():
+        return empty
+    # Up to the first excursion too short to fit: later ones cannot be told from noise.
+    stop = np.flatnonzero(~long_enough)
+    starts, ends = starts[: stop[0] if stop.size else None], ends[: stop[0] if stop.size else None]
+    count = starts.size
+    if count < 2:
+        return empty
+    marker = np.zeros(time.size + 1, dtype=int)
+    np.add.at(marker, starts, 1)
+    np.add.at(marker, ends + 1, -1)
+    rows = np.flatnonzero(np.cumsum(marker)[:-1] > 0)
+    member = np.searchsorted(starts, rows, side="right") - 1
+    a_away, a_toward = fitted["theta"][:2]
+    n_k = np.bincount(member).astype(float)
+
+    def solve(apex):
+        """Per excursion s − a_leg·τ²/2 = c + b·τ by least squares (closed form from sums)."""
+        tau = time[rows] - apex[member]
+        y = s[rows] - 0.5 * np.where(tau >= 0, a_toward, a_away) * tau ** 2
+        st, stt = np.bincount(member, tau), np.bincount(member, tau ** 2)
+        sy, sty = np.bincount(member, y), np.bincount(member, tau * y)
+        det = n_k * stt - st ** 2
+        c, b = (stt * sy - st * sty) / det, (n_k * sty - st * sy) / det
+        # Covariance of (c, b) for white noise of σ_x.
+        return c, b, sigma_x ** 2 * stt / det, sigma_x ** 2 * n_k / det, -sigma_x ** 2 * st / det
+
+    apex = np.bincount(member, weights=time[rows]) / n_k
+    for _ in range(3):  # the apex moves by a fraction of a sample after the first pass
+        c, b, *_ = solve(apex)
+        apex = apex + np.where(b > 0, -b / a_away, -b / a_toward)
+    c, b, var_c, var_b, cov_cb = solve(apex)
+    cov_a = np.diag(fitted["covariance"])[:2]
+
+    def edge(k, times, toward):
+        """(a, c, b, cov of (a, c, b)) of excursion k's leg at the edge times."""
+        delta = times - apex[k]
+        a = a_toward if toward else a_away
+        ce = c[k] + b[k] * delta + 0.5 * a * delta ** 2
+        be = b[k] + a * delta
+        jac = np.zeros((k.size, 3, 3))
+        jac[:, 0, 0] = 1.0
+        jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = 0.5 * delta ** 2, 1.0, delta
+        jac[:, 2, 0], jac[:, 2, 2] = delta, 1.0
+        cov = np.zeros((k.size, 3, 3))
+        cov[:, 0, 0] = cov_a[1] if toward else cov_a[0]
+        cov[:, 1, 1], cov[:, 2, 2] = var_c[k], var_b[k]
+        cov[:, 1, 2] = cov[:, 2, 1] = cov_cb[k]
+        return a, ce, be, jac @ cov @ np.swapaxes(jac, 1, 2)
+
+    k_in = np.arange(count - 1)
+    a_in, c_in, b_in, cov_in = edge(k_in, time[ends[:-1]], toward=True)
+    a_out, c_out, b_out, cov_out = edge(k_in + 1, time[starts[1:]], toward=False)
+    tau_in, v_in, sd_t, sd_v_in = _crossing(a_in, c_in, b_in, cov_in, bumper, var_bumper,
+                                            incoming=True)
+    _, v_out, _, sd_v_out = _crossing(a_out, c_out, b_out, cov_out, bumper, var_bumper,
+                                      incoming=False)
+    impact = time[ends[:-1]] + tau_in
+    ok = np.isfinite(impact) & (impact < time[starts[1:]])
+    if not ok.all():  # a parabola that misses the bumper ends the tail there
+        last = np.flatnonzero(~ok)[0]
+        ok = np.arange(ok.size) < last
+    return (impact[ok], sd_t[ok], v_in[ok], v_out[ok], np.fmax(sd_v_in, sd_v_out)[ok],
+            np.full(int(ok.sum()), "ok", dtype=object))
 
 
 def _table_of_kind(path, kind, missing, expected):
@@ -1824,6 +1951,14 @@ def read_motion_sensor(path, *, bumper_position=None):
     train ends at its last reversal with two free samples on each side: flagged contacts
     after it (the smallest bounces, timed by the noise) are left out, noted; so is a contact
     whose fitted flight never reaches the bumper position.
+
+    After the last reversal, bounces too slow to pass the velocity threshold are still found
+    as excursions of the position from the bumper: runs of two or more samples more than 4σ
+    short of it, each fitted with its own position and velocity and the run's two leg
+    accelerations; a contact lies between consecutive excursions. The train ends where an
+    impact's timing noise exceeds a quarter of the change between successive intervals,
+    (1 − r)·interval/4 with r the median interval ratio: beyond it the intervals no longer
+    shrink bounce by bounce within the noise.
     """
     if bumper_position is not None:
         bumper_position = check_range("bumper_position", bumper_position,
