@@ -498,50 +498,60 @@ class StepTable:
 
 
 @numba.njit(cache=True)
-def _hermite(nodes, values, slopes, member, j, speed, quantity):
-    """Cubic Hermite interpolant of one tabulated quantity and its u-derivative at `speed`."""
-    left, right = nodes[j], nodes[j + 1]
-    width = right - left
+def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, hint=-1):
+    """(found, D, L, dD/du, dL/du, timing gain, speed gain, interval) from the table at
+    `speed` (m/s), looked for first in interval `hint`;
+    found is false off the grid or in an interval with an unusable node. Cubic Hermite
+    interpolation in u between the two nodes around `speed` (the basis computed once for the
+    four quantities)."""
+    last = nodes.size - 1
+    if not (speed >= nodes[0] and speed <= nodes[last]):  # also false for NaN
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1
+    if hint >= 0 and hint < last and nodes[hint] <= speed <= nodes[hint + 1]:
+        j = hint  # the interval of the step before: a ball slows by a few % per bounce
+    else:
+        j = min(int((math.log(speed) - log_low) / log_step), last - 1)
+        # The logarithm's rounding may put a speed next to a node one interval off.
+        if speed < nodes[j] and j > 0:
+            j -= 1
+        elif speed > nodes[j + 1] and j + 1 < last:
+            j += 1
+    if unusable[member, j] or unusable[member, j + 1]:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1
+    left = nodes[j]
+    width = nodes[j + 1] - left
     s = (speed - left) / width
     s2 = s * s
     s3 = s2 * s
-    y0, y1 = values[member, j, quantity], values[member, j + 1, quantity]
-    m0, m1 = slopes[member, j, quantity] * width, slopes[member, j + 1, quantity] * width
-    value = ((2.0 * s3 - 3.0 * s2 + 1.0) * y0 + (s3 - 2.0 * s2 + s) * m0
-             + (3.0 * s2 - 2.0 * s3) * y1 + (s3 - s2) * m1)
-    slope = ((6.0 * s2 - 6.0 * s) * y0 + (3.0 * s2 - 4.0 * s + 1.0) * m0
-             + (6.0 * s - 6.0 * s2) * y1 + (3.0 * s2 - 2.0 * s) * m1) / width
-    return value, slope
-
-
-@numba.njit(cache=True)
-def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable):
-    """(found, D, L, dD/du, dL/du, timing gain, speed gain) from the table at `speed` (m/s);
-    found is false off the grid or in an interval with an unusable node."""
-    last = nodes.size - 1
-    if not (speed >= nodes[0] and speed <= nodes[last]):  # also false for NaN
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    j = min(int((math.log(speed) - log_low) / log_step), last - 1)
-    # The logarithm's rounding may put a speed next to a node one interval off.
-    if speed < nodes[j] and j > 0:
-        j -= 1
-    elif speed > nodes[j + 1] and j + 1 < last:
-        j += 1
-    if unusable[member, j] or unusable[member, j + 1]:
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    duration, duration_slope = _hermite(nodes, values, slopes, member, j, speed, 0)
-    landing, landing_slope = _hermite(nodes, values, slopes, member, j, speed, 1)
-    timing_gain, _ = _hermite(nodes, values, slopes, member, j, speed, 2)
-    speed_gain, _ = _hermite(nodes, values, slopes, member, j, speed, 3)
-    return True, duration, landing, duration_slope, landing_slope, timing_gain, speed_gain
+    # Hermite basis: values at the left and right node, slopes (times the width) there.
+    h00, h10 = 2.0 * s3 - 3.0 * s2 + 1.0, (s3 - 2.0 * s2 + s) * width
+    h01, h11 = 3.0 * s2 - 2.0 * s3, (s3 - s2) * width
+    # Their derivatives in u.
+    d00, d10 = (6.0 * s2 - 6.0 * s) / width, 3.0 * s2 - 4.0 * s + 1.0
+    d01, d11 = -d00, 3.0 * s2 - 2.0 * s
+    k = j + 1
+    v, m = values, slopes
+    duration = (h00 * v[member, j, 0] + h10 * m[member, j, 0] + h01 * v[member, k, 0]
+                + h11 * m[member, k, 0])
+    landing = (h00 * v[member, j, 1] + h10 * m[member, j, 1] + h01 * v[member, k, 1]
+               + h11 * m[member, k, 1])
+    timing_gain = (h00 * v[member, j, 2] + h10 * m[member, j, 2] + h01 * v[member, k, 2]
+                   + h11 * m[member, k, 2])
+    speed_gain = (h00 * v[member, j, 3] + h10 * m[member, j, 3] + h01 * v[member, k, 3]
+                  + h11 * m[member, k, 3])
+    duration_slope = (d00 * v[member, j, 0] + d10 * m[member, j, 0] + d01 * v[member, k, 0]
+                      + d11 * m[member, k, 0])
+    landing_slope = (d00 * v[member, j, 1] + d10 * m[member, j, 1] + d01 * v[member, k, 1]
+                     + d11 * m[member, k, 1])
+    return True, duration, landing, duration_slope, landing_slope, timing_gain, speed_gain, j
 
 
 @numba.njit(cache=True)
 def _interpolate_many(speed, members, log_low, log_step, nodes, values, slopes, unusable, out,
                       ok):
     for i in range(speed.size):
-        found, d, l, fd, fl, gt, gu = _step_at(speed[i], members[i], log_low, log_step, nodes,
-                                               values, slopes, unusable)
+        found, d, l, fd, fl, gt, gu, _ = _step_at(speed[i], members[i], log_low, log_step,
+                                                  nodes, values, slopes, unusable)
         ok[i] = found
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = d, l, fd, fl, gt, gu
 
@@ -564,6 +574,7 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
         p_tt = p_tu = p_uu = 0.0
         value = 0.0
         broken = False
+        interval = -1
         for n in range(count):
             y = times[b, n]
             timing = timing_variance[b, n]
@@ -594,8 +605,9 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
             out[4, b, n] = u
             if n == count - 1:
                 break
-            found, duration, landing, f_tu, f_uu, g_t, g_u = _step_at(
-                max(u, 0.0), member, log_low, log_step, nodes, values, slopes, unusable)
+            found, duration, landing, f_tu, f_uu, g_t, g_u, interval = _step_at(
+                max(u, 0.0), member, log_low, log_step, nodes, values, slopes, unusable,
+                interval)
             if not found:
                 off_grid[b] = True
                 stop_speed[b] = max(u, 0.0)

@@ -25,9 +25,35 @@ stiffness with a mass fixes or gives a prior on v* of the dashpot models. Priors
 ((p − c)/sd)² to −2 ln L. Where the scene models air drag (mass and diameter) the flight is the
 drag flight at the scene's k_d and g_eff, taken as exact here.
 
+Accuracy. The filter needs, at every impact of every parameter set, the step to the next
+impact: duration D(u) = τ(u) + T(R(u)), next impact speed L(R(u)) and their slopes. At the
+"exact" level these are evaluated directly, impact by impact (a numpy loop over the impacts,
+one collision per step for a dashpot model). At "fast" and "standard" the step map of each
+distinct set of law parameters in a batch is tabulated once per likelihood call on a grid of
+speeds (GRID_BELOW to GRID_ABOVE times the speeds the intervals imply, 8 or 32 nodes per
+e-fold, :meth:`dashpot.likelihood.TrainModel.tabulate`; the dashpot models' collisions from
+the certified surrogate tables of that level) and the filter runs over its cubic Hermite
+interpolant in a compiled loop (:class:`dashpot.likelihood.StepTable`); a parameter set whose
+filter leaves the grid is evaluated directly. Measured on the ping-pong recording, the
+fast level's step map is within 3e-7 (relative) of the direct one, its −2 ln L within 3e-4
+and its fitted parameters within 3e-4 standard errors; the standard level's within 2e-9,
+2e-6 and 3e-4 (benchmarks/bench_noise.py prints these for every law). "auto" fits at fast and
+checks at the best fit: where −2 ln L is more than LEVEL_LIKELIHOOD_TOLERANCE = 0.01 from the
+direct evaluation's, or a predicted time more than LEVEL_TIMING_TOLERANCE = 1 % of the
+smallest timing σ, it fits again at the next level (as the deterministic fits' "auto" takes
+the cheapest level that meets what the timing noise needs). A smooth error δ in −2 ln L moves
+the best fit by about δ's slope over the curvature: a δ of 0.01 varying on the scale of a
+standard error moves the parameters by about 0.01 of one. The result records the level
+(``accuracy``), the measured relative error of the step map on the train's speeds at the best
+fit (``error_bound``, 0 at "exact"; ``numerical_tolerance`` is that times the number of
+impacts, as in the deterministic fits), and the differences to the direct evaluation in the
+notes; the innovations, predictions and residuals reported are the direct filter's at the
+best fit.
+
 Optimizer. Every evaluation of the likelihood is a loop over the impacts with numpy over a
 batch of parameter sets, so a thousand parameter sets cost about as much as one (3 ms for 40
-impacts of a ladder law, 30 ms for a dashpot model). lmfit's scalar minimizers evaluate one set
+impacts of a ladder law, 15 ms for a dashpot model at the exact level, about 1 ms for either
+from a tabulated step map). lmfit's scalar minimizers evaluate one set
 at a time (Nelder–Mead: hundreds to thousands of calls), so the minimization is a damped Newton
 method with central-difference gradient and Hessian, all the stencil's points in one batch, and
 several starts of the noise parameters at once (from one start a fit can stop where σ_t → 0,
@@ -105,6 +131,9 @@ FAR = 50.0  # −2 ln L this far above the best fit is outside every interval re
 SOFT_UNIT_MAX = 3.0  # largest unit of ln σ: a flat direction must not send the steps afar
 # Profile grid, in standard errors of the profiled coordinate either side of the best fit.
 PROFILE_OFFSETS = np.array([0.75, 1.5, 2.25, 3.0, 4.5])
+# A law parameter's profile is continued outward in these stages (indices into
+# PROFILE_OFFSETS): the points of a stage are fitted at once.
+PROFILE_STAGES = ((0, 1, 2), (3, 4))
 # Profile grids of a noise parameter at (or near) 0, where its curvature says nothing.
 FLAT_GRIDS = {"sigma_eps": np.geomspace(1e-5, 0.1, 2 * PROFILE_OFFSETS.size),
               "sigma_j": np.geomspace(1e-7, 1e-2, 2 * PROFILE_OFFSETS.size)}
@@ -142,7 +171,7 @@ class NoiseFitResult(FitResult):
     timing_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
-def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy="auto"):
+def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy=None):
     """Fit one restitution law or dashpot model under the two-source noise model.
 
     Parameters
@@ -158,8 +187,10 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy
         deterministic train) or ``{"sigma_j": 0.0}`` (the detector's σ taken at its word).
     profile : bool, default True
         Profile-likelihood intervals of the law's parameters and σ_ε (else the Hessian's).
-    accuracy : {"auto", "fast", "standard", "exact"}, default "auto"
-        How the law and flight are evaluated in the filter (module notes, *Accuracy*):
+    accuracy : {"auto", "fast", "standard", "exact"}, optional
+        How the law and flight are evaluated in the filter (module notes, *Accuracy*);
+        default the scene's (``Scene.accuracy``, itself "auto" by default), as in
+        :func:`dashpot.fit.fit_model`:
         "exact" at every step, "fast" and "standard" from a table of the step map with
         nodes 1/8 and 1/32 apart in ln u; "auto" takes the cheapest level whose −2 ln L at
         the best fit is within 0.01 of the direct evaluation's and whose predicted times are
@@ -186,7 +217,7 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy
                             accuracy=accuracy)[0]
 
 
-def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, accuracy="auto"):
+def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, accuracy=None):
     """Fit one law to each of several data sets of one scene, all in one batch.
 
     Parameters
@@ -204,13 +235,14 @@ def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, acc
     """
     if law not in LAWS:
         raise ValueError(f"law must be one of {', '.join(map(repr, LAWS))}; got {law!r}")
+    scene = scene or Scene()
+    accuracy = accuracy or getattr(scene, "accuracy", "auto")
     if accuracy not in ("auto", *ACCURACY_LEVELS):
         raise ValueError(f"accuracy must be auto, {', '.join(ACCURACY_LEVELS)}; got "
                          f"{accuracy!r}")
     datasets = list(datasets)
     if not datasets:
         return []
-    scene = scene or Scene()
     fixed = dict(fixed or {})
     levels = ACCURACY_LEVELS if accuracy == "auto" else (accuracy,)
     for level in levels:
@@ -647,23 +679,27 @@ class _Problem:
             else:
                 # A law's parameters may lie in a curved valley (ζ and v* of a dashpot model
                 # near the gravity-free limit): continued outward from the best fit, both
-                # sides at once, each point started from the one before.
+                # sides at once, in stages (PROFILE_STAGES), the points of a stage started
+                # from the outermost point of the one before, along the path found there.
                 size = PROFILE_OFFSETS.size
                 values = np.full(grid.shape, np.inf)
                 previous = np.repeat(best.params[:, None, :], 2, axis=1)
                 path = np.repeat(slope[:, None, :], 2, axis=1)
                 evaluations = 0
-                for stage in range(size):
-                    columns = [size - 1 - stage, size + stage]
-                    fitted = self._profile_points(previous, grid[:, columns], i, others, path,
-                                                  units, trains, best.value)
+                for stage in PROFILE_STAGES:
+                    count = len(stage)
+                    columns = [size - 1 - k for k in stage] + [size + k for k in stage]
+                    fitted = self._profile_points(
+                        np.repeat(previous, count, axis=1), grid[:, columns], i, others,
+                        np.repeat(path, count, axis=1), units, trains, best.value)
                     values[:, columns] = fitted.value
                     evaluations += fitted.evaluations
+                    outer = [count - 1, 2 * count - 1]
                     with np.errstate(invalid="ignore", divide="ignore"):
-                        moved = (fitted.params[..., others] - previous[..., others]) / (
-                            grid[:, columns] - previous[..., i])[..., None]
+                        moved = (fitted.params[:, outer][..., others] - previous[..., others]) / (
+                            grid[:, [columns[k] for k in outer]] - previous[..., i])[..., None]
                     path = np.where(np.isfinite(moved), moved, path)
-                    previous = fitted.params
+                    previous = fitted.params[:, outer]
             reference = best.value if zero is None or name != "sigma_eps" else np.minimum(
                 best.value, zero.value)
             rise, centre, zero_rise = values - reference[:, None], best.params[:, i], None
@@ -1097,8 +1133,9 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
     """Minimize `objective` over the `free` columns for every (train, start) row at once.
 
     Damped Newton steps (H + λ·diag|H|) with central differences, all rows' stencils in one
-    objective call; the units of the free coordinates follow the standard errors (√(2/H_ii))
-    from one iteration to the next. Steps are clipped to the bounds and to ±3 units; a step
+    objective call (a row that has converged is left as it is and no longer evaluated); the
+    units of the free coordinates follow the standard errors (√(2/H_ii)) from one iteration
+    to the next. Steps are clipped to the bounds and to ±3 units; a step
     that does not lower the objective is retried with 8× the damping.
 
     Parameters
@@ -1146,17 +1183,25 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
 
     units = capped(units, params)
 
-    def evaluate(params, units):
-        """Objective at the stencil's points around every row: (trains, starts, points)."""
-        rows = np.repeat(params[:, :, None, :], offsets.shape[0], axis=2)
-        rows[..., free] += offsets * units[:, :, None, :]
-        return objective(rows.reshape(shape[0], -1, rows.shape[-1]), trains).reshape(
-            shape + (offsets.shape[0],))
+    def evaluate(params, units, active, previous, offsets=offsets):
+        """Objective at the stencil's points around the active rows: (trains, starts,
+        points), the inactive rows' from `previous` (inf if None)."""
+        where = np.nonzero(active)
+        rows = np.repeat(params[where][:, None, :], offsets.shape[0], axis=1)
+        rows[..., free] += offsets * units[where][:, None, :]
+        out = (np.full(shape + (offsets.shape[0],), np.inf) if previous is None
+               else previous.copy())
+        if rows.shape[0]:
+            out[where] = objective(rows, trains[where[0]])
+        return out, rows.shape[0] * offsets.shape[0]
 
+    # Rows done (or without a finite objective) are frozen: no longer evaluated or moved.
+    frozen = np.zeros(shape, bool)
+    values = None
     with np.errstate(invalid="ignore", over="ignore"):  # inf − inf where a point is invalid
         for iteration in range(iterations):
-            values = evaluate(params, units)
-            evaluations += values.size
+            values, spent = evaluate(params, units, ~frozen, values)
+            evaluations += spent
             centre, gradient, hessian = _derivatives(values, count, pairs)
             usable = np.all(np.isfinite(values), axis=-1)
             scale = np.abs(np.diagonal(hessian, axis1=-2, axis2=-1)) + 1e-12
@@ -1170,10 +1215,10 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             actual = (moved[..., free] - params[..., free]) / units
             gain = -np.sum(gradient * actual, axis=-1) - 0.5 * np.einsum(
                 "...i,...ij,...j->...", actual, hessian, actual)
-            trial = objective(moved.reshape(shape[0], -1, moved.shape[-1]), trains).reshape(
-                shape)
-            evaluations += trial.size
-            better = trial < centre
+            trial, spent = evaluate(moved, units, ~frozen, None, np.zeros((1, count)))
+            trial = trial[..., 0]
+            evaluations += spent
+            better = (trial < centre) & ~frozen
             params = np.where(better[..., None], moved, params)
             damping = np.where(better, np.maximum(damping / 4.0, 1e-6),
                                np.minimum(damping * 8.0, 1e12))
@@ -1189,7 +1234,8 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             marginal = np.diagonal(np.linalg.inv(np.where(definite[..., None, None], safe,
                                                           np.eye(count))), axis1=-2, axis2=-1)
             factor = np.where(definite[..., None], np.sqrt(2.0 * np.abs(marginal)), factor)
-            units = capped(units * np.clip(factor, 0.01, 100.0), params)
+            units = np.where(frozen[..., None], units,
+                             capped(units * np.clip(factor, 0.01, 100.0), params))
             # Done where no step gains more than the tolerance, or no step is accepted at all.
             tolerance = CONVERGED if reference is None else CONVERGED + 1e-3 * np.maximum(
                 centre - reference[:, None], 0.0)
@@ -1198,10 +1244,11 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             if reference is not None and iteration >= 10:
                 # Far beyond every interval's level: where exactly does not matter.
                 done |= centre - reference[:, None] > FAR
-            if np.all(done | ~usable):
+            frozen |= done | ~usable
+            if np.all(frozen):
                 break
-        values = evaluate(params, units)
-        evaluations += values.size
+        values, spent = evaluate(params, units, np.ones(shape, bool), None)
+        evaluations += spent
         centre, _, hessian = _derivatives(values, count, pairs)
     # A Hessian that is not finite and positive definite gives no covariance (inf).
     usable = np.all(np.isfinite(values), axis=-1)

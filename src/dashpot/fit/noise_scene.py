@@ -18,7 +18,7 @@ from .settings import NOISE_LAWS
 __all__ = ["fit_noise_scene"]
 
 
-def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None):
+def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None, accuracy=None):
     """Fit every law of the ladder and every requested dashpot model under the noise model.
 
     Parameters
@@ -33,6 +33,12 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None):
         Restitution laws of :data:`dashpot.physics.laws.LAWS`.
     progress : callable, optional
         Called with each law's or model's name once it is fitted.
+    accuracy : {"auto", "fast", "standard", "exact"}, optional
+        Evaluation of the laws in the filter (:func:`dashpot.fit.fit_noise_model`; default
+        the scene's, "auto" unless it says otherwise): "auto"
+        takes, per law, the cheapest level whose likelihood at the best fit is within 0.01
+        of the direct evaluation's; each result records the level in ``accuracy`` and the
+        measured error of its tabulated step map in ``error_bound``.
 
     Returns
     -------
@@ -58,7 +64,7 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None):
     results = {}
     for law in dict.fromkeys(tuple(laws) + tuple(models)):
         try:
-            results[law] = fit_noise_model(data, law, scene)
+            results[law] = fit_noise_model(data, law, scene, accuracy=accuracy)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
             results[law] = failed_noise_fit(data, law, f"fit failed: {error}", data.notes)
         if progress is not None:
