@@ -41,7 +41,7 @@ def collect(estimates):
     return {name: np.array([float(getattr(e, name)) for e in estimates]) for name in FIELDS}
 
 
-def judge(estimates, truth):
+def judge(estimates, truth, rates=None):
     """Measured coverage and width of one parameter over the trials, and what fails.
 
     Parameters
@@ -49,6 +49,9 @@ def judge(estimates, truth):
     estimates : list of dashpot.fit.Estimate
         One per trial.
     truth : float
+    rates : dict, optional
+        Coverage rates asked of the "68" and "95" intervals where they are not the nominal
+        0.6827 and 0.9545 (a truth on the bound of the range).
 
     Returns
     -------
@@ -65,20 +68,22 @@ def judge(estimates, truth):
     measured = {"trials": trials}
     failures = []
     for level, rate in LEVELS:
+        rate = (rates or {}).get(level, rate)
         count = int(np.sum((row["low" + level] <= truth) & (truth <= row["high" + level])))
         measured["covered" + level] = count
         low, high = binomial_range(trials, rate)
         if not low <= count <= high:
             failures.append(f"{level} % interval holds the truth in {count}/{trials} trials "
                             f"(99.9 % binomial range {low}-{high})")
-    measured["halfwidth/spread"] = float(np.mean(row["high68"] - row["low68"]) / 2.0 / spread)
-    measured["stderr/spread"] = float(np.mean(row["stderr"]) / spread)
     # At a bound the 68.27 % and 95.45 % intervals end at the same place (σ fitted at 0, or
     # at its floor: low68 = low95 = 0): the interval is one-sided.
     measured["at bound"] = float(np.mean((row["low68"] == row["low95"])
                                          | (row["high68"] == row["high95"])))
-    if measured["at bound"] > AT_BOUND_SHARE:
+    if measured["at bound"] > AT_BOUND_SHARE or spread == 0.0:
+        measured["halfwidth/spread"] = measured["stderr/spread"] = float("nan")
         return measured, failures
+    measured["halfwidth/spread"] = float(np.mean(row["high68"] - row["low68"]) / 2.0 / spread)
+    measured["stderr/spread"] = float(np.mean(row["stderr"]) / spread)
     for key in ("halfwidth/spread", "stderr/spread"):
         if not WIDTH_RANGE[0] <= measured[key] <= WIDTH_RANGE[1]:
             failures.append(f"{key} = {measured[key]:.2f} (allowed {WIDTH_RANGE[0]}-"
@@ -86,8 +91,9 @@ def judge(estimates, truth):
     return measured, failures
 
 
-def judge_all(results, truth):
-    """:func:`judge` for every parameter of `truth` over fit results (``.estimates``).
+def judge_all(results, truth, rates=None):
+    """:func:`judge` for every parameter of `truth` over fit results (``.estimates``), with
+    the coverage rates ``rates[name]`` where given.
 
     Returns
     -------
@@ -98,7 +104,8 @@ def judge_all(results, truth):
     """
     lines, failures = [], []
     for name, true in truth.items():
-        measured, failed = judge([fit.estimates[name] for fit in results], true)
+        measured, failed = judge([fit.estimates[name] for fit in results], true,
+                                 (rates or {}).get(name))
         trials = measured["trials"]
         lines.append(f"{name:>9}: 68 % {measured['covered68']}/{trials}, 95 % "
                      f"{measured['covered95']}/{trials}, half-width/spread "

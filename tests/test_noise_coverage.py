@@ -21,10 +21,10 @@ from coverage_checks import judge_all
 from dashpot.fit import prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.likelihood import TrainModel
-from dashpot.physics.flight import gravity_flight
+from dashpot.physics.flight import drag_flight, gravity_flight
 from dashpot.physics.laws import LAWS, dashpot_contact_time
 from dashpot.physics.models import MODELS
-from dashpot.scene import Scene
+from dashpot.scene import Scene, scene_from_mapping
 
 G = 9.80665  # the default scene's g
 DETECTOR, JITTER, SCATTER = 10e-6, math.sqrt(3.0) * 10e-6, 0.003
@@ -32,66 +32,108 @@ SEED = 20261125  # the date these trials were set up; not tuned
 
 
 def simulated_trains(law, params, trials, *, count, speed, seed, scatter=SCATTER,
-                     jitter=JITTER):
+                     jitter=JITTER, scene=None):
     """FitData of `trials` trains of `law` (parameters in the registry's order); with
-    scatter = jitter = 0 the noise-free train."""
+    scatter = jitter = 0 the noise-free train. A scene with air drag (mass and diameter) flies
+    the trains with drag, at its k_d and effective gravity."""
+    scene = scene or Scene()
     params = [np.full(trials, float(p)) for p in params]
+    g = G
+    if scene.needs_drag:
+        g, k_d = scene.drag.effective_gravity.value, scene.drag.drag_constant.value
+
+        def flight(v):
+            return drag_flight(v, g, k_d)
+    else:
+        def flight(v):
+            return gravity_flight(v, g)
     contact = None
     if law in MODELS:
         def contact(impact_speed):
-            return dashpot_contact_time(law, impact_speed, *params, G)
-    model = TrainModel(LAWS[law].bind(*params), lambda v: gravity_flight(v, G), contact)
+            return dashpot_contact_time(law, impact_speed, *params, g)
+    model = TrainModel(LAWS[law].bind(*params), flight, contact)
     drawn = model.simulate(count, np.random.default_rng(seed), start_time=0.25,
                            start_speed=speed, process_sigma=scatter, jitter=jitter,
                            detector_sigma=DETECTOR)
     assert np.all(np.isfinite(drawn.times)), "the train must not be captured"
-    return [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": DETECTOR}), Scene())
+    data = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": DETECTOR}), scene)
             for times in drawn.times]
+    assert data[0].g == g
+    return data
 
 
-# law: (its parameters, impacts, first impact speed m/s, trials). The dashpot model's scene is
-# a soft contact (ω0 = g/v* = 150 rad/s, ṽ from 15 down to about 2.6) where its v*, and so ω0
-# and β, are determined by the train.
-SCENES = {
-    "constant": ((0.93,), 40, 2.0, 100),
-    "linear": ((0.97, 0.015), 40, 2.0, 60),
-    "Ib": ((0.04, 0.0654), 15, 1.0, 40),
+# Each case: law, its parameters, impacts, first impact speed (m/s), trains, and optionally the
+# scatter σ_ε (0: the deterministic train) and a scene. The dashpot model's train is a soft
+# contact (ω0 = g/v* = 150 rad/s, ṽ from 15 down to about 2.6) where its v*, and so ω0 and β,
+# are determined. The drag case is a table-tennis ball (2.7 g, 40 mm: k_d ≈ 0.125 1/m,
+# terminal speed 8.8 m/s), whose drag the noise fit takes from the scene and holds fixed (k_d is
+# not fitted, so it has no interval to judge).
+BALL = scene_from_mapping({"apparatus": {"mass": 0.0027, "diameter": 0.040}},
+                          source="table-tennis ball")
+CASES = {
+    "constant": dict(law="constant", params=(0.93,), count=40, speed=2.0, trials=100),
+    "linear": dict(law="linear", params=(0.97, 0.015), count=40, speed=2.0, trials=60),
+    "Ib": dict(law="Ib", params=(0.04, 0.0654), count=15, speed=1.0, trials=40),
+    "constant, no scatter": dict(law="constant", params=(0.93,), count=40, speed=2.0,
+                                 trials=60, scatter=0.0),
+    "constant, drag": dict(law="constant", params=(0.93,), count=40, speed=3.0, trials=60,
+                           scene=BALL),
 }
 # Measured with seed SEED + index, on the code as it stands: what fails and by how much.
 KNOWN_FAILURES = {
     "Ib": ("measured over 40 trains (seed SEED + 2): 95 % intervals hold the truth in 29/40 (v0) "
            "and 31/40 (beta), below the binomial range 33-40; 68 %: v0 18/40, beta 19/40; "
            "half-width/spread 0.58-0.75 and stderr/spread 0.58-0.66 for zeta, v_star, omega0 "
-           "and beta. In about a fifth of these 15-impact trains the fit puts sigma_eps at or "
-           "near 0 (the noise-free branch), and the intervals of v0 (Hessian) and of beta "
-           "(linear propagation) are then those of the deterministic train: too narrow while "
-           "zeta and v_star sit off the truth"),
+           "and beta. In 9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
+           "deterministic branch), and the intervals are then those of the deterministic "
+           "train: v0's 68 % interval holds the truth in 0/9 (half-width 0.5 mm/s against a "
+           "spread of 3 mm/s), beta's in 2/9. In the other 31, v0's 95 % interval holds it in "
+           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too"),
+    "constant, no scatter": (
+        "measured over 60 trains without scatter (seed SEED + 3): sigma_eps's 68 % interval "
+        "holds the truth 0 in 60/60 trains, above the 99.9 % binomial range 40-58 of the "
+        "boundary rate 1/2 + 1/2 * 0.6827; its fitted value is exactly 0 in 60/60, where a "
+        "point on the bound is expected in about half. -2 ln L at the sigma_eps = 0 fit's "
+        "other values rises by 1.1-1.3 already at sigma_eps = 1e-6 in every train: the choice "
+        "between the sigma_eps = 0 fit and the fitted one is made on the plain likelihood, "
+        "whose slope in sigma_eps^2 at 0 is biased upward by the fitted e and v0 (the "
+        "scatter's random walk lies along what they absorb; the bias the adjusted profile "
+        "removes from the intervals but not from the estimate)"),
 }
 
 
-def _truth(law, params, speed):
+def _truth(law, params, speed, scatter):
     truth = dict(zip((p.name for p in LAWS[law].parameters), params))
-    truth.update(v0=speed, sigma_eps=SCATTER, sigma_j=JITTER)
+    truth.update(v0=speed, sigma_eps=scatter, sigma_j=JITTER)
     if law in MODELS:
         truth["omega0"] = G / truth["v_star"]
         truth["beta"] = truth["zeta"] * truth["omega0"]
     return truth
 
 
-@pytest.mark.parametrize("law", [
-    "constant", "linear",
-    pytest.param("Ib", marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES["Ib"]))])
-def test_every_reported_parameter_covers_at_its_stated_rates(law, capsys):
-    params, count, speed, trials = SCENES[law]
-    data = simulated_trains(law, params, trials, count=count, speed=speed,
-                            seed=SEED + list(SCENES).index(law))
-    results = fit_noise_models(data, law)
+# σ_ε = 0 lies on the bound of its range: there the likelihood-ratio interval holds it with
+# probability ½ + ½·(nominal rate) (half the trials put σ_ε at 0; Self and Liang, J. Am. Statist.
+# Assoc. 82, 605 (1987)), and that is the rate asked of it.
+AT_ZERO = {"68": 0.5 + 0.5 * 0.6827, "95": 0.5 + 0.5 * 0.9545}
+
+
+@pytest.mark.parametrize("case", [
+    pytest.param(case, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[case]))
+    if case in KNOWN_FAILURES else case for case in CASES])
+def test_every_reported_parameter_covers_at_its_stated_rates(case, capsys):
+    setting = dict(CASES[case])
+    law, params, trials = setting.pop("law"), setting.pop("params"), setting.pop("trials")
+    scatter, scene = setting.get("scatter", SCATTER), setting.get("scene")
+    data = simulated_trains(law, params, trials, seed=SEED + list(CASES).index(case),
+                            **setting)
+    results = fit_noise_models(data, law, scene)
     assert all(fit.success for fit in results)
-    truth = _truth(law, params, speed)
+    truth = _truth(law, params, setting["speed"], scatter)
     # Every parameter the fit reports with an interval is judged.
     assert set(results[0].estimates) == set(truth)
-    lines, failures = judge_all(results, truth)
+    rates = {"sigma_eps": AT_ZERO} if scatter == 0.0 else {}
+    lines, failures = judge_all(results, truth, rates)
     with capsys.disabled():  # the measured figures, shown with `pytest -n 0 -s`
-        print(f"\n{law} under the noise model, {trials} trains of {count} impacts:\n"
-              + "\n".join(lines))
+        print(f"\n{case} under the noise model, {trials} trains of {setting['count']} "
+              f"impacts:\n" + "\n".join(lines))
     assert not failures, failures
