@@ -9,6 +9,7 @@ written), never tuned.
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 from pathlib import Path
@@ -21,13 +22,15 @@ from scipy.integrate import solve_ivp
 from scipy.stats import binom
 
 import dashpot
-from dashpot.fit import fit_model, prepare_data
+from dashpot.fit import SceneFit, fit_model, prepare_data
 from dashpot.fit.trains import _TrainPredictor
 from dashpot.ingest import read_impacts
 from dashpot.physics.flight import drag_constant, track_flight
 from dashpot.physics.surrogate_train import surrogate_trains
 from dashpot.physics.train import TrackFlight, impact_trains
 from dashpot.scene import Known, Scene
+from dashpot.select import selection_table
+from dashpot.store import read_fit, write_scene_fit
 from dashpot.synth.scene import write_scene
 
 SEED = 20261125
@@ -198,11 +201,12 @@ def drag_fit():
                             "time_uncertainty": sigma})
     data = prepare_data(impacts, scene)
     truth = {"beta": beta, "k": PING_PONG_MASS * omega0 ** 2, "k_d": k_d}
-    return fit_model(data, "hybrid", scene), truth, g
+    return {"fit": fit_model(data, "hybrid", scene), "truth": truth, "g": g, "scene": scene,
+            "data": data, "impacts": impacts}
 
 
 def test_a_drag_true_train_is_fitted_with_its_truth_within_two_sigma(drag_fit):
-    fit, truth, _ = drag_fit
+    fit, truth = drag_fit["fit"], drag_fit["truth"]
     assert fit.success, fit.message
     assert fit.estimates["k_d"].status == "prior"
     for name, value in truth.items():
@@ -212,8 +216,23 @@ def test_a_drag_true_train_is_fitted_with_its_truth_within_two_sigma(drag_fit):
         assert estimate.stderr <= 0.1 * value, (name, estimate)
 
 
+def test_the_fitted_drag_constant_is_stored_with_its_uncertainty(drag_fit, tmp_path):
+    fit, scene, data, impacts = (drag_fit[key] for key in ("fit", "scene", "data", "impacts"))
+    selection, verdict = selection_table({"hybrid": fit})
+    write_scene_fit(tmp_path / "drag.h5", SceneFit(scene=scene, data=data,
+                                                   results={"hybrid": fit},
+                                                   selection=selection, verdict=verdict),
+                    impacts)
+    stored = read_fit(tmp_path / "drag.h5")["fits"]["hybrid"]
+    row = stored["parameters"].loc["k_d"]
+    estimate = fit.estimates["k_d"]
+    assert (row["value"], row["stderr"], row["unit"], row["status"]) == (
+        estimate.value, estimate.stderr, "1/m", "prior")
+    assert "k_d" in json.loads(stored["attrs"]["varied"])
+
+
 def test_the_fitted_drag_flights_match_a_direct_integration(drag_fit):
-    fit, _, g = drag_fit
+    fit, g = drag_fit["fit"], drag_fit["g"]
     k_d = fit.estimates["k_d"].value
     predicted = fit.predicted
     speeds, eps = predicted["speeds"], predicted["restitution"]
