@@ -27,7 +27,7 @@ import pytest
 from cli_run import run_cli
 from dashpot.errors import InputError
 from dashpot.ingest import read_impacts
-from dashpot.ingest.tables import read_motion_sensor, sniff_table
+from dashpot.ingest.tables import read_impact_table, read_motion_sensor, sniff_table
 
 SEED = 20261125  # chosen once (the date these tests were written); never tuned
 G = 9.81
@@ -370,6 +370,29 @@ def test_release_too_close_to_the_bumper_is_flagged_not_dropped(tmp_path):
         scores = z_scores(found, truth)
         assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
     assert any("flagged 'few_samples'" in note for note in impacts.attrs["notes"])
+
+
+def test_flags_survive_the_impact_table(tmp_path):
+    """`dashpot impacts` writes the flag column; reading the table back keeps it (an empty
+    cell, as a spreadsheet may leave it, is an unflagged impact)."""
+    rng = np.random.default_rng([SEED, 4])
+    distance, truth = simulate_cart(a_toward=A_TOWARD, a_away=A_AWAY, drop=0.03,
+                                    v_release=0.5, lead=0.52)
+    time, position = capstone_run(distance, truth["end"], rate=20.0, noise=1e-3, rng=rng)
+    recording = tmp_path / "push.csv"
+    write_capstone_csv(capstone_table([(time, position)]), recording)
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(recording), "-o", str(output)])
+    assert status == 0, err
+    written = pd.read_csv(output)
+    assert list(written.columns)[-1] == "flag"
+    assert written["flag"].iloc[0] == "few_samples" and (written["flag"].iloc[1:] == "ok").all()
+    lines = output.read_text().splitlines()
+    lines[2] = lines[2].rsplit(",", 1)[0] + ","  # the second impact's flag cell emptied
+    output.write_text("\n".join(lines) + "\n")
+    table = read_impact_table(output)
+    assert table["flag"].tolist() == written["flag"].tolist()
+    np.testing.assert_array_equal(table["time"], written["time"])
 
 
 def test_motion_without_a_bounce_is_one_line_exit_2(tmp_path):
