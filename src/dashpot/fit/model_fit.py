@@ -134,11 +134,11 @@ def _friction_step(without, with_friction):
     if with_friction.success and gain >= FRICTION_STEP_BIC:
         a_away, a_toward = (with_friction.estimates[name] for name in ("a_away", "a_toward"))
         with_friction.notes.append(
-            f"rolling friction kept: the BIC falls by {gain:.3g} with it (>= "
+            f"rolling friction kept: BIC without it minus BIC with it = {gain:.3g} (>= "
             f"{FRICTION_STEP_BIC:g}); a_away = {a_away.value:.4g} +- {a_away.stderr:.2g} m/s², "
             f"a_toward = {a_toward.value:.4g} +- {a_toward.stderr:.2g} m/s²")
         return with_friction
-    why = (f"the BIC falls by {gain:.3g} with it (< {FRICTION_STEP_BIC:g} needed)"
+    why = (f"BIC without it minus BIC with it = {gain:.3g} (< {FRICTION_STEP_BIC:g})"
            if with_friction.success else f"its fit failed ({with_friction.message})")
     without.notes.append(f"rolling friction not kept, fixed at zero: {why}")
     return without
