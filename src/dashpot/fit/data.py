@@ -126,8 +126,8 @@ def flight_notes(scene):
     if drag is None:
         return []
     k_d = drag.drag_constant
-    prior = (f"{k_d.value:.3g} +- {k_d.uncertainty:.2g} 1/m" if k_d.uncertainty is not None
-             else f"{k_d.value:.3g} 1/m (exact)")
-    return [f"air drag in flight: k_d fitted with the scene's prior {prior} (mass, diameter, "
-            f"drag coefficient and air density); g_eff = {scene.driving_acceleration:.6g} m/s² "
-            f"with buoyancy and added mass"]
+    how = (f"k_d fitted with the scene's prior {k_d.value:.3g} +- {k_d.uncertainty:.2g} 1/m"
+           if k_d.uncertainty is not None else f"k_d = {k_d.value:.3g} 1/m, exact")
+    return [f"air drag in flight: {how} (from the ball's mass, diameter, drag coefficient and "
+            f"the air density); g_eff = {scene.driving_acceleration:.6g} m/s² with buoyancy "
+            f"and added mass"]
