@@ -225,22 +225,16 @@ class TrainModel:
         nodes = low * np.exp(log_step * np.arange(max(count, 2)))
         out = self._step(nodes[:, None])
         shape = np.broadcast_shapes(*(np.shape(a) for a in out))
-        duration, landing, f_tu, f_uu, g_t, g_u, broken = (
-            np.ascontiguousarray(np.broadcast_to(a, shape).T) for a in out)
-        # The noise gains enter only the variances: their slopes by finite differences in u
-        # (second order; exact where they are linear in u), where the values and slopes of D
-        # and L are the model's own.
-        gains = np.stack([g_t, g_u], axis=-1)
-        slope = np.gradient(gains, nodes, axis=1, edge_order=2)
-        values = np.stack([duration, landing, g_t, g_u], axis=-1)
-        slopes = np.concatenate([np.stack([f_tu, f_uu], axis=-1), slope], axis=-1)
-        # A node next to a broken one has a spoilt difference slope: unusable as well.
-        unusable = broken | ~np.all(np.isfinite(slopes), axis=-1)
-        unusable[:, 1:] |= broken[:, :-1]
-        unusable[:, :-1] |= broken[:, 1:]
+        columns = np.empty((7,) + shape)
+        for k, value in enumerate(out):
+            columns[k] = value
+        members = shape[1]
+        values = np.empty((members, nodes.size, 4))
+        slopes = np.empty((members, nodes.size, 4))
+        unusable = np.empty((members, nodes.size), np.bool_)
+        _assemble_table(columns, nodes, values, slopes, unusable)
         return StepTable(log_low=math.log(low), log_step=float(log_step), nodes=nodes,
-                         values=np.where(unusable[..., None], 0.0, values),
-                         slopes=np.where(unusable[..., None], 0.0, slopes), unusable=unusable)
+                         values=values, slopes=slopes, unusable=unusable)
 
     def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
                detector_sigma=0.0, sigma_scale=1.0):
@@ -544,6 +538,51 @@ def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, 
     landing_slope = (d00 * v[member, j, 1] + d10 * m[member, j, 1] + d01 * v[member, k, 1]
                      + d11 * m[member, k, 1])
     return True, duration, landing, duration_slope, landing_slope, timing_gain, speed_gain, j
+
+
+@numba.njit(cache=True)
+def _assemble_table(columns, nodes, values, slopes, unusable):
+    """Values, u-slopes and unusable nodes of a StepTable from the step's seven outputs
+    `columns` (7, nodes, members) of :meth:`TrainModel.step`.
+
+    The noise gains enter only the variances: their slopes are second-order finite
+    differences on the (uneven) nodes [5]_, exact where the gains are quadratic in u; the
+    values and slopes of D and L are the model's own. A node where the step is broken, or
+    next to one (its difference slope is spoilt), is unusable.
+
+    .. [5] B. Fornberg, "Generation of finite difference formulas on arbitrarily spaced
+       grids", Math. Comp. 51, 699-706 (1988) (three-point weights).
+    """
+    count, members = columns.shape[1], columns.shape[2]
+    for m in range(members):
+        for i in range(count):
+            values[m, i, 0], values[m, i, 1] = columns[0, i, m], columns[1, i, m]
+            values[m, i, 2], values[m, i, 3] = columns[4, i, m], columns[5, i, m]
+            slopes[m, i, 0], slopes[m, i, 1] = columns[2, i, m], columns[3, i, m]
+            # Three nodes around i (the two first or last at the ends) and their weights.
+            c = min(max(i, 1), count - 2)
+            a, b = nodes[c] - nodes[c - 1], nodes[c + 1] - nodes[c]
+            x = nodes[i] - nodes[c]
+            w0 = (2.0 * x - b) / (a * (a + b))
+            w1 = -(2.0 * x + a - b) / (a * b)
+            w2 = (2.0 * x + a) / (b * (a + b))
+            for q in (2, 3):
+                slopes[m, i, q] = (w0 * columns[q + 2, c - 1, m] + w1 * columns[q + 2, c, m]
+                                   + w2 * columns[q + 2, c + 1, m])
+        for i in range(count):
+            bad = columns[6, i, m] != 0.0
+            if i > 0 and columns[6, i - 1, m] != 0.0:
+                bad = True
+            if i + 1 < count and columns[6, i + 1, m] != 0.0:
+                bad = True
+            for q in range(4):
+                if not (math.isfinite(values[m, i, q]) and math.isfinite(slopes[m, i, q])):
+                    bad = True
+            unusable[m, i] = bad
+            if bad:
+                for q in range(4):
+                    values[m, i, q] = 0.0
+                    slopes[m, i, q] = 0.0
 
 
 @numba.njit(cache=True)
