@@ -125,13 +125,15 @@ def capstone_table(runs):
     return pd.DataFrame(columns)
 
 
-def write_capstone_csv(frame, path):
-    """As Capstone writes its CSV: comma separated, fixed decimals per quantity, blank cells."""
+def write_capstone_csv(frame, path, *, separator=",", decimal="."):
+    """As Capstone writes its CSV: fixed decimals per quantity, blank cells; on a system with
+    a decimal comma, semicolon separated."""
     decimals = {"Time": 2, "Position": 4, "Velocity": 3, "Acceleration": 2}
-    text = [",".join(frame.columns)]
+    text = [separator.join(frame.columns)]
     formats = [decimals[c.split()[0]] for c in frame.columns]
     for row in frame.to_numpy():  # writing the fixture, a few hundred rows
-        text.append(",".join("" if math.isnan(v) else f"{v:.{d}f}" for v, d in zip(row, formats)))
+        text.append(separator.join("" if math.isnan(v) else f"{v:.{d}f}".replace(".", decimal)
+                                   for v, d in zip(row, formats)))
     path.write_text("\r\n".join(text) + "\r\n", encoding="utf-8")
 
 
@@ -181,14 +183,17 @@ def capstone_three_runs():
     return capstone_table(runs), truths
 
 
-FORMATS = ["capstone-csv", "resaved-csv", "xlsx", "xls", "ods"]
+FORMATS = ["capstone-csv", "capstone-csv-decimal-comma", "resaved-csv", "xlsx", "xls", "ods"]
 
 
 def write_format(frame, folder, variant):
     """The three-run table in one of FORMATS; returns the path."""
-    if variant == "capstone-csv":
-        path = folder / "capstone.csv"
-        write_capstone_csv(frame, path)
+    if variant.startswith("capstone-csv"):
+        path = folder / f"{variant}.csv"
+        if variant.endswith("comma"):
+            write_capstone_csv(frame, path, separator=";", decimal=",")
+        else:
+            write_capstone_csv(frame, path)
     else:
         path = folder / ("resaved.csv" if variant == "resaved-csv" else f"capstone.{variant}")
         write_spreadsheet(frame, path)
