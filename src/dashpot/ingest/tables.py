@@ -1622,7 +1622,9 @@ def _motion_run(run, bumper_position, notes, legs):
     # flight of a few samples then keeps the samples next to its contacts, which the first
     # pass's guard left out: with a position column, a sample more than 3σ short of the
     # bumper is off it, so those count as free flight.
-    reach = (guard + 1) * dt
+    # Without a position column (integrated from a vendor's smoothed velocity) the samples
+    # next to a contact are smeared: no cut moves more than a sample past the first pass's.
+    reach = (guard + 1) * dt if "position" in run.columns else dt
     turn_lo = np.fmax(time[np.clip(np.concatenate([[segment_lo[0]], troughs]), 0, n - 1)],
                       time[np.clip(segment_lo, 0, n - 1)] - reach) - 1e-9
     turn_hi = np.fmin(time[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
