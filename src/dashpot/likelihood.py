@@ -491,7 +491,7 @@ class StepTable:
         return result, off_grid.reshape(batch), stop_speed.reshape(batch)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, hint=-1):
     """(found, D, L, dD/du, dL/du, timing gain, speed gain, interval) from the table at
     `speed` (m/s), looked for first in interval `hint`;
@@ -503,6 +503,8 @@ def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, 
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1
     if hint >= 0 and hint < last and nodes[hint] <= speed <= nodes[hint + 1]:
         j = hint  # the interval of the step before: a ball slows by a few % per bounce
+    elif hint >= 1 and hint < last and nodes[hint - 1] <= speed <= nodes[hint]:
+        j = hint - 1  # or the one below
     else:
         j = min(int((math.log(speed) - log_low) / log_step), last - 1)
         # The logarithm's rounding may put a speed next to a node one interval off.
