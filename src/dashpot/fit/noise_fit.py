@@ -1130,9 +1130,16 @@ def _derivatives(values, count, pairs):
     hessian = np.zeros(values.shape[:-1] + (count, count))
     diagonal = (plus - 2.0 * centre[..., None] + minus) / STEP ** 2
     hessian[..., range(count), range(count)] = diagonal
-    for k, (i, j) in enumerate(pairs):
-        a, b, c, d = np.moveaxis(values[..., 1 + 2 * count + 4 * k:5 + 2 * count + 4 * k], -1, 0)
-        hessian[..., i, j] = hessian[..., j, i] = (a - b - c + d) / (4.0 * STEP ** 2)
+    if pairs:
+        # The four points ±e_i ± e_j of every pair, in the stencil's order (+,+), (+,−),
+        # (−,+), (−,−).
+        corners = values[..., 1 + 2 * count:1 + 2 * count + 4 * len(pairs)].reshape(
+            values.shape[:-1] + (len(pairs), 4))
+        mixed = (corners[..., 0] - corners[..., 1] - corners[..., 2] + corners[..., 3]) / (
+            4.0 * STEP ** 2)
+        rows, columns = np.array(pairs).T
+        hessian[..., rows, columns] = mixed
+        hessian[..., columns, rows] = mixed
     return centre, gradient, hessian
 
 
