@@ -453,6 +453,24 @@ def test_write_summary(written, tmp_path):
     np.testing.assert_allclose(csv["beta [1/s]"], summary["beta"], rtol=1e-9)
 
 
+def test_object_columns_are_stored_by_what_they_hold(tmp_path):
+    """A column pandas holds as objects is stored as numbers when it holds numbers and None
+    (never the text "nan"), as bool when it holds booleans, as text otherwise (missing text
+    as the empty string, never "None" or "nan")."""
+    table = pd.DataFrame({"scene": ["a", "b", "c"],
+                          "beta": pd.Series([None, 2.5, np.nan], dtype=object),
+                          "success": pd.Series([True, np.False_, False], dtype=object),
+                          "problem": pd.Series(["x", None, np.nan], dtype=object)})
+    write_summary(tmp_path / "s.h5", tmp_path / "s.csv", table)
+    with h5py.File(tmp_path / "s.h5", "r") as source:
+        group = source["summary"]
+        assert group["beta"].dtype == np.float64
+        assert np.isnan(group["beta"][0]) and group["beta"][1] == 2.5
+        assert group["success"].dtype == bool and list(group["success"][()]) == [1, 0, 0]
+        assert h5py.check_string_dtype(group["problem"].dtype)
+        assert list(group["problem"].asstr()[()]) == ["x", "", ""]  # missing text is empty
+
+
 def test_documented_example_reads_the_file(written, tmp_path, monkeypatch):
     blocks = re.findall(r"```python\n(.*?)```", DOCS.read_text(), flags=re.S)
     assert len(blocks) == 1

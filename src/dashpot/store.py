@@ -108,7 +108,8 @@ def _is_number(value):
 def _typed(values, dtype=None):
     """`values` as the array to store: `dtype` if given, else float64 for an object column
     that holds only numbers and missing values (a column of None and NaN is numeric, never
-    the text "nan"), strings for other object columns, anything else as it is."""
+    the text "nan"), bool for one of booleans only, strings for other object columns, anything
+    else as it is."""
     values = np.asarray(values)
     if dtype is not None:
         return values.astype(dtype) if dtype != "float64" else pd.to_numeric(
@@ -116,13 +117,19 @@ def _typed(values, dtype=None):
     if values.dtype.kind == "O" and values.size and all(map(_is_number, values.ravel())):
         return np.array([np.nan if v is None else v for v in values.ravel()],
                         dtype=np.float64).reshape(values.shape)
+    if values.dtype.kind == "O" and values.size and all(
+            isinstance(v, (bool, np.bool_)) for v in values.ravel()):
+        return values.astype(bool)
     return values
 
 
 def _dataset(group, name, values, unit, dtype=None):
     values = _typed(values, dtype)
     if values.dtype.kind in "OUS":
-        values = np.asarray([str(v) for v in values.ravel()], dtype=object).reshape(values.shape)
+        # Missing text (None, NaN) is the empty string, not "None" or "nan".
+        values = np.asarray(["" if v is None or (isinstance(v, float) and np.isnan(v))
+                             else str(v) for v in values.ravel()],
+                            dtype=object).reshape(values.shape)
         dataset = group.create_dataset(name, data=values, dtype=h5py.string_dtype(),
                                        track_times=False)
     else:
