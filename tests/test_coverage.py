@@ -31,6 +31,7 @@ TRIALS = 50
 SEED = 20261125  # the date these trials were set up; not tuned
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["Ia", "Ib", "IIb", "hybrid"])
 def test_every_reported_parameter_covers_at_its_stated_rates(model, capsys):
     v0 = VTILDE0 * G / OMEGA0
