@@ -28,11 +28,11 @@ import pandas as pd
 import pytest
 
 import dashpot
-from dashpot.fit import fit_scene
+from dashpot.fit import fit_scene, prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.noise_selection import noise_selection_table
 from dashpot.scene import Known, Scene
-from test_noise_coverage import JITTER, SCATTER, SEED, simulated_trains
+from test_noise_coverage import BALL, JITTER, SCATTER, SEED, simulated_trains
 
 G = 9.80665
 TRIALS = 30
@@ -85,11 +85,27 @@ def test_a_speed_term_of_5_sigma_is_selected():
     assert share >= REQUIRED, chosen.value_counts().to_dict()
 
 
-def test_a_constant_train_keeps_no_speed_term():
-    data = simulated_trains("constant", (0.95,), TRIALS, seed=SEED + 11, **SPEED_TRAIN)
-    fits = {law: fit_noise_models(data, law, profile=False) for law in ("constant", "linear")}
+@pytest.mark.parametrize("drag", [False, True], ids=["no drag", "drag"])
+def test_a_constant_train_keeps_no_speed_term(drag):
+    """With drag (a table-tennis ball from 3 m/s, k_d and g_eff in the scene) the flights alone
+    shorten the intervals faster than ε does, which a fit without drag would read as a speed
+    term; the scene's drag must leave none."""
+    scene = BALL if drag else Scene()
+    train = dict(SPEED_TRAIN, speed=3.0) if drag else SPEED_TRAIN
+    data = simulated_trains("constant", (0.95,), TRIALS, seed=SEED + 11 + drag, scene=scene,
+                            **train)
+    fits = {law: fit_noise_models(data, law, scene, profile=False)
+            for law in ("constant", "linear")}
     chosen = selected(fits)
     assert float(np.mean(chosen == "constant")) >= REQUIRED, chosen.value_counts().to_dict()
+    if drag:
+        # The control: the same trains fitted without the drag do need a speed term.
+        plain = [prepare_data(pd.DataFrame({"time": d.times, "time_uncertainty": d.sigma}),
+                              Scene()) for d in data]
+        fits = {law: fit_noise_models(plain, law, profile=False)
+                for law in ("constant", "linear")}
+        chosen = selected(fits)
+        assert float(np.mean(chosen == "linear")) >= REQUIRED, chosen.value_counts().to_dict()
 
 
 # --- gravity in contact under the noise model --------------------------------------------------
