@@ -1762,7 +1762,9 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
     velocity and the run's leg accelerations (fixed), about its apex (found by iterating);
     a contact is timed where the parabola before it reaches the bumper, with speeds from
     both parabolas, as in read_motion_sensor. Excursions stop at the first of fewer than two
-    samples.
+    samples. A contact whose neighbouring samples both stay off the bumper joins two flights
+    into one excursion; one that no parabola fits (a residual beyond 5σ) is split at its
+    sample nearest the bumper.
 
     Returns arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag).
     """
@@ -1771,39 +1773,61 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
     off = (s < bumper - margin) & (time > after)
     starts, ends, values = _runs_of(off.astype(np.int8))
     starts, ends = starts[values == 1], ends[values == 1]
-    long_enough = ends - starts + 1 >= 2
-    if not long_enough.any():
-        return empty
-    # Up to the first excursion too short to fit: later ones cannot be told from noise.
-    stop = np.flatnonzero(~long_enough)
-    starts, ends = starts[: stop[0] if stop.size else None], ends[: stop[0] if stop.size else None]
-    count = starts.size
-    if count < 2:
-        return empty
-    marker = np.zeros(time.size + 1, dtype=int)
-    np.add.at(marker, starts, 1)
-    np.add.at(marker, ends + 1, -1)
-    rows = np.flatnonzero(np.cumsum(marker)[:-1] > 0)
-    member = np.searchsorted(starts, rows, side="right") - 1
     a_away, a_toward = fitted["theta"][:2]
-    n_k = np.bincount(member).astype(float)
 
-    def solve(apex):
-        """Per excursion s − a_leg·τ²/2 = c + b·τ by least squares (closed form from sums)."""
-        tau = time[rows] - apex[member]
-        y = s[rows] - 0.5 * np.where(tau >= 0, a_toward, a_away) * tau ** 2
-        st, stt = np.bincount(member, tau), np.bincount(member, tau ** 2)
-        sy, sty = np.bincount(member, y), np.bincount(member, tau * y)
-        det = n_k * stt - st ** 2
-        c, b = (stt * sy - st * sty) / det, (n_k * sty - st * sy) / det
-        # Covariance of (c, b) for white noise of σ_x.
-        return c, b, sigma_x ** 2 * stt / det, sigma_x ** 2 * n_k / det, -sigma_x ** 2 * st / det
+    def fit(starts, ends):
+        """Each excursion's c, b (about its apex), their covariance and its worst residual."""
+        marker = np.zeros(time.size + 1, dtype=int)
+        np.add.at(marker, starts, 1)
+        np.add.at(marker, ends + 1, -1)
+        rows = np.flatnonzero(np.cumsum(marker)[:-1] > 0)
+        member = np.searchsorted(starts, rows, side="right") - 1
+        n_k = np.bincount(member).astype(float)
 
-    apex = np.bincount(member, weights=time[rows]) / n_k
-    for _ in range(3):  # the apex moves by a fraction of a sample after the first pass
-        c, b, *_ = solve(apex)
-        apex = apex + np.where(b > 0, -b / a_away, -b / a_toward)
-    c, b, var_c, var_b, cov_cb = solve(apex)
+        def solve(apex):
+            """Per excursion s − a_leg·τ²/2 = c + b·τ by least squares (closed form)."""
+            tau = time[rows] - apex[member]
+            y = s[rows] - 0.5 * np.where(tau >= 0, a_toward, a_away) * tau ** 2
+            st, stt = np.bincount(member, tau), np.bincount(member, tau ** 2)
+            sy, sty = np.bincount(member, y), np.bincount(member, tau * y)
+            det = n_k * stt - st ** 2
+            c, b = (stt * sy - st * sty) / det, (n_k * sty - st * sy) / det
+            # Covariance of (c, b) for white noise of σ_x.
+            return (c, b, sigma_x ** 2 * stt / det, sigma_x ** 2 * n_k / det,
+                    -sigma_x ** 2 * st / det, y - c[member] - b[member] * tau)
+
+        apex = np.bincount(member, weights=time[rows]) / n_k
+        for _ in range(3):  # the apex moves by a fraction of a sample after the first pass
+            c, b, *_ = solve(apex)
+            apex = apex + np.where(b > 0, -b / a_away, -b / a_toward)
+        *solution, residual = solve(apex)
+        worst = np.zeros(starts.size)
+        np.maximum.at(worst, member, np.abs(residual))
+        return apex, solution, worst
+
+    for _ in range(4):  # split excursions that hold two flights (below)
+        long_enough = ends - starts + 1 >= 2
+        if not long_enough.any():
+            return empty
+        # Up to the first excursion too short to fit: later ones cannot be told from noise.
+        stop = np.flatnonzero(~long_enough)
+        starts, ends = starts[: stop[0] if stop.size else None], ends[: stop[0] if stop.size
+                                                                       else None]
+        if starts.size < 2:
+            return empty
+        apex, (c, b, var_c, var_b, cov_cb), worst = fit(starts, ends)
+        # A contact whose neighbouring samples both stay 4σ off the bumper joins two flights
+        # into one excursion, which no parabola fits: split it at the sample nearest the
+        # bumper (the contact is next to it), leaving that sample out.
+        joined = np.flatnonzero((worst > 5.0 * sigma_x) & (ends - starts >= 4))
+        if joined.size == 0:
+            break
+        index = np.arange(time.size)
+        inside = [(index > starts[k]) & (index < ends[k]) for k in joined]  # a few at most
+        nearest = np.array([int(np.argmax(np.where(m, s, -np.inf))) for m in inside])
+        starts = np.sort(np.concatenate([starts, nearest + 1]))
+        ends = np.sort(np.concatenate([ends, nearest - 1]))
+    count = starts.size
     cov_a = np.diag(fitted["covariance"])[:2]
 
     def edge(k, times, toward):
