@@ -442,13 +442,16 @@ def tracked_ball():
     return time, x, height, truth
 
 
-@pytest.mark.parametrize("layout", ["tracker-txt", "t-y-csv"])
+@pytest.mark.parametrize("layout", ["tracker-txt", "tracker-txt-decimal-comma", "t-y-csv"])
 def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
     time, x, height, truth = tracked_ball
-    if layout == "tracker-txt":
-        # Tracker's File > Export > Data: the track's name, then a tab-separated header.
+    if layout.startswith("tracker-txt"):
+        # Tracker's File > Export > Data: the track's name, then a tab-separated header; the
+        # numbers in the system's decimal style.
+        mark = "," if layout.endswith("comma") else "."
         path = tmp_path / "ball.txt"
-        lines = ["mass_A", "t\tx\ty"] + ["\t".join(java_scientific(v) for v in row)
+        lines = ["mass_A", "t\tx\ty"] + ["\t".join(java_scientific(v).replace(".", mark)
+                                                    for v in row)
                                          for row in zip(time, x, height)]
         path.write_text("\n".join(lines) + "\n")
     else:
@@ -463,7 +466,7 @@ def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
     assert np.nanmax(np.abs(scores["relative"])) <= 0.05
     notes = " ".join(found.attrs["notes"])
     assert "read in m" in notes
-    if layout == "tracker-txt":
+    if layout.startswith("tracker-txt"):
         assert "track 'mass_A'" in notes and "Tracker column layout" in notes
         assert "from column 'y'" in notes
 
