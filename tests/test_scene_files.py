@@ -54,10 +54,13 @@ def scene_files(tmp_path_factory):
             "summary_csv": results / "summary.csv"}
 
 
-def _dtype_name(dtype):
-    if h5py.check_string_dtype(dtype):
+def _type_name(dataset):
+    """A dataset's type as the layout writes it; `dimension` for a netCDF dimension."""
+    if bytes(dataset.attrs.get("NAME", b"")).startswith(b"This is a netCDF dimension but not"):
+        return "dimension"
+    if h5py.check_string_dtype(dataset.dtype):
         return "string"
-    return "bool" if dtype == bool else dtype.name
+    return "bool" if dataset.dtype == bool else dataset.dtype.name
 
 
 def _documented_types():
@@ -85,13 +88,13 @@ def _generic(name):
 
 def test_every_dataset_has_its_documented_type(scene_files):
     documented = _documented_types()
-    assert {"float64", "int64", "bool", "string"} >= set(documented.values())
+    assert {"float64", "int64", "bool", "string", "dimension"} >= set(documented.values())
     seen = set()
     for name, path in scene_files["paths"].items():
         with h5py.File(path, "r") as source:
             found = {}
             source.visititems(lambda item, obj: found.update(
-                {item: _dtype_name(obj.dtype)} if isinstance(obj, h5py.Dataset) else {}))
+                {item: _type_name(obj)} if isinstance(obj, h5py.Dataset) else {}))
         for item, dtype in found.items():
             generic = _generic(item)
             assert generic in documented, f"{name}.h5: {item} is not documented"
@@ -142,6 +145,21 @@ def test_every_table_opens_in_xarray_with_a_named_dimension(scene_files):
         correlation = _open(path, "fits/Ia")["correlation"]
         assert correlation.dims == ("varied", "varied_with")
         assert list(correlation["varied"].values) == list(correlation["varied_with"].values)
+    # The whole file is a netCDF-4 tree: no group needs invented dimensions.
+    path = scene_files["paths"]["light-ball-audio"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tree = xarray.open_datatree(path, engine="h5netcdf")
+    residuals = tree["fits/IIb/residuals"].to_dataset(inherit=False)
+    assert residuals["time"].dims == ("fitted_impact",)
+    assert residuals["normalized"].dims == ("residual",)
+    predicted = tree["fits/IIb/predicted"].to_dataset(inherit=False)
+    assert predicted["speeds"].dims == ("impact",) and predicted["at_data"].dims == (
+        "fitted_impact",)
+    assert predicted.sizes["fitted_impact"] == residuals.sizes["fitted_impact"]
+    curve = tree["fits/IIb/eps_curve"].to_dataset(inherit=False)
+    assert curve["eps"].dims == ("speed",) and curve["speed"].attrs["units"] == "m/s"
+    tree.close()
     summary = _open(scene_files["summary_h5"], "summary")
     assert dict(summary.sizes) == {"scene": len(scene_files["summary"])}
     assert summary["beta"].attrs["units"] == "1/s"
@@ -161,7 +179,7 @@ def test_noise_tables_open_in_xarray_too(scene_files, tmp_path):
         laws = list(source["noise_fits"])
         found = {}
         source.visititems(lambda item, obj: found.update(
-            {item: _dtype_name(obj.dtype)} if isinstance(obj, h5py.Dataset) else {}))
+            {item: _type_name(obj)} if isinstance(obj, h5py.Dataset) else {}))
     assert len(laws) >= 2
     assert {item: dtype for item, dtype in found.items()} == {
         item: documented[_generic(item)] for item in found}
@@ -172,6 +190,7 @@ def test_noise_tables_open_in_xarray_too(scene_files, tmp_path):
         parameters = _open(path, f"noise_fits/{law}/parameters")
         assert list(parameters.sizes) == ["name"] and "sigma_j" in parameters["name"].values
         fit = _open(path, f"noise_fits/{law}")
+        assert _open(path, f"noise_fits/{law}/residuals")["normalized"].dims == ("residual",)
         assert fit["correlation"].dims == ("varied", "varied_with")
         assert fit["timing_sigma"].attrs["units"] == "s"
 

@@ -142,7 +142,7 @@ def test_documented_groups_and_datasets(written):
         if name != "/":
             found[_generic(name) + "/"] = None
     for name, (values, attrs) in datasets.items():
-        found[_generic(name)] = (attrs["units"], _dtype_name(values.dtype))
+        found[_generic(name)] = (attrs["units"], _type_name(values.dtype, attrs))
     assert found == documented
     for table in ("impacts", "bounces", "selection", "fits/IIb/parameters"):
         listed = [path.rsplit("/", 1)[-1] for path in documented
@@ -162,8 +162,11 @@ def _generic(name):
     return "/" + "/".join(parts)
 
 
-def _dtype_name(dtype):
-    """The type's name as docs/hdf5-layout.md writes it (string, bool, float64, int64)."""
+def _type_name(dtype, attrs):
+    """The type's name as docs/hdf5-layout.md writes it (string, bool, float64, int64, or
+    dimension for a netCDF dimension without data, known by its scale name)."""
+    if bytes(attrs.get("NAME", b"")).startswith(b"This is a netCDF dimension but not"):
+        return "dimension"
     if h5py.check_string_dtype(dtype):
         return "string"
     return "bool" if dtype == bool else dtype.name
@@ -202,7 +205,7 @@ def test_truth_table_is_stored_as_documented(written, tmp_path):
     path = tmp_path / "truth.h5"
     write_scene_fit(path, written["scene_fit"], written["impacts"], truth=table)
     datasets = _datasets(path)
-    found = {_generic(name): (attrs["units"], _dtype_name(values.dtype))
+    found = {_generic(name): (attrs["units"], _type_name(values.dtype, attrs))
              for name, (values, attrs) in datasets.items() if name.startswith("truth/")}
     documented = _truth_tree()
     assert found == {path: item for path, item in documented.items() if item is not None}

@@ -60,6 +60,8 @@ IMPACT_DTYPES = {**dict.fromkeys(IMPACT_UNITS, "float64"), "run": "int64"}
 TRUTH_UNITS = {"truth": "see column 'unit'", "value": "see column 'unit'",
                "stderr": "see column 'unit'", "low95": "see column 'unit'",
                "high95": "see column 'unit'"}
+# netCDF's marker of a dimension scale that is no variable (the name of the HDF5 scale).
+_NETCDF_DIMENSION = "This is a netCDF dimension but not a netCDF variable"
 # The column of each table that is its dimension scale (its coordinate for xarray).
 TABLE_SCALES = {"impacts": "time", "bounces": "bounce", "selection": "model",
                 "noise_selection": "model", "parameters": "name", "intervals": "method",
@@ -249,21 +251,46 @@ def _parameters_and_residuals(group, fit, normalized_meaning):
         names = _dataset(group, name, np.asarray(list(fit.varied), dtype=object), "1")
         names.make_scale(name)
         correlation.dims[axis].attach_scale(names)
-    residuals = group.create_group("residuals")
-    _dataset(residuals, "time", fit.time_residuals, "s").attrs["meaning"] = (
-        "observed minus predicted impact time")
-    _dataset(residuals, "normalized", fit.normalized_residuals, "1").attrs["meaning"] = (
-        normalized_meaning)
-    predicted = group.create_group("predicted")
+    residuals = group.create_group("residuals", track_order=True)
+    time = _dataset(residuals, "time", fit.time_residuals, "s")
+    time.attrs["meaning"] = "observed minus predicted impact time"
+    normalized = _dataset(residuals, "normalized", fit.normalized_residuals, "1")
+    normalized.attrs["meaning"] = normalized_meaning
+    _dimension(residuals, "fitted_impact", [time])
+    _dimension(residuals, "residual", [normalized])
+    predicted = group.create_group("predicted", track_order=True)
     for name, values in fit.predicted.items():
         _dataset(predicted, name, values, PREDICTED_UNITS[name])
+    train = [predicted[name] for name in predicted if name != "at_data"]
+    if train and len({dataset.shape for dataset in train}) == 1:
+        _dimension(predicted, "impact", train)
+    if "at_data" in predicted:
+        _dimension(predicted, "fitted_impact", [predicted["at_data"]])
+
+
+def _dimension(group, name, datasets):
+    """A netCDF dimension without a variable [1]_ (an HDF5 dimension scale holding no data,
+    named by netCDF's marker) that the 1-D `datasets`, all of one length, are attached to."""
+    size = datasets[0].shape[0]
+    dimension = group.create_dataset(name, shape=(size,), dtype=np.float64, track_times=False)
+    dimension.make_scale(f"{_NETCDF_DIMENSION}.{size:10d}")
+    dimension.attrs["units"] = "1"
+    for dataset in datasets:
+        dataset.dims[0].attach_scale(dimension)
+    return dimension
 
 
 def _eps_curve(group, fit):
-    curve = group.create_group("eps_curve")
+    curve = group.create_group("eps_curve", track_order=True)
     for name, unit in (("speed", "m/s"), ("eps", "1"), ("captured", "1")):
         if name in fit.eps_curve:
             _dataset(curve, name, fit.eps_curve[name], unit)
+    if "speed" in curve:
+        # ε and capture as functions of the impact speed: speed is their coordinate.
+        curve["speed"].make_scale("speed")
+        for name in ("eps", "captured"):
+            if name in curve:
+                curve[name].dims[0].attach_scale(curve["speed"])
 
 
 def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, truth=None):
@@ -331,6 +358,18 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
             noise.attrs["verdict"] = scene_fit.noise_verdict
 
 
+def _is_dimension(dataset):
+    """Whether a dataset is a netCDF dimension without a variable (no data of its own)."""
+    name = dataset.attrs.get("NAME", b"")
+    name = name.decode() if isinstance(name, bytes) else str(name)
+    return name.startswith(_NETCDF_DIMENSION)
+
+
+def _arrays(group):
+    """The datasets of a group as arrays, without its netCDF dimensions."""
+    return {key: dataset[()] for key, dataset in group.items() if not _is_dimension(dataset)}
+
+
 def read_fit(path):
     """Everything in a scene file as plain Python: attrs, tables as DataFrames, fits as dicts.
 
@@ -356,7 +395,7 @@ def read_fit(path):
                 "parameters": read_table(group["parameters"]).set_index("name"),
                 "intervals": read_table(group["intervals"]).set_index("method"),
                 "correlation": group["correlation"][()],
-                **{name: {key: group[name][key][()] for key in group[name]}
+                **{name: _arrays(group[name])
                    for name in ("residuals", "predicted", "eps_curve")},
             }
         if "truth" in source:
@@ -374,7 +413,7 @@ def read_fit(path):
                     "correlation": group["correlation"][()],
                     "outliers": group["outliers"][()],
                     "timing_sigma": group["timing_sigma"][()],
-                    **{name: {key: group[name][key][()] for key in group[name]}
+                    **{name: _arrays(group[name])
                        for name in ("residuals", "predicted", "eps_curve")},
                 }
     return out
