@@ -140,16 +140,17 @@ def _dataset(group, name, values, unit, dtype=None):
     return dataset
 
 
-def _table(parent, name, table, units, dtypes=None, *, kind=None):
-    """A table group: one dataset per column, in order; the column ``TABLE_SCALES[kind]``
-    (`kind` defaults to `name`) a dimension scale that every other column is attached to."""
+def _table(parent, name, table, units, dtypes=None):
+    """A table group: one dataset per column, in order (`dtypes`: column -> type where the
+    column's own would not do); the column ``TABLE_SCALES[name]`` a dimension scale that
+    every other column is attached to."""
     group = parent.create_group(name, track_order=True)
     group.attrs["columns"] = list(map(str, table.columns))
     dtypes = dtypes or {}
     for column in table.columns:
         _dataset(group, str(column), table[column].to_numpy(), units.get(column, "1"),
                  dtypes.get(column))
-    scale = TABLE_SCALES.get(kind or name)
+    scale = TABLE_SCALES.get(name)
     if scale in group:
         group[scale].make_scale(scale)
         for column in group.attrs["columns"]:
