@@ -117,6 +117,29 @@ def test_a_filter_leaving_the_grid_is_reported_not_extrapolated(drawn):
     assert np.isnan(result.neg2_log_likelihood[0]) and np.isfinite(result.neg2_log_likelihood[1])
 
 
+def test_a_table_at_uneven_speeds_reproduces_the_step_there(drawn):
+    """Nodes anywhere (here the speeds a filter passed through): the step is exact at them,
+    and a filter through them matches the direct one."""
+    model, train = drawn
+    arguments = dict(start_time=None, start_speed=np.array([2.0, 1.5]),
+                     process_sigma=SCATTER, jitter=JITTER, detector_sigma=DETECTOR)
+    direct = model.filter(train.times, **arguments)
+    speeds = np.unique(np.concatenate([direct.filtered_speeds.ravel(), [0.9 * 0.1, 2.2]]))
+    table = model.tabulate_at(speeds)
+    approx = table.interpolate(speeds)
+    exact = model.step(speeds)
+    for q in (0, 1):
+        np.testing.assert_allclose(approx[q], exact[q], rtol=1e-13)
+    replayed, off_grid, _ = table.filter(train.times, **arguments)
+    assert not off_grid.any()
+    np.testing.assert_allclose(replayed.neg2_log_likelihood, direct.neg2_log_likelihood,
+                               rtol=0.0, atol=1e-7)
+    with pytest.raises(ValueError, match="increasing"):
+        model.tabulate_at(speeds[::-1])
+    with pytest.raises(ValueError, match="member"):
+        table.interpolate(speeds, 1)  # one parameter set tabulated: member 0 only
+
+
 @pytest.mark.parametrize("model_name", ["Ib", "IIb", "hybrid"])
 def test_the_table_is_nan_free_at_the_extremes_of_damping(model_name):
     """ζ → 0, ζ = 1, ζ ≫ 1 and speeds down into capture: every node is finite or marked

@@ -222,7 +222,25 @@ class TrainModel:
             raise ValueError(f"need 0 < low < high and log_step > 0; got low={low!r}, "
                              f"high={high!r}, log_step={log_step!r}")
         count = int(math.ceil(math.log(high / low) / log_step - 1e-9)) + 1
-        nodes = low * np.exp(log_step * np.arange(max(count, 2)))
+        return self.tabulate_at(low * np.exp(log_step * np.arange(max(count, 2))))
+
+    def tabulate_at(self, nodes):
+        """The step map tabulated at given speeds, for :meth:`StepTable.filter`.
+
+        Parameters
+        ----------
+        nodes : array_like, shape (nodes,)
+            Speeds in m/s, positive and increasing (at least two); the filter finds its
+            interval fastest where they are evenly spaced in ln u (:meth:`tabulate`).
+
+        Returns
+        -------
+        StepTable
+        """
+        nodes = np.asarray(nodes, dtype=float)
+        if nodes.ndim != 1 or nodes.size < 2 or not (nodes[0] > 0.0 and np.all(
+                np.diff(nodes) > 0.0) and np.isfinite(nodes[-1])):
+            raise ValueError("nodes must be at least two finite positive increasing speeds")
         out = self._step(nodes[:, None])
         shape = np.broadcast_shapes(*(np.shape(a) for a in out))
         columns = np.empty((7,) + shape)
@@ -233,8 +251,10 @@ class TrainModel:
         slopes = np.empty((members, nodes.size, 4))
         unusable = np.empty((members, nodes.size), np.bool_)
         _assemble_table(columns, nodes, values, slopes, unusable)
-        return StepTable(log_low=math.log(low), log_step=float(log_step), nodes=nodes,
-                         values=values, slopes=slopes, unusable=unusable)
+        log_low = math.log(nodes[0])
+        return StepTable(log_low=log_low, log_step=(math.log(nodes[-1]) - log_low)
+                         / (nodes.size - 1), nodes=nodes, values=values, slopes=slopes,
+                         unusable=unusable)
 
     def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
                detector_sigma=0.0, sigma_scale=1.0):
@@ -389,7 +409,7 @@ class StepTable:
     Attributes
     ----------
     log_low, log_step : float
-        ln of the first node's speed (m/s) and the spacing of the nodes in ln u.
+        ln of the first node's speed (m/s) and the (mean) spacing of the nodes in ln u.
     nodes : ndarray, shape (nodes,)
         Speeds of the nodes in m/s.
     values : ndarray, shape (members, nodes, 4)
@@ -413,6 +433,11 @@ class StepTable:
     slopes: np.ndarray
     unusable: np.ndarray
 
+    def _check_members(self, members):
+        if members.size and not (0 <= members.min() and members.max() < self.values.shape[0]):
+            raise ValueError(f"member indices must be in [0, {self.values.shape[0]}); got "
+                             f"{members.min()} to {members.max()}")
+
     def interpolate(self, speed, members=None):
         """The interpolated step at speeds `speed` (m/s) of members `members` (broadcast).
 
@@ -424,6 +449,7 @@ class StepTable:
         members = np.zeros((), int) if members is None else members
         speed, members = np.broadcast_arrays(np.asarray(speed, float),
                                              np.asarray(members, np.intp))
+        self._check_members(members)
         out = np.empty((6, speed.size))
         ok = np.empty(speed.size, np.bool_)
         _interpolate_many(np.ascontiguousarray(speed).ravel(),
@@ -475,6 +501,7 @@ class StepTable:
         t, u, process = (np.array(np.broadcast_to(a, batch).reshape(-1), dtype=float)
                          for a in (t, u, process))
         members = np.array(np.broadcast_to(members, batch).reshape(-1), dtype=np.intp)
+        self._check_members(members)
         out = np.empty((5,) + flat)
         scored = np.zeros(flat, np.bool_)
         total = np.empty(flat[0])
@@ -512,6 +539,16 @@ def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, 
             j -= 1
         elif speed > nodes[j + 1] and j + 1 < last:
             j += 1
+        if not nodes[j] <= speed <= nodes[j + 1]:
+            # Nodes not evenly spaced in ln u: bisection.
+            lo, hi = 0, last
+            while hi - lo > 1:
+                middle = (lo + hi) // 2
+                if nodes[middle] <= speed:
+                    lo = middle
+                else:
+                    hi = middle
+            j = lo
     if unusable[member, j] or unusable[member, j + 1]:
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1
     left = nodes[j]
