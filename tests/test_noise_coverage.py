@@ -33,10 +33,10 @@ SEED = 20261125  # the date these trials were set up; not tuned
 
 def train_model(law, params, trials, scene=None):
     """The noise model's TrainModel of `law` for `trials` trains (parameters in the registry's
-    order), and its g: a scene with air drag (mass and diameter) flies the trains with drag,
-    at its k_d and effective gravity."""
+    order, each a number or one value per train), and its g: a scene with air drag (mass and
+    diameter) flies the trains with drag, at its k_d and effective gravity."""
     scene = scene or Scene()
-    params = [np.full(trials, float(p)) for p in params]
+    params = [np.broadcast_to(np.asarray(p, float), (trials,)) for p in params]
     g = G
     if scene.needs_drag:
         g, k_d = scene.drag.effective_gravity.value, scene.drag.drag_constant.value
@@ -68,6 +68,29 @@ def simulated_trains(law, params, trials, *, count, speed, seed, scatter=SCATTER
     return data
 
 
+def neg2_log_likelihood_along(law, results, data, name, grid, scene=None):
+    """−2 ln L of each train on a line through its fit: the noise parameter `name`
+    ("sigma_eps" or "sigma_j") at each value of `grid`, every other parameter at the fit (the
+    filter run directly). Shape (trains, grid points)."""
+    trials, points = len(results), len(grid)
+    fitted = {key: np.repeat([fit.estimates[key].value for fit in results], points)
+              for key in results[0].estimates}
+    noise = {key: fitted[key] for key in ("sigma_eps", "sigma_j")}
+    noise[name] = np.tile(np.asarray(grid, float), trials)
+    model, _ = train_model(law, [fitted[p.name] for p in LAWS[law].parameters],
+                           trials * points, scene)
+    return model.filter(np.repeat([d.times for d in data], points, axis=0), start_time=None,
+                        start_speed=fitted["v0"], process_sigma=noise["sigma_eps"],
+                        jitter=noise["sigma_j"],
+                        detector_sigma=np.repeat([d.sigma for d in data], points, axis=0)
+                        ).neg2_log_likelihood.reshape(trials, points)
+
+
+# Lines through each fit along which no point may beat it: σ_ε and σ_j over their useful range.
+LINES = {"sigma_eps": np.r_[0.0, np.geomspace(1e-6, 0.03, 40)],
+         "sigma_j": np.geomspace(1e-7, 1e-3, 41)}
+
+
 def neg2_log_likelihood_of_the_truth(law, params, data, *, speed, scatter, scene=None):
     """−2 ln L of each train at the true parameters (the filter of :mod:`dashpot.likelihood`
     run directly, start time integrated out as in the fits)."""
@@ -96,20 +119,21 @@ CASES = {
     "Ib, no scatter": dict(law="Ib", params=(0.04, 0.0654), count=15, speed=1.0, trials=40,
                            scatter=0.0),
 }
-# The best fit is at least as likely as the truth: −2 ln L of the fit may exceed the truth's by
-# no more than this (the optimizers stop within 1e-6; the fast level's tabulated filter is
-# within about 1e-3 of the exact one).
+# The best fit is at least as likely as the truth, and as any point on a line of σ_ε or σ_j
+# through it: −2 ln L of the fit may exceed theirs by no more than this (the optimizers stop
+# within 1e-6; the fast level's tabulated filter is within about 1e-3 of the direct one).
 OPTIMUM_SLACK = 0.05
 # Measured with seed SEED + index, on the code as it stands: what fails and by how much.
 KNOWN_FAILURES = {
-    "Ib": ("measured over 40 trains (seed SEED + 2): 95 % intervals hold the truth in 29/40 (v0) "
-           "and 31/40 (beta), below the binomial range 33-40; 68 %: v0 18/40, beta 19/40; "
-           "half-width/spread 0.58-0.75 and stderr/spread 0.58-0.66 for zeta, v_star, omega0 "
-           "and beta. In 9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
+    "Ib": ("measured over 40 trains (seed SEED + 2): 95 % intervals hold the truth in 30/40 (v0) "
+           "and 32/40 (beta), below the binomial range 33-40; 68 %: v0 19/40, beta 20/40; "
+           "half-width/spread 0.62-0.77 and stderr/spread 0.62-0.68 for zeta, v_star, omega0 "
+           "and beta. In 8-9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
            "deterministic branch), and the intervals are then those of the deterministic "
            "train: v0's 68 % interval holds the truth in 0/9 (half-width 0.5 mm/s against a "
            "spread of 3 mm/s), beta's in 2/9. In the other 31, v0's 95 % interval holds it in "
-           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too"),
+           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too. "
+           "Since commit 812ad67 also: a sigma_j on its line beats the fit in 2/40 trains"),
     "constant, no scatter": (
         "measured over 60 trains without scatter (seed SEED + 3): sigma_eps's 68 % interval "
         "holds the truth 0 in 60/60 trains, above the 99.9 % binomial range 40-58 of the "
@@ -120,6 +144,21 @@ KNOWN_FAILURES = {
         "whose slope in sigma_eps^2 at 0 is biased upward by the fitted e and v0 (the "
         "scatter's random walk lies along what they absorb; the bias the adjusted profile "
         "removes from the intervals but not from the estimate)"),
+    "linear": (
+        "a regression of commit 812ad67 (Newton rows frozen once converged; passed at its "
+        "parent): in 13/60 trains (seed SEED + 1) a sigma_j on the line through the fit, the "
+        "rest held, gives a lower -2 ln L (by up to 3.4), and the fits end up to 14.5 above "
+        "those of the parent commit, with sigma_j near its floor (at the 68 % bound in 95 % "
+        "of the trains, 83 % before); sigma_j's 68 % interval then holds the truth in 58/60 "
+        "(99.9 % binomial range 29-52). Fitted one at a time, train 9 reaches the parent's "
+        "-507.03 where the batch stops at -492.54: the batch's rows affect each other"),
+    "Ib, no scatter": (
+        "a regression since commit 812ad67 (profiles continued in stages of points fitted at "
+        "once; passed at its parent with zeta's half-width/spread 1.36, 1.53 at 812ad67): at "
+        "b81d33a, over 40 deterministic Ib trains with 20 µs timing noise (seed SEED + 5), the "
+        "mean 68 % half-width of zeta is 2.75 times the spread of its estimates, of v_star and "
+        "omega0 1.54 (their standard errors 1.04-1.08): in single trains zeta's profile "
+        "interval is 35x, 6x and 5x its standard error"),
 }
 
 
@@ -138,6 +177,7 @@ def _truth(law, params, speed, scatter):
 AT_ZERO = {"68": 0.5 + 0.5 * 0.6827, "95": 0.5 + 0.5 * 0.9545}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", [
     pytest.param(case, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[case]))
     if case in KNOWN_FAILURES else case for case in CASES])
@@ -154,6 +194,11 @@ def test_every_reported_parameter_covers_at_its_stated_rates(case, capsys):
               - neg2_log_likelihood_of_the_truth(law, params, data, speed=setting["speed"],
                                                  scatter=scatter, scene=scene))
     missed = np.flatnonzero(excess > OPTIMUM_SLACK)
+    # ...and at the optimum: no point on a line of σ_ε or σ_j through it does better.
+    beaten = {name: np.flatnonzero(
+        np.array([fit.neg2_log_likelihood for fit in results])
+        - neg2_log_likelihood_along(law, results, data, name, grid, scene).min(axis=1)
+        > OPTIMUM_SLACK) for name, grid in LINES.items()}
     truth = _truth(law, params, setting["speed"], scatter)
     # Every parameter the fit reports with an interval is judged.
     assert set(results[0].estimates) == set(truth)
@@ -162,9 +207,12 @@ def test_every_reported_parameter_covers_at_its_stated_rates(case, capsys):
     if missed.size:
         failures.append(f"-2 ln L of the fit above the truth's in {missed.size}/{trials} "
                         f"trains (by {', '.join(f'{x:.2f}' for x in excess[missed])})")
+    failures += [f"a point on the {name} line beats the fit in {rows.size}/{trials} trains"
+                 for name, rows in beaten.items() if rows.size]
     with capsys.disabled():  # the measured figures, shown with `pytest -n 0 -s`
         print(f"\n{case} under the noise model, {trials} trains of {setting['count']} "
-              f"impacts (fit above the truth's -2 ln L in {missed.size}):\n"
+              f"impacts (fit above the truth's -2 ln L in {missed.size}, beaten on a line of "
+              f"{', '.join(f'{name} in {rows.size}' for name, rows in beaten.items())}):\n"
               + "\n".join(lines))
     assert not failures, failures
 
