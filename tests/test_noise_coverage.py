@@ -233,3 +233,24 @@ def test_a_fit_with_its_noise_held_reaches_the_truth_on_a_noise_free_train():
     truth = neg2_log_likelihood_of_the_truth(law, params, clean, speed=speed, scatter=SCATTER)
     assert fit.success
     assert fit.neg2_log_likelihood <= truth[0] + OPTIMUM_SLACK
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "measured on the 60 trains of the 'linear' case (seed SEED + 1), fitted without profiles: "
+    "-2 ln L of the batch's fit and of the train's own fit differ by more than 0.05 in 4/60 "
+    "trains (batch - alone: +14.49, -1.67, -1.23, -0.28); at commit 812ad67's parent in 8/60, "
+    "the batch better by up to 7.82. Each row's Newton iteration does not reach the optimum "
+    "reliably, and where it stops depends on the other rows of the batch"))
+def test_a_train_fitted_in_a_batch_gets_the_fit_it_gets_alone():
+    """fit_noise_models fits each data set on its own (its docstring): the batch is only a way
+    of evaluating many at once."""
+    setting = dict(CASES["linear"])
+    law, params, trials = setting.pop("law"), setting.pop("params"), setting.pop("trials")
+    data = simulated_trains(law, params, trials, seed=SEED + list(CASES).index("linear"),
+                            **setting)
+    batch = fit_noise_models(data, law, profile=False)
+    alone = [fit_noise_models([train], law, profile=False)[0] for train in data]
+    differ = [(k, round(b.neg2_log_likelihood - a.neg2_log_likelihood, 2))
+              for k, (b, a) in enumerate(zip(batch, alone))
+              if abs(b.neg2_log_likelihood - a.neg2_log_likelihood) > OPTIMUM_SLACK]
+    assert not differ, differ
