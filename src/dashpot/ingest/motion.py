@@ -1,0 +1,861 @@
+"""Impacts of a cart (or ball) from position exports: PASCO Capstone and Vernier motion
+sensors, Tracker video analysis.
+
+References
+----------
+.. [4] P. J. Rousseeuw and C. Croux, "Alternatives to the median absolute deviation", J. Am.
+   Stat. Assoc. 88, 1273-1283 (1993): σ ≈ 1.4826·MAD for Gaussian noise.
+.. [5] D. Halliday, R. Resnick and J. Walker, "Fundamentals of Physics", ch. 2: motion with
+   constant acceleration, x = x0 + v0·t + a·t²/2, v² = v0² + 2a·Δx.
+.. [6] W. K. Newey and K. D. West, "A simple, positive semi-definite, heteroskedasticity and
+   autocorrelation consistent covariance matrix", Econometrica 55, 703-708 (1987): least-squares
+   uncertainties under serially correlated noise via the long-run variance.
+.. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
+   "Datatable view": the data export is tab-delimited text, a first line with the track name,
+   a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
+   blank at a track's first and last steps.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+
+from .._validation import BUMPER_POSITION_RANGE, check_range
+from ..errors import InputError
+from ._tabular import (_POSITION_NAMES, _VELOCITY_NAMES, _check_duplicates, _impact_frame,
+                       _runs, _table_of_kind)
+
+_MAD_TO_SIGMA = 1.4826  # σ of Gaussian noise from its median absolute deviation [4]_
+_MEDIAN_EFFICIENCY = 1.2533  # σ(median) = 1.2533·σ/√n for Gaussian samples, √(π/2)
+
+# ---------------------------------------------------------------------------------------------
+# Motion sensor
+# ---------------------------------------------------------------------------------------------
+
+def _mad_sigma(values):
+    """Robust σ of Gaussian noise in `values` (median absolute deviation) [4]_."""
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return 0.0
+    return float(_MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
+
+
+def _runs_of(state):
+    """Start, end (inclusive) and value of each run of equal values in an integer array."""
+    change = np.flatnonzero(np.diff(state)) + 1
+    starts = np.concatenate([[0], change])
+    ends = np.concatenate([change - 1, [state.size - 1]])
+    return starts, ends, state[starts]
+
+
+def _first_extreme(values, starts, ends, which):
+    """Index of the first maximum ('max') or minimum ('min') of `values` in each index run."""
+    run_id = np.repeat(np.arange(starts.size), ends - starts + 1)
+    reduce = np.maximum if which == "max" else np.minimum
+    extreme = reduce.reduceat(values, starts)
+    index = np.arange(values.size)
+    return np.minimum.reduceat(np.where(values == extreme[run_id], index, values.size), starts)
+
+
+def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
+    """Where a fitted parabola meets the bumper position, with 1σ uncertainties.
+
+    The parabola is s(τ) = c + b·τ + (a/2)·τ² about an edge sample (τ = 0), oriented so s
+    grows toward the bumper and a > 0 is the free-motion acceleration toward it [5]_. With
+    D = B − c the distance left, the speed there is V = √(b² + 2aD); the crossing is
+    τ = 2D/(b + V) for the incoming branch (after the edge) and τ = −2D/(V − b) for the
+    outgoing one (before it). Written this way neither form divides by a, which may be small.
+
+    Returns (τ, V, σ_τ, σ_V); `cov` is the (…, 3, 3) covariance of (a, c, b).
+    """
+    distance = bumper - c
+    speed2 = b ** 2 + 2.0 * a * distance
+    with np.errstate(invalid="ignore", divide="ignore"):
+        speed = np.sqrt(np.where(speed2 >= 0, speed2, np.nan))
+        sign = 1.0 if incoming else -1.0
+        denominator = sign * b + speed  # b + V incoming, V − b outgoing
+        tau = sign * 2.0 * distance / denominator
+        # Partial derivatives with respect to (a, c, b) and to the bumper position B.
+        dv_dd, dv_db, dv_da = a / speed, b / speed, distance / speed
+        dt_dd = sign * (2.0 / denominator - 2.0 * distance * dv_dd / denominator ** 2)
+        dt_db = -sign * 2.0 * distance * (sign + dv_db) / denominator ** 2
+        dt_da = -sign * 2.0 * distance * dv_da / denominator ** 2
+    grad_t = np.stack([dt_da, -dt_dd, dt_db], axis=-1)
+    grad_v = np.stack([dv_da, -dv_dd, dv_db], axis=-1)
+    var_t = np.einsum("...i,...ij,...j->...", grad_t, cov, grad_t) + dt_dd ** 2 * var_bumper
+    var_v = np.einsum("...i,...ij,...j->...", grad_v, cov, grad_v) + dv_dd ** 2 * var_bumper
+    return tau, speed, np.sqrt(var_t), np.sqrt(var_v)
+
+
+def _motion_run(run, bumper_position, notes, legs):
+    """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag)."""
+    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
+    time = run.time
+    n = time.size
+    if n < 12:
+        notes.append(f"run '{run.label or 0}': only {n} samples, no impacts looked for")
+        return empty
+    dt = float(np.median(np.diff(time)))
+    if "position" in run.columns:
+        x, x_res = run.columns["position"]
+        # Velocity by central differences of the position: its noise statistics are then
+        # known (σ_v = σ_x/(√2·Δt)), unlike a vendor's smoothed derivative. The third
+        # differences of a parabola vanish, so their spread is noise: var(Δ³x) = 20σ_x².
+        w_raw = np.gradient(x, time)
+        sigma_x = max(_mad_sigma(np.diff(x, 3)) / np.sqrt(20.0),
+                      float(np.nanmax(x_res)) / np.sqrt(12.0))
+        sigma_w = sigma_x / (np.sqrt(2.0) * dt)
+        threshold, guard = 4.0 * sigma_w, 1
+    else:
+        v, v_res = run.columns["velocity"]
+        # Velocity only: position up to a constant by integrating it (trapezoid rule). The
+        # vendor's smoothing is unknown, so the threshold and guard are more generous.
+        x = cumulative_trapezoid(v, time, initial=0.0)
+        w_raw = v
+        sigma_w = max(_mad_sigma(np.diff(v, 2)) / np.sqrt(6.0),
+                      float(np.nanmax(v_res)) / np.sqrt(12.0))
+        sigma_x = sigma_w * dt
+        threshold, guard = 5.0 * sigma_w, 2
+        notes.append(f"run '{run.label or 0}': no position column; position integrated from the "
+                     f"velocity (its unknown smoothing leaves the uncertainties about 2x "
+                     f"optimistic)")
+    # Orientation: in free motion the cart accelerates toward the bumper, and free motion is
+    # most of the moving samples, so the median change of velocity there points to the bumper.
+    moving = np.abs(w_raw) > threshold
+    steps = np.diff(w_raw)[moving[:-1] & moving[1:]]
+    if steps.size < 3:
+        notes.append(f"run '{run.label or 0}': the cart hardly moves; no impacts")
+        return empty
+    orientation = 1.0 if np.median(steps) >= 0 else -1.0
+    w, s = orientation * w_raw, orientation * x  # both grow toward the bumper
+    # Toward (+1), away (−1) or neither (0, within noise: apex, rest) at each sample.
+    state = np.where(w > threshold, 1, np.where(w < -threshold, -1, 0)).astype(np.int8)
+    starts, ends, values = _runs_of(state)
+    lengths = ends - starts + 1
+    count = starts.size
+    padded_values = np.concatenate([values, [0, 0]])
+    padded_lengths = np.concatenate([lengths, [0, 0]])
+    i = np.arange(count)
+    # A reversal at the bumper: moving toward it, then away, with at most a couple of samples
+    # in between (the contact smears the velocity). Every reversal ends a flight; an impact is
+    # reported only where >= 2 samples move toward and >= 2 away: rest noise cannot fake that,
+    # as it would need four samples beyond 4σ with the right signs in a row. Reversals at the
+    # top of the incline go the other way (away, then toward) and are flights' apexes.
+    max_gap = 2 + guard
+    direct = padded_values[i + 1] == -1
+    bridged = ((padded_values[i + 1] == 0) & (padded_lengths[i + 1] <= max_gap)
+               & (padded_values[i + 2] == -1))
+    reversal = (padded_values[i] == 1) & (direct | bridged)
+    away_of = np.where(direct, i + 1, i + 2)
+    resolved = reversal & (padded_lengths[i] >= 2) & (padded_lengths[np.minimum(away_of, count + 1)]
+                                                      >= 2)
+    if not resolved.any():
+        notes.append(f"run '{run.label or 0}': no velocity reversal at the bumper")
+        return empty
+    # Reversals up to the last resolved one cut the record into flights, and so do later ones
+    # while the cart still leaves the bumper by more than the noise (short flights of the
+    # last bounces: their velocity exceeds the threshold on a sample or two only). Once the
+    # position stays within 4σ of where the record ends, the cart rests and a reversal there
+    # would be noise.
+    if "position" in run.columns:
+        moved_at_all = np.flatnonzero(np.abs(s - np.median(s[-min(20, n):])) > 4.0 * sigma_x)
+        resting_from = moved_at_all[-1] + 1 if moved_at_all.size else 0
+    else:
+        resting_from = 0
+    keep = reversal & ((i <= i[resolved][-1]) | (ends[np.minimum(i + 1, count - 1)]
+                                                 < resting_from))
+    toward_runs, away_runs = i[keep], away_of[keep]
+    is_impact = resolved[keep]
+    real_reversal = np.ones(is_impact.size, dtype=bool)  # False: a contact put in below
+    impacts = toward_runs.size
+    # The contact starts where the velocity toward the bumper peaks (free motion speeds it up,
+    # the bumper slows it) and ends where the velocity away from it peaks: samples between,
+    # plus a guard for the derivative's reach, are not free motion.
+    peaks = _first_extreme(w, starts, ends, "max")[toward_runs]
+    troughs = _first_extreme(w, starts, ends, "min")[away_runs]
+    later_toward = np.flatnonzero((values == 1) & (i > away_runs[-1]))
+    if later_toward.size:  # the flight after the last resolved impact ends at the next contact
+        last_end = _first_extreme(w, starts, ends, "max")[later_toward[0]] - guard - 1
+    else:
+        last_end = ends[away_runs[-1]]
+    # Free flight is symmetric about its apex: it ends no later than the apex mirrored about
+    # the contact end. Where that falls well before the next reversal, a contact showed no
+    # clear reversal in between (a slow one, its speed within the noise): an unreported
+    # contact is put there, so that the next impact gets its own incoming flight.
+    rising = np.flatnonzero(w >= 0)
+
+    def mirror(troughs):
+        apex = (rising[np.minimum(np.searchsorted(rising, troughs), rising.size - 1)]
+                if rising.size else np.full(troughs.size, n - 1))
+        apex = np.where(apex >= troughs, apex, n - 1)
+        return 2 * apex - troughs - guard - 1
+
+    mirrored = mirror(troughs)
+    # The apex is where the noisy velocity first turns toward the bumper: uncertain by about
+    # σ_v/(g·Δt) samples (g·Δt, the velocity change per sample, is the median step in motion).
+    apex_noise = sigma_w / max(abs(float(np.median(steps))), 1e-12)
+    missed = np.flatnonzero((peaks[1:] - guard - 1) - mirrored[:-1] > 3.0 + 4.0 * apex_noise)
+    if missed.size:
+        unseen_peaks = mirrored[missed] + guard + 1
+        peaks = np.insert(peaks, missed + 1, unseen_peaks)
+        troughs = np.insert(troughs, missed + 1, unseen_peaks + 2)
+        is_impact = np.insert(is_impact, missed + 1, False)
+        real_reversal = np.insert(real_reversal, missed + 1, False)
+        impacts = peaks.size
+        mirrored = mirror(troughs)
+    # The release: the first sample moving toward the bumper beyond the noise may still be
+    # the held cart's (its central difference reaches a sample after the release).
+    segment_lo = np.concatenate([[starts[toward_runs[0]] + guard], troughs + guard + 1])
+    segment_hi = np.concatenate([peaks - guard - 1, [last_end]])
+    segment_hi[1:] = np.minimum(segment_hi[1:], mirrored)
+    index = np.arange(n)
+    segment = np.searchsorted(segment_lo, index, side="right") - 1
+    inside = (segment >= 0) & (index <= segment_hi[np.clip(segment, 0, None)])
+    segment = np.where(inside, segment, -1)
+
+    label = run.label or 0
+
+    def fit(labels, apex=None):
+        """Least squares over the samples with a flight label (>= 2 per flight).
+
+        Each flight is s(τ) = c + b·τ + a·τ²/2 about a reference time; `apex` (s, per flight)
+        makes the reference the flight's apex and gives the leg before it (away from the
+        bumper) and the leg after it (toward it) accelerations of their own, common to all
+        flights (rolling friction adds to the incline's pull going up and subtracts from it
+        going down [5]_); position and velocity stay continuous at the apex. Without `apex`,
+        one acceleration for both legs. One pass of 5σ outlier rejection. Returns a dict of
+        the fit; ``theta`` is always (a_away, a_toward, c_0, b_0, c_1, b_1, ...).
+        """
+        def solve(selected):
+            counts = np.bincount(labels[selected], minlength=impacts + 1)
+            usable = counts >= 2
+            rows = np.flatnonzero(selected & usable[np.clip(labels, 0, None)])
+            used = np.flatnonzero(usable)
+            column = np.full(impacts + 1, -1)
+            column[used] = np.arange(used.size)
+            seg = labels[rows]
+            reference = (np.bincount(seg, weights=time[rows], minlength=impacts + 1)
+                         / np.maximum(counts, 1))
+            if apex is not None:
+                reference = np.where(np.isfinite(apex), apex, reference)
+            tau = time[rows] - reference[seg]
+            toward = tau >= 0
+            # Two accelerations only where both legs are sampled well enough to tell them apart.
+            split = apex is not None and min(int(toward.sum()), int((~toward).sum())) >= 3
+            n_acc = 2 if split else 1
+            design = np.zeros((rows.size, n_acc + 2 * used.size))
+            if split:
+                design[:, 0] = np.where(toward, 0.0, 0.5 * tau ** 2)
+                design[:, 1] = np.where(toward, 0.5 * tau ** 2, 0.0)
+            else:
+                design[:, 0] = 0.5 * tau ** 2
+            design[np.arange(rows.size), n_acc + 2 * column[seg]] = 1.0
+            design[np.arange(rows.size), n_acc + 1 + 2 * column[seg]] = tau
+            # Full parameters (a_away, a_toward, c, b, ...) from the fitted ones.
+            expand = np.zeros((2 + 2 * used.size, design.shape[1]))
+            expand[0, 0] = 1.0
+            expand[1, 1 if split else 0] = 1.0
+            expand[2:, n_acc:] = np.eye(2 * used.size)
+            fitted = (np.linalg.lstsq(design, s[rows], rcond=None)[0] if rows.size
+                      else np.zeros(design.shape[1]))
+            return dict(rows=rows, usable=usable, column=column, reference=reference,
+                        design=design, expand=expand, split=split, theta=expand @ fitted,
+                        residual=s[rows] - design @ fitted)
+
+        result = solve(labels >= 0)
+        if result["rows"].size == 0:
+            return None
+        # A sample 5σ off its flight's parabola is not free motion. Near a flight's end such a
+        # sample means the flight ran into a contact that showed no clear reversal: the samples
+        # after it belong to the next flight, so the flight is cut there (likewise at its
+        # start).
+        outliers = np.zeros(n, dtype=bool)
+        outliers[result["rows"]] = np.abs(result["residual"]) > 5.0 * sigma_x
+        if outliers.any():
+            flight = np.clip(labels, 0, None)
+            middle = (np.bincount(labels[labels >= 0], weights=index[labels >= 0],
+                                  minlength=impacts + 1)
+                      / np.maximum(np.bincount(labels[labels >= 0], minlength=impacts + 1), 1))
+            late = outliers & (index > middle[flight])
+            early = outliers & (index < middle[flight])
+            cut_hi = np.full(impacts + 1, n)
+            cut_lo = np.full(impacts + 1, -1)
+            np.minimum.at(cut_hi, flight[late], index[late])
+            np.maximum.at(cut_lo, flight[early], index[early])
+            selected = ((labels >= 0) & ~outliers & (index < cut_hi[flight])
+                        & (index > cut_lo[flight]))
+            outliers = (labels >= 0) & ~selected
+            result = solve(selected)
+        rows, design, residual = result["rows"], result["design"], result["residual"]
+        dof = rows.size - design.shape[1]
+        result["variance"] = float(residual @ residual / dof) if dof >= 3 else sigma_x ** 2
+        # Correlated noise (a vendor's smoothing, an integrated velocity) makes s²(AᵀA)⁻¹ too
+        # small: scale it by the long-run variance ratio 1 + 2Σρ_k of the residuals, lags 1-3
+        # within a flight [6]_ (≈ 1 for white noise).
+        seg = labels[rows]
+        ratio = 1.0
+        for lag in (1, 2, 3):  # loop over three lags
+            same = (seg[lag:] == seg[:-lag]) & (rows[lag:] - rows[:-lag] == lag)
+            if same.sum() > 10 and residual @ residual > 0:
+                ratio += 2.0 * float(np.mean(residual[lag:][same] * residual[:-lag][same])
+                                     / np.mean(residual ** 2))
+        expand = result["expand"]
+        result["covariance"] = (max(ratio, 1.0) * result["variance"]
+                                * expand @ np.linalg.pinv(design.T @ design) @ expand.T)
+        result["outliers"] = int(outliers.sum())
+        result["samples"] = np.bincount(seg, minlength=impacts + 1)
+        result["first"] = np.full(impacts + 1, np.nan)
+        result["last"] = np.full(impacts + 1, np.nan)
+        np.fmin.at(result["first"], seg, time[rows])
+        np.fmax.at(result["last"], seg, time[rows])
+        return result
+
+    def apexes(result):
+        """Time (s) of each flight's apex, where its fitted velocity is zero (NaN if unfitted).
+
+        The velocity b + a·τ about the reference is zero before it on the leg away from the
+        bumper (b > 0) and after it on the leg toward it (b < 0).
+        """
+        theta, usable = result["theta"], result["usable"]
+        col = np.clip(result["column"], 0, None)
+        b = theta[3 + 2 * col]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = np.where(b > 0, -b / theta[0], -b / theta[1])
+        return np.where(usable, result["reference"] + shift, np.nan)
+
+    def edge_parabola(result, segments, edge_times):
+        """(ok, a, c, b, cov) of each segment's leg at an edge time, cov of (a, c, b).
+
+        The leg is the one the edge time falls on: toward the bumper after the apex (the
+        reference of a two-leg fit), away from it before.
+        """
+        usable, column, theta = result["usable"], result["column"], result["theta"]
+        ok = usable[segments]
+        col = np.clip(column[segments], 0, None)
+        delta = edge_times - result["reference"][segments]
+        leg = np.where(delta >= 0, 1, 0)
+        a = theta[leg]
+        c0, b0 = theta[2 + 2 * col], theta[3 + 2 * col]
+        c = c0 + b0 * delta + 0.5 * a * delta ** 2
+        b = b0 + a * delta
+        blocks = np.stack([leg, 2 + 2 * col, 3 + 2 * col], axis=-1)
+        cov = result["covariance"][blocks[:, :, None], blocks[:, None, :]]
+        jac = np.zeros((segments.size, 3, 3))
+        jac[:, 0, 0] = 1.0
+        jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = 0.5 * delta ** 2, 1.0, delta
+        jac[:, 2, 0], jac[:, 2, 2] = delta, 1.0
+        return ok, a, c, b, jac @ cov @ np.swapaxes(jac, 1, 2)
+
+    def crossings(result, bumper, var_bumper):
+        """Contact start (incoming parabola reaches the bumper) and end (outgoing leaves it)."""
+        k = np.arange(impacts)
+        te_in, te_out = result["last"][k], result["first"][k + 1]
+        in_ok, a_in, c_in, b_in, cov_in = edge_parabola(result, k, te_in)
+        out_ok, a_out, c_out, b_out, cov_out = edge_parabola(result, k + 1, te_out)
+        tau_in, v_in, sd_t_in, sd_v_in = _crossing(a_in, c_in, b_in, cov_in, bumper, var_bumper,
+                                                   incoming=True)
+        tau_out, v_out, sd_t_out, sd_v_out = _crossing(a_out, c_out, b_out, cov_out, bumper,
+                                                       var_bumper, incoming=False)
+        return dict(t_in=np.where(in_ok, te_in + tau_in, np.nan),
+                    t_out=np.where(out_ok, te_out + tau_out, np.nan),
+                    v_in=np.where(in_ok, v_in, np.nan), v_out=np.where(out_ok, v_out, np.nan),
+                    sd_t_in=sd_t_in, sd_t_out=sd_t_out, sd_v_in=np.where(in_ok, sd_v_in, np.nan),
+                    sd_v_out=np.where(out_ok, sd_v_out, np.nan))
+
+    def meeting_bumper(result):
+        """Median position where each impact's incoming and outgoing parabolas meet."""
+        k = np.arange(impacts)
+        te_in, te_out = result["last"][k], result["first"][k + 1]
+        in_ok, a_in, c_in, b_in, _ = edge_parabola(result, k, te_in)
+        out_ok, a_out, c_out, b_out, _ = edge_parabola(result, k + 1, te_out)
+        # s_in(u) − s_out(u) = A·u² + B·u + C with u the time after te_in: the root between the
+        # two edges (the one nearer their middle); linear when the legs share the acceleration.
+        gap = te_out - te_in
+        quadratic = 0.5 * (a_in - a_out)
+        linear = b_in - b_out + a_out * gap
+        const = c_in - c_out + b_out * gap - 0.5 * a_out * gap ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.sqrt(linear ** 2 - 4.0 * quadratic * const)
+            candidates = np.stack([(-linear + root) / (2.0 * quadratic),
+                                   (-linear - root) / (2.0 * quadratic)])
+            nearest = candidates[np.argmin(np.abs(np.nan_to_num(candidates - 0.5 * gap,
+                                                                nan=np.inf)), axis=0),
+                                 np.arange(impacts)]
+            meet = np.where(np.abs(quadratic * gap) < 1e-9 * np.abs(linear) + 1e-300,
+                            -const / linear, nearest)
+        meets = (c_in + b_in * meet + 0.5 * a_in * meet ** 2)[
+            in_ok & out_ok & np.isfinite(meet) & is_impact]
+        if meets.size == 0:
+            return None, None
+        spread = float(np.std(meets)) ** 2 / meets.size if meets.size > 1 else result["variance"]
+        return float(np.median(meets)), spread
+
+    def fit_legs(labels):
+        """The flights' fit with one acceleration, then with each leg's own about the apex
+        (twice, the second about the apexes the first found)."""
+        common = fit(labels)
+        if common is None:
+            return None
+        result = common
+        for _ in range(2):  # the apex moves by a fraction of a sample at most
+            legs = fit(labels, apex=apexes(result))
+            if legs is None or not legs["split"]:
+                return result
+            result = legs
+        return result
+
+    first = fit_legs(segment)
+    if first is None:
+        notes.append(f"run '{label}': no free motion between the impacts to fit")
+        return empty
+    # Bumper position: given, or where the cart rests after the last impact, or (no rest)
+    # where the incoming and outgoing parabolas of each impact meet.
+    source = "meet"
+    if bumper_position is not None:
+        bumper, var_bumper, source = orientation * float(bumper_position), 0.0, "given"
+        notes.append(f"run '{label}': bumper position given: {bumper_position:g} m")
+    else:
+        # The rest is the final stretch in which the position stays within 4σ of where the
+        # record ends: small bounces before it leave the bumper by more than the noise even
+        # when their speeds are too small to register. Only its second half is used, as the
+        # smallest bounces (within the noise) come first. A position integrated from the
+        # velocity drifts; there the stretch is the final one with no velocity beyond the
+        # threshold, single-sample excursions (the one-sided derivative at the end doubles
+        # the noise) not counting as motion.
+        if "position" in run.columns:
+            settled = np.median(s[-min(20, n):])
+            moved = np.flatnonzero(np.abs(s - settled) > 4.0 * sigma_x)
+            rest_start = moved[-1] + 1 if moved.size else 0
+        else:
+            calm = np.where(np.repeat(lengths == 1, lengths), 0, state)
+            calm_starts, _, calm_values = _runs_of(calm)
+            rest_start = calm_starts[-1] if calm_values[-1] == 0 else n
+        rest_start = max(rest_start, last_end + guard + 1)
+        tail = index >= rest_start + (n - rest_start) // 2
+        if tail.sum() >= 5 and np.median(s[tail]) > np.max(s[first["rows"]]) - 3.0 * sigma_x:
+            bumper = float(np.median(s[tail]))
+            var_bumper = (_MEDIAN_EFFICIENCY * sigma_x) ** 2 / tail.sum()
+            source = "rest"
+            notes.append(f"run '{label}': bumper position {orientation * bumper:.5g} m from the "
+                         f"resting tail ({tail.sum()} samples; a soft bumper's static "
+                         f"compression under the cart's weight is included)")
+        else:
+            bumper, var_bumper = meeting_bumper(first)
+            if bumper is None:
+                notes.append(f"run '{label}': no resting tail and no impact with free motion on "
+                             f"both sides: bumper position unknown")
+                return empty
+    # Second pass. The first cut the flights where the noisy velocity peaked, which favours
+    # samples whose noise made it peak: a small selection bias at the flight ends. Now each
+    # flight runs from the fitted end of the previous contact (or the fitted release, the
+    # descent's vertex) to the fitted start of the next contact, or at the latest to the
+    # fitted apex mirrored about the contact end (scaled by √(a_away/a_toward): the leg
+    # toward the bumper lasts longer when friction slows it).
+    cross = crossings(first, bumper, var_bumper)
+    vertex = apexes(first)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        legs_ratio = np.sqrt(first["theta"][0] / first["theta"][1])
+    legs_ratio = legs_ratio if np.isfinite(legs_ratio) and legs_ratio > 0 else 1.0
+    lo_time = np.concatenate([[vertex[0]], cross["t_out"]])
+    hi_time = np.concatenate([cross["t_in"], [np.inf]])
+    mirrored_time = np.concatenate([[np.inf], vertex[1:] + legs_ratio * (vertex[1:]
+                                                                          - cross["t_out"])])
+    hi_time = np.fmin(hi_time, mirrored_time)
+    # No cut moves past the samples where the velocity turned (the contact lies between
+    # them); where a fit is missing, the cut is there, or the first pass's mirrored apex. A
+    # flight of a few samples then keeps the samples next to its contacts, which the first
+    # pass's guard left out: with a position column, a sample more than 3σ short of the
+    # bumper is off it, so those count as free flight.
+    # Without a position column (integrated from a vendor's smoothed velocity) the samples
+    # next to a contact are smeared: no cut moves more than a sample past the first pass's.
+    reach = (guard + 1) * dt if "position" in run.columns else dt
+    turn_lo = np.fmax(time[np.clip(np.concatenate([[segment_lo[0]], troughs]), 0, n - 1)],
+                      time[np.clip(segment_lo, 0, n - 1)] - reach) - 1e-9
+    turn_hi = np.fmin(time[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
+                      time[np.clip(segment_hi, 0, n - 1)] + reach) + 1e-9
+    if "position" in run.columns:
+        # The last flight runs until the cart is back at rest (its apex mirrored, when fitted):
+        # its return may be too slow to pass the velocity threshold.
+        turn_hi[-1] = max(turn_hi[-1], time[np.clip(resting_from - 1, 0, n - 1)] + 1e-9)
+    lo_time = np.where(np.isfinite(lo_time), np.fmax(lo_time, turn_lo), turn_lo)
+    hi_time = np.where(np.isfinite(hi_time), np.fmin(hi_time, turn_hi), turn_hi)
+    lo_time = np.maximum.accumulate(lo_time)
+    refined = np.searchsorted(lo_time, time, side="right") - 1
+    keep = (refined >= 0) & (time > lo_time[np.clip(refined, 0, None)]) \
+        & (time < hi_time[np.clip(refined, 0, None)])
+    if "position" in run.columns:
+        keep &= s < bumper - 3.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+        # One flight is one excursion from the bumper: where a cut spans several (bounces too
+        # small to show a reversal), only its longest run of off-bumper samples is kept.
+        same = np.concatenate([[False], keep[:-1] & keep[1:] & (refined[:-1] == refined[1:])])
+        excursion = np.where(keep, np.cumsum(keep & ~same), 0)
+        if excursion.max() > 0:
+            length = np.bincount(excursion)[1:]
+            owner = refined[np.flatnonzero(keep & ~same)]
+            order = np.lexsort((-length, owner))
+            longest = order[np.concatenate([[True], owner[order][1:] != owner[order][:-1]])]
+            keep &= np.isin(excursion, longest + 1)
+    second = fit_legs(np.where(keep, refined, -1))
+    result = second if second is not None else first
+    if source == "meet":
+        bumper, var_bumper = meeting_bumper(result)
+        notes.append(f"run '{label}': no resting tail; bumper position "
+                     f"{orientation * bumper:.5g} m where the fitted trajectories meet (biased "
+                     f"past the bumper by a long contact)")
+    cross = crossings(result, bumper, var_bumper)
+    resolved_count = int(is_impact.sum())
+    a_away, a_toward = result["theta"][:2]
+    sd_away, sd_toward = np.sqrt(np.diag(result["covariance"])[:2])
+    legs.append(dict(label=str(run.label), toward=float(a_toward), toward_sd=float(sd_toward),
+                     away=float(a_away), away_sd=float(sd_away), separate=bool(result["split"])))
+    accelerations = (f"{a_toward:.4g} ± {sd_toward:.2g} m/s² on the legs toward the bumper and "
+                     f"{a_away:.4g} ± {sd_away:.2g} m/s² on the legs away from it (the incline's "
+                     f"g·sin θ less and plus rolling friction)" if result["split"] else
+                     f"{a_toward:.4g} ± {sd_toward:.2g} m/s² on both legs (too few samples on "
+                     f"one leg to tell them apart)")
+    notes.append(f"run '{label}': free-motion acceleration toward the bumper {accelerations}, "
+                 f"position noise {np.sqrt(result['variance']) * 1e3:.3g} mm, "
+                 f"{resolved_count} resolved reversal(s) at the bumper "
+                 f"({impacts - resolved_count} other contact(s) with fewer than two samples "
+                 f"beyond the noise on a side), {result['outliers']} outlying sample(s) left out")
+    # Every reversal is reported; one whose incoming or outgoing flight has fewer than two
+    # free samples in the fit is flagged, timed by what it has: the incoming parabola, else the
+    # outgoing one (the contact end: late by the contact), else the midpoint of the samples
+    # where the velocity turned (1σ: their spacing/√12).
+    k = np.arange(impacts)
+    samples_in, samples_out = result["samples"][k], result["samples"][k + 1]
+    short = (samples_in < 2) | (samples_out < 2)
+    has_in, has_out = np.isfinite(cross["t_in"]), np.isfinite(cross["t_out"])
+    turn_lo, turn_hi = time[np.clip(peaks, 0, n - 1)], time[np.clip(troughs, 0, n - 1)]
+    impact_time = np.where(has_in, cross["t_in"], np.where(has_out, cross["t_out"],
+                                                            0.5 * (turn_lo + turn_hi)))
+    time_sd = np.where(has_in, cross["sd_t_in"], np.where(
+        has_out, np.hypot(cross["sd_t_out"], dt / np.sqrt(12.0)),
+        np.maximum(turn_hi - turn_lo, dt) / np.sqrt(12.0)))
+    # A fitted flight whose parabola never reaches the bumper position cannot time its
+    # contact (a bumper position given where the cart never is): such contacts are dropped.
+    timed = has_in | ((samples_in < 2) & (has_out | (samples_out < 2)))
+    # The train ends at its last well-sampled reversal (none: no train). Flagged contacts
+    # after it are the cart's last, smallest bounces, timed mostly by the noise (a 2 mm error
+    # is 20 ms at 0.1 m/s), and would end the train on intervals that are no bounce train.
+    good = np.flatnonzero(real_reversal & ~short & timed)
+    reported = (k <= (good[-1] if good.size else -1)) & timed
+    if np.any(~timed):
+        notes.append(f"run '{label}': {int(np.sum(~timed))} contact(s) whose fitted flight "
+                     f"never reaches the bumper position dropped")
+    if np.any(~reported & timed):
+        notes.append(f"run '{label}': {int(np.sum(~reported & timed))} last contact(s) after the "
+                     f"last reversal with two free-flight samples on each side left out (the "
+                     f"cart's smallest bounces, timed by the noise)")
+    flags = np.where(~real_reversal, "inferred", np.where(short, "few_samples", "ok"))[reported]
+    few = int(np.sum(short & real_reversal & reported))
+    if np.any(~real_reversal & reported):
+        notes.append(f"run '{label}': {int(np.sum(~real_reversal & reported))} contact(s) "
+                     f"without a visible reversal (a flight ending well before the next "
+                     f"reversal, its apex mirrored) flagged 'inferred'")
+    if few:
+        notes.append(f"run '{label}': {few} reversal(s) with fewer than two free-flight samples "
+                     f"on a side flagged 'few_samples' ({int(np.sum(~has_in & reported))} timed "
+                     f"by the outgoing flight or the turning samples, the incoming flight being "
+                     f"too short)")
+    speed_sd = np.fmax(cross["sd_v_in"], cross["sd_v_out"])
+    speed_sd = np.where(np.isfinite(speed_sd), speed_sd, np.fmin(cross["sd_v_in"],
+                                                                 cross["sd_v_out"]))
+    found = (impact_time[reported], time_sd[reported], cross["v_in"][reported],
+             cross["v_out"][reported], speed_sd[reported], flags)
+    if "position" in run.columns and reported.any() and result["split"]:
+        # The last bounces: too slow for a velocity reversal beyond the noise, but each still
+        # an excursion from the bumper of two samples or more.
+        tail = _tail_excursions(time, s, bumper, var_bumper, sigma_x, result,
+                                float(impact_time[reported][-1]))
+        if tail[0].size:
+            notes.append(f"run '{label}': {tail[0].size} later contact(s) between excursions "
+                         f"from the bumper of two or more samples, too slow for a velocity "
+                         f"reversal beyond the noise, timed by parabolas with the fitted leg "
+                         f"accelerations")
+            found = tuple(np.concatenate([a, b]) for a, b in zip(found, tail))
+    # Past the last resolved reversal the bounces shrink into the noise: the train ends where
+    # an impact's timing noise exceeds a quarter of the change between successive intervals,
+    # (1 − r)·interval/4 with r the median interval ratio so far, beyond which intervals
+    # would no longer shrink bounce by bounce (a ratio above 1 would be a 3σ event before).
+    times, sigmas = found[0], found[1]
+    resolved_times = impact_time[reported & real_reversal & is_impact]
+    trailing = times > (resolved_times[-1] if resolved_times.size else np.inf)
+    if times.size >= 4 and trailing.any():
+        intervals = np.diff(times)
+        ratio = float(np.median(intervals[1:][~trailing[2:]] / intervals[:-1][~trailing[2:]])) \
+            if np.any(~trailing[2:]) else np.nan
+        if np.isfinite(ratio) and ratio < 1.0:
+            noisy = trailing[1:] & (sigmas[1:] > (1.0 - ratio) * intervals / 4.0)
+            if noisy.any():
+                cut = int(np.flatnonzero(noisy)[0]) + 1
+                notes.append(f"run '{label}': {times.size - cut} last contact(s) left out: their "
+                             f"timing noise exceeds a quarter of the change between successive "
+                             f"intervals (median interval ratio {ratio:.3f})")
+                found = tuple(a[:cut] for a in found)
+    return found
+
+
+def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
+    """Contacts after time `after` found as excursions of the position from the bumper.
+
+    An excursion is a run of two or more consecutive samples more than 4σ short of the bumper
+    (a resting cart's noise makes one sample in 30 000 do that, two in a row almost never).
+    The first excursion after `after` is the flight that follows the last contact found; each
+    later one follows a contact of its own. Each excursion is fitted with its own position and
+    velocity and the run's leg accelerations (fixed), about its apex (found by iterating);
+    a contact is timed where the parabola before it reaches the bumper, with speeds from
+    both parabolas, as in read_motion_sensor. Excursions stop at the first of fewer than two
+    samples. A contact whose neighbouring samples both stay off the bumper joins two flights
+    into one excursion; one that no parabola fits (a residual beyond 5σ) is split at its
+    sample nearest the bumper.
+
+    Returns arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag).
+    """
+    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=object),)
+    margin = 4.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+    off = (s < bumper - margin) & (time > after)
+    starts, ends, values = _runs_of(off.astype(np.int8))
+    starts, ends = starts[values == 1], ends[values == 1]
+    a_away, a_toward = fitted["theta"][:2]
+
+    def fit(starts, ends):
+        """Each excursion's c, b (about its apex), their covariance and its worst residual."""
+        marker = np.zeros(time.size + 1, dtype=int)
+        np.add.at(marker, starts, 1)
+        np.add.at(marker, ends + 1, -1)
+        rows = np.flatnonzero(np.cumsum(marker)[:-1] > 0)
+        member = np.searchsorted(starts, rows, side="right") - 1
+        n_k = np.bincount(member).astype(float)
+
+        def solve(apex):
+            """Per excursion s − a_leg·τ²/2 = c + b·τ by least squares (closed form)."""
+            tau = time[rows] - apex[member]
+            y = s[rows] - 0.5 * np.where(tau >= 0, a_toward, a_away) * tau ** 2
+            st, stt = np.bincount(member, tau), np.bincount(member, tau ** 2)
+            sy, sty = np.bincount(member, y), np.bincount(member, tau * y)
+            det = n_k * stt - st ** 2
+            c, b = (stt * sy - st * sty) / det, (n_k * sty - st * sy) / det
+            # Covariance of (c, b) for white noise of σ_x.
+            return (c, b, sigma_x ** 2 * stt / det, sigma_x ** 2 * n_k / det,
+                    -sigma_x ** 2 * st / det, y - c[member] - b[member] * tau)
+
+        apex = np.bincount(member, weights=time[rows]) / n_k
+        for _ in range(3):  # the apex moves by a fraction of a sample after the first pass
+            c, b, *_ = solve(apex)
+            apex = apex + np.where(b > 0, -b / a_away, -b / a_toward)
+        *solution, residual = solve(apex)
+        worst = np.zeros(starts.size)
+        np.maximum.at(worst, member, np.abs(residual))
+        return apex, solution, worst
+
+    for _ in range(4):  # split excursions that hold two flights (below)
+        long_enough = ends - starts + 1 >= 2
+        if not long_enough.any():
+            return empty
+        # Up to the first excursion too short to fit: later ones cannot be told from noise.
+        stop = np.flatnonzero(~long_enough)
+        starts, ends = starts[: stop[0] if stop.size else None], ends[: stop[0] if stop.size
+                                                                       else None]
+        if starts.size < 2:
+            return empty
+        apex, (c, b, var_c, var_b, cov_cb), worst = fit(starts, ends)
+        # A contact whose neighbouring samples both stay 4σ off the bumper joins two flights
+        # into one excursion, which no parabola fits: split it at the sample nearest the
+        # bumper (the contact is next to it), leaving that sample out.
+        joined = np.flatnonzero((worst > 5.0 * sigma_x) & (ends - starts >= 4))
+        if joined.size == 0:
+            break
+        index = np.arange(time.size)
+        inside = [(index > starts[k]) & (index < ends[k]) for k in joined]  # a few at most
+        nearest = np.array([int(np.argmax(np.where(m, s, -np.inf))) for m in inside])
+        starts = np.sort(np.concatenate([starts, nearest + 1]))
+        ends = np.sort(np.concatenate([ends, nearest - 1]))
+    count = starts.size
+    cov_a = np.diag(fitted["covariance"])[:2]
+
+    def edge(k, times, toward):
+        """(a, c, b, cov of (a, c, b)) of excursion k's leg at the edge times."""
+        delta = times - apex[k]
+        a = a_toward if toward else a_away
+        ce = c[k] + b[k] * delta + 0.5 * a * delta ** 2
+        be = b[k] + a * delta
+        jac = np.zeros((k.size, 3, 3))
+        jac[:, 0, 0] = 1.0
+        jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = 0.5 * delta ** 2, 1.0, delta
+        jac[:, 2, 0], jac[:, 2, 2] = delta, 1.0
+        cov = np.zeros((k.size, 3, 3))
+        cov[:, 0, 0] = cov_a[1] if toward else cov_a[0]
+        cov[:, 1, 1], cov[:, 2, 2] = var_c[k], var_b[k]
+        cov[:, 1, 2] = cov[:, 2, 1] = cov_cb[k]
+        return a, ce, be, jac @ cov @ np.swapaxes(jac, 1, 2)
+
+    k_in = np.arange(count - 1)
+    a_in, c_in, b_in, cov_in = edge(k_in, time[ends[:-1]], toward=True)
+    a_out, c_out, b_out, cov_out = edge(k_in + 1, time[starts[1:]], toward=False)
+    tau_in, v_in, sd_t, sd_v_in = _crossing(a_in, c_in, b_in, cov_in, bumper, var_bumper,
+                                            incoming=True)
+    _, v_out, _, sd_v_out = _crossing(a_out, c_out, b_out, cov_out, bumper, var_bumper,
+                                      incoming=False)
+    impact = time[ends[:-1]] + tau_in
+    ok = np.isfinite(impact) & (impact < time[starts[1:]])
+    if not ok.all():  # a parabola that misses the bumper ends the tail there
+        last = np.flatnonzero(~ok)[0]
+        ok = np.arange(ok.size) < last
+    return (impact[ok], sd_t[ok], v_in[ok], v_out[ok], np.fmax(sd_v_in, sd_v_out)[ok],
+            np.full(int(ok.sum()), "ok", dtype=object))
+
+
+def read_motion_sensor(path, *, bumper_position=None):
+    """Impacts of a cart (or ball) from a motion-sensor or video-tracker position export.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Text table or workbook (.xlsx, .xls, .ods) with, per run, a time column and a position
+        and/or velocity column in the export's words: PASCO Capstone ``Time (s) Run #1``,
+        ``Position (m) Run #1``, ``Velocity (m/s) Run #1`` (and ``Acceleration`` columns, not
+        used); Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``, ``Latest: Velocity
+        (m/s)``; Tracker's data export (a first line naming the track, ``t``, ``x``, ``y``
+        without units [7]_) or any ``t,y`` table. Several runs side by side. Blanks at a
+        column's start or end are normal (a derivative starts a sample or two after the
+        position; shorter runs end early); a blank between a column's values is an error. The
+        position is read when there is one, and the velocity beside it is then not used. Units
+        m/cm/mm, m/s/cm/s/mm/s, s/ms; a position without a unit is read in m.
+    bumper_position : float, optional
+        Position reading (m, the file's axis) at which the cart touches the bumper, if known
+        from the scene, in [-20, 20] m. Otherwise estimated (see Notes).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest`: ``time`` (s, the file's clock) of each contact
+        start, ``impact_speed`` and ``rebound_speed`` (m/s) and their common 1σ
+        ``speed_uncertainty`` (the larger of the two), ``run`` the 0-based order of the run in
+        the file (``notes`` map it to the run's label; every run is returned), and ``flag``:
+        "ok", "few_samples" (fewer than two free-flight samples on a side of the reversal) or
+        "inferred" (a contact whose reversal the samples do not show). ``attrs
+        ['accelerations']`` lists per run the free-motion accelerations toward the bumper on
+        the legs toward it and away from it (m/s², with 1σ).
+
+    Raises
+    ------
+    InputError
+        Empty file, not a table, no time column or no position/velocity column, bad cells,
+        missing/negative/non-increasing times (row named), a value missing between the values
+        of the column read, duplicated rows, unknown units; motion without a bounce (no run
+        with more than one reversal at the bumper).
+    ValueError
+        If `bumper_position` is not a finite number in [-20, 20] m.
+
+    Notes
+    -----
+    A sensor sampling at 20-50 Hz has one or two points near each hit, and those are smeared
+    by the contact and by the derivative. They are not used. Instead:
+
+    1. Velocity: central differences of the position (noise σ_v = σ_x/(√2·Δt), with σ_x
+       from the third differences, which vanish for free motion [4]_, and no smaller than the
+       column's resolution over √12, the resolution being the smallest change between
+       consecutive readings); the vendor's own velocity column is used only when there is no
+       position (then integrated for one).
+    2. Orientation: the median change of velocity while moving points toward the bumper
+       (free motion accelerates toward it and is most of the record).
+    3. Reversals toward → away at most two (plus guard) samples apart end the flights. One
+       with at least two samples beyond ±4σ_v toward the bumper and two away is *resolved*: a
+       resting cart's noise cannot produce that (four samples beyond 4σ with the right signs).
+       Reversals after the last resolved one count while the position still leaves the bumper
+       by more than 4σ_x (the last, short flights); reversals at the top of the incline go
+       the other way and are apexes.
+    4. Flights, first pass: from the peak velocity away from the bumper after a contact
+       (where it ended) to the peak velocity toward it before the next (where it starts),
+       less a guard sample (the release's first moving sample too); and no later than the
+       apex mirrored about the contact end. Where that mirror falls well short of the next
+       reversal, a slow contact showed no clear reversal in between: a contact is put there
+       (flagged "inferred"), so the next impact gets its own incoming flight.
+    5. Fit: all flight samples by least squares, each flight s(τ) = c + b·τ + a·τ²/2 about its
+       apex with one acceleration for the legs away from the bumper and another for the legs
+       toward it, common to all flights of the run (on an incline rolling friction adds to the
+       pull going up and subtracts from it going down [5]_), position and velocity continuous
+       at the apex; first with a single acceleration, then twice about the apexes found. Both
+       are reported; with fewer than three samples on either kind of leg, one acceleration.
+       Samples 5σ off their parabola, and the rest of the flight beyond them, are left out
+       (a contact the reversals missed). Covariance s²(AᵀA)⁻¹, scaled by the residuals'
+       long-run variance ratio 1 + 2Σρ_k when the noise is correlated [6]_.
+    6. Second pass: each flight is cut again at the *fitted* contact times (and the fitted
+       release), never past the samples where the velocity turned, keeping the samples next
+       to a contact whose position is more than 3σ short of the bumper (off it), and refitted.
+    7. Impact time: where the incoming parabola reaches the bumper position, i.e. the start
+       of contact (the convention of :func:`dashpot.bounce_sequence`); the outgoing parabola
+       leaves it at the end of contact. The bumper position is the ``bumper_position``
+       argument; else the median of the second half of the final stretch in which the
+       position stays within 4σ of where the record ends (the cart at rest; it includes a
+       soft bumper's static compression g·sin θ/ω0², which makes the times late by that
+       distance over the impact speed); else the median point where incoming and outgoing
+       parabolas meet (past the bumper by a long contact; noted).
+    8. Speeds: each leg's slope at those crossings, √(b² + 2a·D) with D the distance left and
+       a that leg's acceleration, so the impact speed of a bounce and the rebound speed of
+       the one before are measured separately; 1σ by linear propagation of the fit covariance
+       and of the bumper position's uncertainty.
+
+    Every reversal is reported. One whose incoming or outgoing flight has fewer than two free
+    samples in the fit is flagged "few_samples" and timed by what it has: the incoming
+    parabola, else the outgoing one (the contact end), else the midpoint of the samples where
+    the velocity turned (1σ: their spacing/√12); the speed it cannot measure is NaN. The
+    train ends at its last reversal with two free samples on each side: flagged contacts
+    after it (the smallest bounces, timed by the noise) are left out, noted; so is a contact
+    whose fitted flight never reaches the bumper position.
+
+    After the last reversal, bounces too slow to pass the velocity threshold are still found
+    as excursions of the position from the bumper: runs of two or more samples more than 4σ
+    short of it, each fitted with its own position and velocity and the run's two leg
+    accelerations; a contact lies between consecutive excursions. The train ends where an
+    impact's timing noise exceeds a quarter of the change between successive intervals,
+    (1 − r)·interval/4 with r the median interval ratio: beyond it the intervals no longer
+    shrink bounce by bounce within the noise.
+    """
+    if bumper_position is not None:
+        bumper_position = check_range("bumper_position", bumper_position,
+                                      *BUMPER_POSITION_RANGE, unit="m", low_inclusive=True)
+    table = _table_of_kind(path, "motion_sensor", "no position or velocity column",
+                           "a motion sensor (expected e.g. 'Time (s) Run #1' and "
+                           "'Position (m) Run #1'")
+    _check_duplicates(path, table)
+    runs = _runs(path, table, {"position": (_POSITION_NAMES, "length"),
+                               "velocity": (_VELOCITY_NAMES, "speed")})
+    if not runs:
+        raise InputError(path, f"{table.where}no run has both a time column and a position or "
+                               f"velocity column")
+    vendor = ("Vernier" if any(":" in c.header for c in table.columns) else
+              "PASCO" if any(re.search(r"run\s*#", c.header, re.I) for c in table.columns)
+              else "Tracker" if "Tracker" in table.variant else "unlabelled")
+    notes = [f"file variant: {table.variant}; {vendor} column layout, {len(runs)} run(s): "
+             + ", ".join(f"run {k} = '{r.label or '(unlabelled)'}'" for k, r in enumerate(runs))]
+    if any(c.unit is None and c.name in _POSITION_NAMES for c in table.columns):
+        notes.append("position column without a unit: read in m (Tracker writes its calibrated "
+                     "world units, usually m, without naming them)")
+    parts, legs = [], []
+    for number, run in enumerate(runs):  # loop over runs
+        before = len(legs)
+        result = _motion_run(run, bumper_position, notes, legs)
+        parts.append(result + (np.full(result[0].size, number),))
+        if len(legs) > before:
+            legs[-1] = dict(run=number, **legs[-1])
+        if "column" in run.columns and len([c for c in table.columns if c.run == run.label
+                                            and c.name in _POSITION_NAMES]) > 1:
+            notes.append(f"run {number}: position read from column '{run.columns['column']}' "
+                         f"(the coordinate that moves most)")
+    merged = [np.concatenate([p[q] for p in parts]) for q in range(7)]
+    counts = [p[0].size for p in parts]
+    if max(counts) == 1:
+        where = " in every run" if len(runs) > 1 else ""
+        raise InputError(path, f"{table.where}motion but no bounce: a single reversal at the "
+                               f"bumper{where} (a cart pushed by hand, or caught after one hit); "
+                               f"a bounce train needs at least two impacts")
+    frame = _impact_frame(path, "motion_sensor", notes, merged[0], merged[1],
+                          impact_speed=merged[2], rebound_speed=merged[3],
+                          speed_uncertainty=merged[4], flag=merged[5], run=merged[6])
+    frame.attrs["accelerations"] = legs
+    return frame
