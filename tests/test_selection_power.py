@@ -5,7 +5,8 @@ gravity-free train is not handed to a gravity model.
   ``fit_scene(..., noise=True)`` reports): a speed term, and gravity in contact (Ib and the
   hybrid against their gravity-free rungs Ia and IIa), each generating rung selected in
   >= 90 % of seeded trains when its effect is >= 5σ of the bounce-to-bounce scatter; a
-  constant-ε train keeps no speed term, and Ia and IIa trains no gravity in contact, in >= 90 %.
+  constant-ε train keeps no speed term (with air drag too, where the scene gives the ball), and
+  Ia and IIa trains no gravity in contact, in >= 90 %.
 * Deterministic fits (:func:`dashpot.fit.fit_scene`, all five models): an Ia train in the soft
   contact where gravity in contact is observable is not declared to prefer a gravity model
   (ΔAIC > 4 over the best gravity-free model, "preferred" in the verdict) in more than 10 % of
