@@ -41,6 +41,13 @@ Every array broadcasts over a leading batch of parameter sets (or of trains): th
 the impacts only, numpy over the batch, so the finite-difference stencils of a fit, or a
 hundred simulated trials, cost about one evaluation.
 
+The same filter runs faster over a table of the step map (:meth:`TrainModel.tabulate`): the
+law, contact time and flight are evaluated once per call, for every parameter set at once, on
+a grid of speeds, and :meth:`StepTable.filter` runs the loop, compiled by numba, over their
+cubic Hermite interpolant; its arithmetic is that of :meth:`TrainModel.filter`, step for step,
+and a parameter set whose speed leaves the grid is reported rather than extrapolated. This is
+what the fits' fast and standard accuracy levels use (:mod:`dashpot.fit.noise_fit`).
+
 References
 ----------
 .. [1] J. Durbin and S. J. Koopman, *Time Series Analysis by State Space Methods*, 2nd ed.,
