@@ -15,7 +15,8 @@ import soundfile as sf
 import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS
-from dashpot.ingest import audio
+from dashpot.ingest import chain as chaining
+from dashpot.ingest import envelope
 from dashpot.ingest.audio import detect_impacts, read_audio
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -245,18 +246,18 @@ def test_onset_pick_moves_past_a_sound_that_starts_before_the_transient():
     shape = np.concatenate([np.ones(60), 10 * np.ones(44), 60 * np.ones(24)])
     power = shape * rng.exponential(1.0, (20, shape.size))
     first = np.zeros(20, dtype=np.int64)
-    assert (np.abs(audio._aic_picks(power, first) - 60) <= 3).all()  # the ring's start
-    assert (np.abs(audio._onset_picks(power, first, 22, 11) - 104) <= 3).mean() >= 0.9
+    assert (np.abs(envelope._aic_picks(power, first) - 60) <= 3).all()  # the ring's start
+    assert (np.abs(envelope._onset_picks(power, first, 22, 11) - 104) <= 3).mean() >= 0.9
     # Without the ring the pick stays at the transient's start.
     plain = np.concatenate([np.ones(104), 60 * np.ones(24)]) * rng.exponential(1.0, (20, 128))
-    assert (np.abs(audio._onset_picks(plain, first, 22, 11) - 104) <= 3).all()
+    assert (np.abs(envelope._onset_picks(plain, first, 22, 11) - 104) <= 3).all()
 
 
 def test_secondary_delays_are_found_from_the_transients_left_out():
     impacts = np.concatenate([[0.0], np.cumsum(0.3 * 0.9 ** np.arange(20))])
     times = np.sort(np.concatenate([impacts, impacts + 0.0203]))
     chain = np.searchsorted(times, impacts)
-    np.testing.assert_allclose(audio._secondary_delays(times, chain), [0.0203], atol=1e-6)
+    np.testing.assert_allclose(chaining._secondary_delays(times, chain), [0.0203], atol=1e-6)
 
 
 def test_missed_impacts_are_probed_where_the_trend_predicts_them():
@@ -267,8 +268,8 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
         nearest = impacts[np.abs(impacts - predicted).argmin()]
         return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
 
-    coefficients, scatter = audio._robust_trend(kept)
-    added, retimed = audio._fill_impacts(kept, np.ones(kept.size), coefficients, scatter,
+    coefficients, scatter = chaining._robust_trend(kept)
+    added, retimed = chaining._fill_impacts(kept, np.ones(kept.size), coefficients, scatter,
                                          np.zeros(0), probe, impacts[-1] + 1.0)
     np.testing.assert_allclose([row[0] for row in added], impacts[[20, 29]])
     assert not retimed
@@ -281,9 +282,9 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
     def ringing(predicted, tolerance, not_before=None):
         return (float(rings[np.abs(rings - predicted).argmin()]), 1e-5, 1.0, False)
 
-    coefficients, scatter = audio._robust_trend(times)
+    coefficients, scatter = chaining._robust_trend(times)
     for delays, expected in ((np.zeros(0), 1), (np.array([delay]), 0)):
-        added, _ = audio._fill_impacts(times, np.ones(times.size), coefficients, scatter,
+        added, _ = chaining._fill_impacts(times, np.ones(times.size), coefficients, scatter,
                                        delays, ringing, times[-1] + 0.5)
         assert len(added) == expected
 
@@ -297,8 +298,8 @@ def test_probed_impacts_stay_in_time_order_where_the_tolerance_exceeds_the_inter
     def probe(predicted, tolerance, not_before=None):
         return (predicted - 0.9 * tolerance, 1e-5, 1.0, False)
 
-    coefficients, _ = audio._robust_trend(impacts)
-    added, retimed = audio._fill_impacts(impacts, np.ones(impacts.size), coefficients, 0.5,
+    coefficients, _ = chaining._robust_trend(impacts)
+    added, retimed = chaining._fill_impacts(impacts, np.ones(impacts.size), coefficients, 0.5,
                                          np.zeros(0), probe, impacts[-1] + 1.0)
     timeline = np.sort(np.concatenate([impacts, [row[0] for row in added]]))
     assert np.all(np.diff(timeline) > 0) and not retimed
@@ -312,7 +313,7 @@ def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
     delay = captured - impacts[26]
     timed = impacts.copy()
     timed[27] = captured
-    coefficients, scatter = audio._robust_trend(np.delete(timed, 27))
+    coefficients, scatter = chaining._robust_trend(np.delete(timed, 27))
     probed = []
 
     def probe(predicted, tolerance, not_before=None):
@@ -320,7 +321,7 @@ def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
         # Past the ring's start the impact's own onset is found where it rises out of it.
         return (impacts[27], 1e-5, 1.0, False) if not_before == captured else None
 
-    _, retimed = audio._fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+    _, retimed = chaining._fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                      np.array([delay]), probe, impacts[-1])
     assert list(retimed) == [27] and retimed[27][0] == impacts[27]
     assert captured in probed
@@ -329,7 +330,7 @@ def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
         return None
 
     # No onset rises out of the ring: the time is the trend's, within its stated scatter.
-    _, retimed = audio._fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+    _, retimed = chaining._fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                      np.array([delay]), silent, impacts[-1])
     moment, sigma, _, clipped = retimed[27]
     assert clipped is None and abs(moment - impacts[27]) <= 3 * sigma < 1.5e-3

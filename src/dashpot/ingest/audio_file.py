@@ -1,0 +1,225 @@
+"""Reading sound files for the impact detector: every container libsndfile decodes, blocks
+of samples, and one-line errors for files that cannot be used (truncated, corrupt, empty)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+
+from ..errors import InputError
+
+
+# Every container the bundled libsndfile decodes, except header-less RAW (it cannot be opened
+# without being told its layout).
+_FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+_UNSET_SIZES = (0, 0xFFFFFFFF)  # sizes a recorder writes before it knows (or never closed)
+
+
+class _PatchedHeaderFile:
+    """A read-only file object: `header` in place of the file's first bytes, then the file.
+
+    Lets libsndfile read a WAV whose header sizes were never filled in, without copying the
+    samples.
+    """
+
+    def __init__(self, path, header):
+        self._file = open(path, "rb")
+        self._header = bytes(header)
+        self._size = Path(path).stat().st_size
+        self._position = 0
+
+    def seek(self, offset, whence=0):
+        base = {0: 0, 1: self._position, 2: self._size}[whence]
+        self._position = max(0, base + offset)
+        return self._position
+
+    def tell(self):
+        return self._position
+
+    def read(self, size=-1):
+        if size is None or size < 0:
+            size = max(0, self._size - self._position)
+        data = self._header[self._position:self._position + size]
+        if len(data) < size:
+            self._file.seek(self._position + len(data))
+            data += self._file.read(size - len(data))
+        self._position += len(data)
+        return data
+
+    def close(self):
+        self._file.close()
+
+
+class _RepairedSoundFile(sf.SoundFile):
+    """SoundFile over a _PatchedHeaderFile that closes it too; ``repair_note`` says why."""
+
+    def __init__(self, source, repair_note):
+        super().__init__(source)
+        self.source = source
+        self.repair_note = repair_note
+
+    def close(self):
+        super().close()
+        self.source.close()
+
+
+def _wav_with_unset_sizes(path):
+    """Repaired header and a note for a WAV whose data size is 0 or 0xFFFFFFFF while samples
+    follow the data chunk's header (a recorder that crashed or was never stopped); None for
+    any other file. The samples are taken to run to the end of the file (whole frames)."""
+    size = Path(path).stat().st_size
+    with open(path, "rb") as handle:
+        head = handle.read(1 << 16)
+    if head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+        return None
+    position, block_align = 12, 1
+    while position + 8 <= len(head):  # loop over the chunks before the samples
+        chunk, length = head[position:position + 4], int.from_bytes(head[position + 4:position + 8],
+                                                                    "little")
+        if chunk == b"fmt " and position + 22 <= len(head):
+            block_align = max(1, int.from_bytes(head[position + 20:position + 22], "little"))
+        if chunk == b"data":
+            break
+        position += 8 + length + (length & 1)
+    else:
+        return None
+    start = position + 8
+    present = (size - start) // block_align * block_align
+    if present <= 0 or length not in _UNSET_SIZES:
+        return None
+    header = bytearray(head[:start])
+    header[4:8] = (start + present - 8).to_bytes(4, "little")
+    header[position + 4:position + 8] = present.to_bytes(4, "little")
+    note = (f"the WAV header gives {'no' if length == 0 else 'an unset (0xFFFFFFFF)'} size for "
+            f"the samples (a recording that was not closed properly): read the {present} bytes "
+            f"of samples that follow it")
+    return bytes(header), note
+
+
+def _open(path):
+    """Open `path` with libsndfile, turning every reason it cannot be used into InputError.
+
+    A WAV whose header sizes were never filled in (0 or 0xFFFFFFFF, as a crashed recorder
+    leaves them) is read from the samples present; the handle's ``repair_note`` says so.
+    """
+    from . import UNREADABLE_MEDIA, unreadable_media_problem
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    if path.suffix.lower() in UNREADABLE_MEDIA:
+        raise InputError(path, unreadable_media_problem(path))
+    if path.stat().st_size == 0:
+        raise InputError(path, "empty file (0 bytes)")
+    try:
+        repair = _wav_with_unset_sizes(path)
+        if repair is None:
+            handle = sf.SoundFile(str(path))
+            handle.repair_note = ""
+        else:
+            handle = _RepairedSoundFile(_PatchedHeaderFile(path, repair[0]), repair[1])
+    except (sf.LibsndfileError, RuntimeError, TypeError) as error:
+        raise InputError(path, f"not a readable audio file (WAV, FLAC, OGG, MP3, AIFF, CAF or "
+                               f"another format libsndfile decodes expected): "
+                               f"{' '.join(str(error).split())}") from None
+    if handle.format not in _FILE_FORMATS:
+        handle.close()
+        raise InputError(path, f"unsupported audio format {handle.format}: WAV, FLAC, OGG, "
+                               f"MP3, AIFF or CAF expected")
+    problem = _truncation(handle.extra_info)
+    if problem:
+        handle.close()
+        raise InputError(path, problem)
+    if handle.frames == 0:
+        handle.close()
+        raise InputError(path, "empty recording: the file holds no samples")
+    return handle
+
+
+def _truncation(extra_info):
+    """Plain-words problem if libsndfile's header log shows a cut-off file, else ''."""
+    # WAV: the data chunk claims more bytes than the file holds ("data : 352800 (should be
+    # 176360)"); libsndfile then silently shortens the recording.
+    for claimed, present in re.findall(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", extra_info,
+                                       flags=re.MULTILINE):
+        if int(claimed) > int(present):
+            return (f"truncated file: the header announces {claimed} bytes of samples but only "
+                    f"{present} are present")
+    # OGG: a complete stream ends with a page carrying the end-of-stream flag.
+    if "Last page lacks an end-of-stream bit" in extra_info:
+        return "truncated file: the Ogg stream ends without its end-of-stream page"
+    return ""
+
+
+def _blocks(handle, path, block_frames):
+    """Yield consecutive float64 blocks of shape (frames, channels) until the end of file."""
+    expected = handle.frames
+    seen = 0
+    while True:
+        try:
+            block = handle.read(block_frames, dtype="float64", always_2d=True)
+        except (sf.LibsndfileError, RuntimeError) as error:
+            raise InputError(path, f"truncated or corrupt file: decoding failed after "
+                                   f"{seen / handle.samplerate:.3f} s ({error})") from None
+        if block.shape[0] == 0:
+            break
+        if not np.all(np.isfinite(block)):
+            bad = seen + int(np.argmax(~np.all(np.isfinite(block), axis=1)))
+            raise InputError(path, f"non-finite sample (NaN or infinity) at "
+                                   f"{bad / handle.samplerate:.6f} s")
+        seen += block.shape[0]
+        yield block
+        if block.shape[0] < block_frames:
+            break
+    if seen < expected:
+        raise InputError(path, f"truncated file: the header announces {expected} frames, only "
+                               f"{seen} could be read")
+
+
+def _check_block_seconds(block_seconds):
+    if not np.isfinite(block_seconds) or block_seconds <= 0:
+        raise ValueError(f"block_seconds must be a positive number of seconds; got "
+                         f"{block_seconds!r}")
+
+
+def read_audio(path, *, block_seconds=10.0):
+    """Samples and sample rate of a recording libsndfile decodes (WAV, FLAC, OGG, MP3, AIFF, …).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording: any sample rate; 8/16/24/32-bit integer or 32/64-bit float samples;
+        any number of channels.
+    block_seconds : float, default 10
+        Length of the blocks the file is decoded in (s). The whole recording ends up in memory;
+        :func:`detect_impacts` streams instead.
+
+    Returns
+    -------
+    samples : ndarray of float64, shape (frames, channels)
+        Full scale = 1 (integer formats map to [-1, 1)).
+    sample_rate : int
+        Samples per second (Hz).
+
+    Raises
+    ------
+    InputError
+        Missing, empty (0 bytes or no samples), truncated, non-audio or corrupt file, or
+        non-finite samples.
+    """
+    _check_block_seconds(block_seconds)
+    with _open(path) as handle:
+        block_frames = max(1, int(round(block_seconds * handle.samplerate)))
+        samples = np.concatenate(list(_blocks(handle, path, block_frames)), axis=0)
+        return samples, int(handle.samplerate)
+
+

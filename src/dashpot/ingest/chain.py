@@ -1,0 +1,716 @@
+"""The impacts among the transients: the chain whose intervals shrink as a ball bouncing to
+rest makes them, its extension and the impacts its trend predicts where no transient was chosen
+(step 3 of :mod:`dashpot.ingest.audio`).
+
+References
+----------
+.. [5] T. Erickson, "Modeling a bouncing ball with exponential functions and infinite
+   series", Mathematics Teacher 113(3), 233-236 (2020) (geometric shrinking of the intervals).
+"""
+
+from __future__ import annotations
+
+from math import exp, log
+from statistics import median
+
+import numpy as np
+from scipy import signal
+
+from ..plausibility import ratio_trend
+from .audio_file import _open
+from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
+                       _MERGE_SECONDS, _RING_GAP_SECONDS, _RING_JUMP, _WEAK_JUMP_FACTOR,
+                       _onset_picks)
+from .onset import _onset_posterior
+
+
+# Selection (step 3).
+_RATIO_BOUNDS = (0.45, 1.2)  # next interval / this interval for successive bounces, at most
+_GROWTH_ALLOWANCE = 0.05  # a ratio may exceed 1 by this (restitution scatter of a few %) plus
+# 3σ of the rough onsets' jitter on both intervals: up to 1.2 on the last, few-ms intervals,
+# 1.06 on intervals of 0.3 s (random clicks otherwise chain at ratios of up to 1.2)
+_RATIO_SCATTER_FLOOR = 0.02  # in log(ratio)
+_ONSET_JITTER = 0.5e-3  # s: a faint transient's rough onset may move by this much (first
+# arrival or loud part), which matters on the last, short intervals
+_NOISE_WEIGHT = 1.0  # score of any transient included in the chain, plus its log SNR
+_SECONDARY_SECONDS = 0.16  # ringing, rattle and echoes come up to this long after an impact
+_SECONDARY_WEIGHT = 0.25  # factor on the score of a transient that may be one of them
+_SECONDARY_LOUDNESS = 3.0  # ... because a transient at least 1/3 as loud came before it
+_LEADING_LOUDNESS = 10.0  # the first impact is within 20 dB of the loudest
+_EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact time
+_TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak transients too
+_EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
+_PROBE_WARMUP_SECONDS = 0.05  # high-pass settling before a probed stretch of the file
+_PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
+
+
+# --------------------------------------------------------------------------------------------
+# Selection by physics
+
+
+def _best_chain(times, weights, trend=None):
+    """Indices of the highest-scoring chain of events with geometrically shrinking intervals.
+
+    Dynamic programming over states (j, k), "the chain ends with events j then k" (Bellman's
+    principle: the best chain through (j, k) extends the best chain ending there). A chain
+    scores the sum of its events' weights; a step from (j, k) to (k, l) is allowed only if the
+    interval ratio ρ = (t_l − t_k)/(t_k − t_j) lies within the bounds of successive bounces.
+    With ``trend = (coefficients, scatter)`` each step also costs ln(1 + z²/2), with
+    z = (ln ρ − trend(ln(t_k − t_j))) / √(scatter² + jitter²), jitter being the effect on
+    ln ρ of the rough onsets' jitter (:data:`_ONSET_JITTER`) on both intervals.
+    """
+    n = times.size
+    if n < 2:
+        return np.arange(n)
+    log_lo, log_hi = np.log(_RATIO_BOUNDS)
+    gaps = times[None, :] - times[:, None]  # gaps[k, l] = t_l − t_k
+    upper = gaps > 0
+    log_gap = np.log(np.where(upper, gaps, 1.0))
+    jitter = 2 * _ONSET_JITTER**2 / np.where(upper, gaps, 1.0) ** 2
+    score = np.where(upper, weights[:, None] + weights[None, :], -np.inf)
+    pointer = np.full((n, n), -1, dtype=np.int64)
+    # Per gap (j, k), the next gap's log that the trend expects (centre of the Cauchy cost)
+    # and the bounds of the allowed ones; per column k, read as contiguous rows below.
+    if trend is not None:
+        coefficients, scatter = trend
+        centre_t = (log_gap + np.polyval(coefficients, log_gap)).T.copy()
+        spread_t = (scatter**2 + jitter).T.copy()
+    log_gap_t = log_gap.T.copy()
+    columns = np.arange(n)
+    # Every pair (j, k), j < k, starts a chain, so every state ending at k is reachable from
+    # all j < k (slices, not index lists, in the loop below). States ending at k are final
+    # once every j < k has been seen: sweep k in time order.
+    last = np.searchsorted(times, times[1:-1] + _RATIO_BOUNDS[1] * (times[1:-1] - times[0]),
+                           side="right")
+    for k in range(1, n - 1):
+        stop = last[k - 1]
+        if stop <= k + 1:
+            continue
+        following = log_gap[k, k + 1:stop]
+        log_ratio = following - log_gap_t[k, :k, None]
+        total = score[:k, k, None] + weights[k + 1:stop]
+        if trend is not None:
+            deviation = following - centre_t[k, :k, None]
+            deviation *= deviation
+            deviation /= spread_t[k, :k, None] + jitter[k, k + 1:stop]
+            # Cauchy (Lorentzian) cost: quadratic for small deviations, logarithmic for large
+            # ones, so that one odd bounce (a spin, a tilted floor) does not cut the chain.
+            total -= np.log1p(0.5 * deviation)
+        # Bouncing balls' intervals shrink: one may grow only as much as the restitution's
+        # scatter and the rough onsets' jitter on both intervals explain.
+        growth = np.minimum(log_hi, np.log1p(_GROWTH_ALLOWANCE) + 3.0 * np.sqrt(
+            jitter[:k, k, None] + jitter[k, k + 1:stop]))
+        total[(log_ratio < log_lo) | (log_ratio > growth)] = -np.inf
+        best = np.argmax(total, axis=0)
+        value = total[best, columns[:stop - k - 1]]
+        better = value > score[k, k + 1:stop]
+        score[k, k + 1:stop] = np.where(better, value, score[k, k + 1:stop])
+        pointer[k, k + 1:stop] = np.where(better, best, pointer[k, k + 1:stop])
+    j, k = np.unravel_index(np.argmax(score), score.shape)
+    chain = [int(k), int(j)]
+    while pointer[chain[-1], chain[-2]] >= 0:
+        chain.append(int(pointer[chain[-1], chain[-2]]))
+    return np.array(chain[::-1])
+
+
+def _chain_weights(times, power_ratio, amplitude):
+    """Score of each transient as a member of the chain of impacts.
+
+    A transient counts 1 + ½·ln(its power over the detection threshold), the log of its
+    amplitude SNR, so that a clear impact outweighs a faint one. A transient that follows,
+    within 160 ms, one at least a third as loud (−10 dB) may be its ringing, rattle or echo
+    and counts a quarter: where an impact and its secondary fit the geometric trend equally
+    well (secondaries at a fixed delay form a geometric chain of their own), the first of
+    them, the cause, is the impact. Only a transient much louder than anything in the
+    160 ms before it keeps its full score. Late bounces, less than 160 ms apart, are all
+    quartered; among them the trend decides.
+    """
+    weights = _NOISE_WEIGHT + 0.5 * np.log(power_ratio)
+    earlier = np.searchsorted(times, times - _SECONDARY_SECONDS)
+    loudest_before = np.array([amplitude[a:i].max(initial=0.0) for i, a in enumerate(earlier)])
+    secondary = loudest_before >= amplitude / _SECONDARY_LOUDNESS
+    return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
+
+
+def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
+    """Chain of impacts among the transients at `times` (s), and notes on missing ones.
+
+    A first pass keeps the best chain of strong transients under the ratio bounds alone; the
+    ratio of successive intervals of that chain is fitted as a straight line in log(interval)
+    (restitution changes smoothly with impact speed, which is proportional to the interval
+    [5]_); a second pass scores every step by how far its ratio is from that line, in units
+    of the chain's robust scatter: an echo or a ring that replaced an impact would break the
+    trend twice. Finally the chain is followed on (:func:`_extend_chain`) where the trend
+    predicts further impacts, among all transients, weak ones included.
+
+    Returns
+    -------
+    chain : ndarray of int
+        Indices of the impacts, in time order.
+    skipped : int
+        Impacts the trend predicts but no transient marks (counted in the notes).
+    """
+    candidates = np.flatnonzero(strong)
+    weights = np.zeros(times.size)
+    weights[candidates] = _chain_weights(times[candidates], power_ratio[candidates],
+                                         amplitude[candidates])
+    chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates]),
+                                   amplitude[candidates])]
+    if chain.size < 4:
+        return chain, 0
+    trend = _trend(times[chain])
+    candidates = candidates[times[candidates] >= times[chain[0]]]
+    chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates], trend),
+                                   amplitude[candidates])]
+    if chain.size < 4:
+        return chain, 0
+    trend = _trend(times[chain])
+    chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
+    chain = _polish_chain(times, chain, trend)
+    chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
+                                   _secondary_delays(times, chain))
+    return _polish_chain(times, chain, trend), skipped
+
+
+def _redo_tail(times, power_ratio, amplitude, strong, chain, trend):
+    """Chain with its last impacts chosen again among all transients, weak ones included.
+
+    The last, faintest impacts land on the ringing and echoes of earlier ones, so their
+    power jumps less and they may be weak triggers only, while rings of comparable loudness
+    come at fixed delays. With the trend known, the best chain (:func:`_best_chain`) through
+    every transient from the last :data:`_TAIL_IMPACTS` impacts on tells them apart by the
+    whole run of intervals rather than one predicted time at a time; a weak transient counts
+    half. The new tail is kept only if it continues the chain (starts on one of its members).
+    """
+    start = chain[max(0, chain.size - _TAIL_IMPACTS)]
+    pool = np.arange(start, times.size)
+    if pool.size < 3:
+        return chain
+    weights = _chain_weights(times[pool], power_ratio[pool], amplitude[pool])
+    weights = np.where(strong[pool], weights, 0.5 * weights)
+    tail = pool[_best_chain(times[pool], weights, trend)]
+    if tail.size < 3 or tail[0] not in set(chain.tolist()) or tail[-1] <= chain[-1]:
+        return chain
+    return np.concatenate([chain[chain < tail[0]], tail])
+
+
+def _ratio_cost(times_a, times_b, times_c, coefficients, scatter):
+    """Cauchy cost of the interval ratio (c − b)/(b − a) against the trend, elementwise."""
+    previous, following = times_b - times_a, times_c - times_b
+    valid = (previous > 0) & (following > 0)
+    previous, following = np.where(valid, previous, 1.0), np.where(valid, following, 1.0)
+    deviation = np.log(following / previous) - np.polyval(coefficients, np.log(previous))
+    jitter = 2 * _ONSET_JITTER**2 * (1 / previous**2 + 1 / following**2)
+    return np.where(valid, np.log1p(0.5 * deviation**2 / (scatter**2 + jitter)), np.inf)
+
+
+def _polish_chain(times, chain, trend):
+    """Replace chain members by a transient within 3 ms that fits the trend better.
+
+    A ring or an echo that starts shortly before an impact can take its place in the chain
+    (and hide it from the strong triggers); the impact itself continues the geometric trend
+    better. Each member in turn is replaced by the transient, among those within the
+    back-search time of it, that minimises the cost of the three interval ratios it enters.
+    """
+    coefficients, scatter = trend
+    chain = chain.copy()
+    for position in range(1, chain.size):
+        lo, hi = np.searchsorted(times, [times[chain[position]] - _BACK_SEARCH_SECONDS,
+                                         times[chain[position]] + _BACK_SEARCH_SECONDS])
+        lo = max(lo, chain[position - 1] + 1)
+        if position + 1 < chain.size:
+            hi = min(hi, chain[position + 1])
+        options = np.arange(lo, hi)
+        if options.size < 2:
+            continue
+        # The (up to three) ratios the member enters, one row each, costed in one call.
+        t = times[options]
+        around = times[chain[max(position - 2, 0):position + 3]]
+        before = position - max(position - 2, 0)  # members of `around` before this one
+        rows = []
+        if before == 2:
+            rows.append((np.full_like(t, around[0]), np.full_like(t, around[1]), t))
+        if position + 1 < chain.size:
+            rows.append((np.full_like(t, around[before - 1]), t,
+                         np.full_like(t, around[before + 1])))
+        if position + 2 < chain.size:
+            rows.append((t, np.full_like(t, around[before + 1]),
+                         np.full_like(t, around[before + 2])))
+        if rows:
+            a, b, c = (np.array(column) for column in zip(*rows))
+            cost = _ratio_cost(a, b, c, coefficients, scatter).sum(axis=0)
+        else:
+            cost = np.zeros(options.size)
+        chain[position] = options[int(np.argmin(cost))]
+    return chain
+
+
+def _trend(impact_times):
+    """(polynomial coefficients, scatter) of ln(next interval / interval) against ln(interval).
+
+    A straight line, or a parabola for chains of ten bounces or more, whose restitution may
+    change faster at high speed.
+    """
+    intervals = np.diff(impact_times)
+    log_ratio = np.log(intervals[1:] / intervals[:-1])
+    log_interval = np.log(intervals[:-1])
+    coefficients = np.polyfit(log_interval, log_ratio, 2 if log_ratio.size >= 9 else 1)
+    residual = log_ratio - np.polyval(coefficients, log_interval)
+    # Scatter of log(ratio): the bounce-to-bounce variation of restitution, robust, from the
+    # chain itself (_best_chain adds the effect of the onsets' jitter on short intervals).
+    scatter = max(1.4826 * np.median(np.abs(residual - np.median(residual))),
+                  _RATIO_SCATTER_FLOOR)
+    return coefficients, scatter
+
+
+def _trend_step(coefficients, shortest):
+    """Function giving the next interval (s) from an interval (s) under the ratio trend.
+
+    Below the `shortest` interval (s) of the chain the trend is continued along its tangent:
+    a parabola fitted to the longer intervals can bend away fast outside them.
+    """
+    edge = float(np.log(shortest))
+    edge_value = float(np.polyval(coefficients, edge))
+    edge_slope = float(np.polyval(np.polyder(coefficients), edge))
+    terms = [float(c) for c in coefficients]
+
+    def step(interval):  # scalar arithmetic: called a few times per impact
+        log_interval = log(interval)
+        if log_interval < edge:
+            log_ratio = edge_value + edge_slope * (log_interval - edge)
+        else:
+            log_ratio = 0.0
+            for term in terms:  # Horner's scheme, as np.polyval
+                log_ratio = log_ratio * log_interval + term
+        return interval * exp(log_ratio)
+
+    return step
+
+
+def _predict_next(anchors, step, missing=0):
+    """Time (s) of the next impact and the interval before it, from consecutive `anchors`.
+
+    Each of the last three intervals is stepped on through the trend to the next impact (past
+    `missing` impacts in between); the median of these predictions is used, so that one
+    anchor pulled off by a ring or an echo does not throw it off.
+    """
+    moments, intervals = [], []
+    for back in range(min(3, len(anchors) - 1)):
+        interval = float(anchors[-1 - back] - anchors[-2 - back])
+        moment = float(anchors[-1 - back])
+        for _ in range(back + 1 + missing):
+            interval = step(interval)
+            moment += interval
+        moments.append(moment)
+        intervals.append(interval)
+    return median(moments), median(intervals)
+
+
+def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None):
+    """Follow the bounce trend past the end of `chain`, through up to two missing impacts.
+
+    The trend predicts the next impact time from each of the last three impacts and the
+    interval before it (stepped on through the bounces in between); the median of these
+    predictions is used, so that one rough onset pulled early by a ring or an echo does not
+    throw the prediction off. The transient nearest to it within three standard deviations
+    (from the ratio scatter and the rough onsets' jitter) plus 0.2 ms, and not more than
+    6 dB fainter than the last impacts, is taken. If none is there, the prediction steps on
+    by one more interval (an impact lost under the ringing or echo of an earlier one, or too
+    faint), at most twice in a row. The search stops when the predicted interval falls below
+    the merge window, where successive impacts can no longer be told apart.
+
+    With `precise` (a function giving the fitted onset times, s, of the transients of given
+    indices) the trend is refitted on the fitted onsets of the chain, the predictions start
+    from them, and the transients near a prediction are compared by their fitted onsets:
+    the rough onsets jitter by up to half a millisecond, a tenth of the last intervals.
+
+    `delays` (s), the fixed delays of the rings and echoes left out of the chain, reject a
+    transient that comes that long after an impact of the chain: past the last impact the
+    rings of the last ones continue its intervals exactly.
+    """
+    if precise is None:
+        def precise(indices):
+            return times[indices]
+    else:
+        trend = _trend(precise(chain))
+    coefficients, scatter = trend
+    step = _trend_step(coefficients, np.diff(times[chain]).min())
+    chain = list(chain)
+    anchors = list(precise(np.array(chain[-4:])))  # one bounce apart (skips filled in)
+    skipped, missing = 0, 0
+    while True:
+        predicted_time, interval = _predict_next(anchors, step, missing)
+        if interval < _MERGE_SECONDS or predicted_time > times[-1] + interval:
+            break
+        # The fitted onsets of faint transients still err by a fraction of the jitter, and
+        # so do the anchors; after a skipped impact, though, rings of the last impacts are
+        # as likely there as the next one, and only a transient on the trend itself counts.
+        tolerance = 3.0 * np.hypot(interval * scatter, 0.0 if missing else
+                                   0.5 * _ONSET_JITTER) + _EXTENSION_SLACK
+        # Transients whose rough onset, jittered, may lie within the tolerance ...
+        reach = tolerance + 3.0 * _ONSET_JITTER
+        lo, hi = np.searchsorted(times, [predicted_time - reach, predicted_time + reach])
+        near = np.arange(max(lo, chain[-1] + 1), hi)
+        # Late bounces fade slowly (amplitude ∝ speed, a few % per bounce): a transient much
+        # fainter than the last impacts is a ring or an echo of theirs, not the next one.
+        near = near[amplitude[near] >= np.median(amplitude[chain[-3:]]) / _EXTENSION_LOUDNESS]
+        # ... and whose fitted onset does.
+        fitted = precise(near) if near.size else np.zeros(0)
+        inside = np.abs(fitted - predicted_time) <= tolerance
+        if delays is not None and delays.size and near.size:
+            members = precise(np.array(chain))
+            echoing = np.abs(fitted[:, None, None] - delays[None, :, None]
+                             - members[None, None, :]).min(axis=(1, 2))
+            inside &= echoing > _ONSET_JITTER
+        near, fitted = near[inside], fitted[inside]
+        if near.size:
+            nearest = int(np.argmin(np.abs(fitted - predicted_time)))
+            best = int(near[nearest])
+            # Impacts skipped before it are placed on the trend between, as anchors.
+            if missing:
+                fill = np.linspace(anchors[-1], fitted[nearest], missing + 2)[1:-1]
+                anchors.extend(fill.tolist())
+            anchors.append(float(fitted[nearest]))
+            chain.append(best)
+            skipped += missing
+            missing = 0
+        else:
+            missing += 1
+            if missing > 2:
+                break
+    return np.array(chain), skipped
+
+
+def _trim_start(chain, amplitude):
+    """Drop leading chain members more than 20 dB below the loudest impact of the chain.
+
+    Each bounce is slower than the one before it and the sound grows with impact speed, so
+    the first impact is among the loudest; faint transients that happen to fit the geometric
+    trend before it (handling noise, footsteps) are not bounces.
+    """
+    loud = amplitude[chain] >= amplitude[chain].max() / _LEADING_LOUDNESS
+    return chain[int(np.argmax(loud)):]
+
+
+def _louder_between(times, power_ratio, amplitude, strong, chain):
+    """Plain-words problem if the chain was picked out of clicks, else ''.
+
+    Between two impacts of a ball the loudest sounds are theirs and their own rings, rattles
+    and echoes; a transient louder than both impacts around it that is not such a secondary
+    (:func:`_chain_weights`: no transient at least a third as loud in the 160 ms before it)
+    is a sound of its own. In more than a quarter of the intervals, the chain is a
+    selection among clicks or knocks, not a bounce train (synthetic trains with rings and
+    echoes: none; the real bouncy-ball drop, rattle-heavy: 9 of 51 intervals; random clicks:
+    a quarter to all of them).
+    """
+    chain = np.sort(chain)
+    candidates = np.flatnonzero(strong)
+    weights = np.zeros(times.size)
+    weights[candidates] = _chain_weights(times[candidates], power_ratio[candidates],
+                                         amplitude[candidates])
+    primary = strong & (weights >= _NOISE_WEIGHT)
+    after = np.searchsorted(chain, np.arange(times.size))  # chain[after - 1] < i <= chain[after]
+    between = (after > 0) & (after < chain.size) & ~np.isin(np.arange(times.size), chain)
+    around = np.clip(after, 1, chain.size - 1)
+    louder = between & primary & (amplitude >= np.maximum(amplitude[chain[around - 1]],
+                                                          amplitude[chain[around]]))
+    intervals = np.unique(after[louder]).size
+    if intervals <= 0.25 * (chain.size - 1):
+        return ""
+    return (f"{intervals} of {chain.size - 1} intervals between the impacts found hold a sound "
+            f"louder than both of them that is not their ring or echo: the impacts were picked "
+            f"out of clicks or knocks, not heard from one bouncing ball")
+
+
+def _secondary_delays(times, chain):
+    """Delays (s) at which rings or echoes recur after the impacts of `chain`.
+
+    Every transient left out of the chain is measured from each of the impacts before it
+    (within the time secondaries last, or the echo delay); a delay shared by a quarter of the
+    impacts, to within 1 ms, is a secondary of theirs (a ring of the ball or the table, an
+    echo from a wall). Each is refined to the median of the delays within 1 ms of it.
+    """
+    impacts = times[chain]
+    others = np.setdiff1d(np.flatnonzero(times > impacts[0]), chain)
+    if others.size < 3:
+        return np.zeros(0)
+    delays = (times[others][:, None] - impacts[None, :]).ravel()
+    delays = delays[(delays > _MERGE_SECONDS) & (delays < 2 * _SECONDARY_SECONDS)]
+    values, counts = np.unique(np.round(delays * 1e3).astype(np.int64), return_counts=True)
+    # Neighbouring milliseconds belong together (a delay of 9.4 ms rounds to 9 or 10); a peak
+    # of the pooled histogram is a candidate delay.
+    pooled = counts + np.concatenate(([0], counts[:-1])) * (np.diff(values, prepend=-9) == 1)
+    dense = np.zeros(values.size + 2)
+    dense[1:-1] = pooled
+    peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= max(3, chain.size / 4))
+    found = []
+    for value in values[peaks] / 1e3:
+        close = delays[np.abs(delays - value + 0.5e-3) <= 1e-3]
+        found.append(float(np.median(close)))
+    return np.array(found)
+
+
+def _fixed_delays(times, chain):
+    """Most common delay (s) of the transients left out after the preceding impact, and count."""
+    impacts = times[chain]
+    others = np.setdiff1d(np.arange(times.size), chain)
+    others = others[times[others] > impacts[0]]
+    if others.size < 3:
+        return None, 0
+    preceding = impacts[np.searchsorted(impacts, times[others]) - 1]
+    delays_ms = np.round((times[others] - preceding) * 1e3).astype(np.int64)
+    values, counts = np.unique(delays_ms, return_counts=True)
+    # Neighbouring milliseconds belong together (a delay of 9.4 ms rounds to 9 or 10).
+    pooled = counts + np.concatenate(([0], counts[:-1])) * (np.diff(values, prepend=-9) == 1)
+    best = int(np.argmax(pooled))
+    return values[best] / 1e3, int(pooled[best])
+
+
+# --------------------------------------------------------------------------------------------
+# Impacts the trend predicts where no transient was chosen
+
+
+def _read_segment(path, start, stop):
+    """Samples `start` to `stop` (frames, clipped to the file) as float64 (frames, channels)."""
+    with _open(path) as handle:
+        start, stop = max(0, int(start)), min(handle.frames, int(stop))
+        handle.seek(start)
+        return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
+
+
+def _probe(path, stream, predicted, tolerance, timing, not_before=None):
+    """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording.
+    stream : _Stream
+        State of the detection run (filter, noise level and colour of each channel).
+    predicted : float
+        Predicted onset (s).
+    tolerance : float
+        Half-width (s) of the interval around `predicted` in which a trigger may lie.
+    timing : int
+        Channel on which the onset is fitted.
+    not_before : float, optional
+        Onset (s) of a ring or an echo that captured the impact's onset before: the onset is
+        looked for after it, as a sound of its own, whose power jumps 3 dB over the mean
+        power since `not_before`.
+
+    Returns
+    -------
+    tuple of float or None
+        Onset (s), its 1σ (s), amplitude (full scale) and whether it clipped; None if no
+        transient starts there.
+
+    Notes
+    -----
+    The last bounces come a few ms apart, on the decaying sound, rings and echoes of the ones
+    before: their power jumps less over the mean of the 2 ms before them than an isolated
+    impact's, often below the weak trigger. Where the trend says an impact must be, the
+    trigger compares the power of its first 0.5 ms with the quietest 0.5 ms of the 2 ms
+    before it instead (the level the earlier sound has decayed to), with the thresholds of a
+    weak trigger; the strongest such jump within the tolerance is timed as in the stream.
+    The segment read starts 50 ms earlier, for the high-pass to settle.
+    """
+    settings, sample_rate = stream.settings, stream.settings.sample_rate
+    centre, reach = int(round(predicted * sample_rate)), int(np.ceil(tolerance * sample_rate))
+    lead = settings.history + settings.background + int(_PROBE_WARMUP_SECONDS * sample_rate)
+    offset, raw = _read_segment(path, centre - reach - lead,
+                                centre + reach + settings.lookahead + 1)
+    if offset + raw.shape[0] < centre + reach + settings.lookahead or offset > centre - reach \
+            - settings.history - settings.background:
+        return None  # too close to either end of the recording
+    filtered, _ = signal.sosfilt(stream.sos, raw, axis=0, zi=signal.sosfilt_zi(stream.sos)[
+        :, :, None] * raw[0][None, None, :])
+    detector = np.zeros_like(filtered)
+    detector[1:] = filtered[1:] - stream.rho * filtered[:-1]
+    power = (detector * detector) @ (1.0 / (stream.channels * stream.noise**2))
+    cumulative = np.concatenate(([0.0], np.cumsum(power)))
+    earliest = centre - reach
+    if not_before is not None:
+        earliest = max(earliest, int(np.ceil(not_before * sample_rate)) + 2 * _AIC_MARGIN)
+    if earliest > centre + reach:
+        return None
+    triggers = np.arange(earliest, centre + reach + 1) - offset
+    sta = (cumulative[triggers + settings.sta] - cumulative[triggers]) / settings.sta
+    parts = settings.background // settings.sta
+    quietest = np.min([cumulative[triggers - k * settings.sta]
+                       - cumulative[triggers - (k + 1) * settings.sta] for k in range(parts)],
+                      axis=0) / settings.sta
+    min_jump = settings.min_jump / _WEAK_JUMP_FACTOR
+    if not_before is not None:
+        # Past the start of a ring or an echo, the level to jump over is that sound's, the
+        # mean power since it started, and by the 3 dB that tell a sound of its own.
+        since = max(int(np.ceil(not_before * sample_rate)) - offset, 0)
+        quietest = np.maximum(quietest, (cumulative[triggers] - cumulative[since])
+                              / (triggers - since))
+        min_jump = _RING_JUMP
+    jump = sta / np.maximum(quietest, 1.0)
+    usable = (sta >= settings.min_power) & (jump >= min_jump)
+    if not usable.any():
+        return None
+    trigger = int(triggers[usable][np.argmax(jump[usable])])
+    # The AIC picker looks back from the trigger, but not before the tolerance: a ring or an
+    # echo of an earlier impact starting shortly before would capture the pick.
+    search = max(trigger - settings.back_search, int(triggers[0]) - 2 * _AIC_MARGIN)
+    gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * sample_rate)))
+    rough = search + int(_onset_picks(power[search:trigger + settings.sta][None, :],
+                                      np.zeros(1, dtype=np.int64), gap, settings.sta)[0])
+    if not_before is not None:
+        # A sound of its own: its power jumps 3 dB over that of the sound since `not_before`.
+        after = (cumulative[rough + settings.sta] - cumulative[rough]) / settings.sta
+        if rough - since < _AIC_MARGIN or after < _RING_JUMP * (
+                cumulative[rough] - cumulative[since]) / (rough - since):
+            return None
+    # As in the stream, the fit window sits on the timing channel's own rough onset (the
+    # channels of a stereo pair hear an impact at different delays).
+    own = detector[search:trigger + settings.sta, timing] ** 2
+    start = search + int(_onset_picks(own[None, :], np.zeros(1, dtype=np.int64), gap,
+                                      settings.sta)[0]) - settings.pre
+    onset, sigma, _ = _onset_posterior(filtered[None, start:start + settings.pre
+                                                + settings.span, timing], settings.pre,
+                                       sample_rate)
+    # Amplitude as for the stream's transients: largest deviation of the raw samples from
+    # their level before the onset, over all channels; a flat top marks clipping.
+    before = raw[rough - settings.pre:rough].mean(axis=0)
+    after = raw[rough:rough + settings.amplitude]
+    amplitude = float(np.abs(after - before).max())
+    magnitude = np.abs(after).ravel()
+    clipped = bool(magnitude.max() > 0 and (magnitude >= magnitude.max()
+                                            * (1 - _CLIP_TOLERANCE)).sum() >= _CLIP_RUN)
+    return ((offset + start + float(onset[0])) / sample_rate,
+            float(sigma[0]) / sample_rate, amplitude, clipped)
+
+
+def _robust_trend(impact_times, rounds=3):
+    """:func:`_trend` of the impacts, leaving out ratios more than 3 scatters off the trend.
+
+    A missed impact doubles an interval: the two ratios around it (about 1.9 and 0.5) would
+    bend a parabola fitted through them exactly where the missed impacts are looked for
+    (:func:`dashpot.plausibility.ratio_trend`, with the scatter floor of the selection).
+    """
+    return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds)
+
+
+def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
+    """Impacts the bounce trend predicts where none was timed, found by `probe`.
+
+    Parameters
+    ----------
+    times, amplitudes : ndarray
+        Fitted onsets (s, increasing) and amplitudes (full scale) of the impacts chosen so far.
+    coefficients, scatter : ndarray, float
+        Trend of ln(interval ratio) against ln(interval) (:func:`_robust_trend`).
+    delays : ndarray
+        Delays (s) of the rings and echoes that recur after the impacts.
+    probe : callable
+        ``probe(predicted, tolerance, not_before=None)`` -> (time, sigma, amplitude,
+        clipped) or None (:func:`_probe`).
+    end : float
+        End of the recording (s).
+
+    Returns
+    -------
+    added : list of tuple
+        (time, sigma, amplitude, clipped) of each impact found between or after `times`.
+    retimed : dict
+        Index into `times` -> (time, sigma, amplitude, clipped): impacts whose onset was the
+        start of a ring or an echo just before them, timed again; clipped is None where the
+        time is the trend's prediction (amplitude unchanged).
+
+    Notes
+    -----
+    The impacts are walked in time order, each predicted from the three before it
+    (:func:`_predict_next`); the tolerance is three standard deviations of the ratio scatter
+    plus 0.2 ms. An interval more than 1.5 times the predicted one holds a missed impact, and
+    past the last impact the train goes on while the predicted interval exceeds the merge
+    window: the file is probed at the predicted time. An impact off its prediction by more
+    than the tolerance whose onset lies within 0.3 ms of a ring or an echo of an earlier
+    impact (a fixed delay after it) was timed at the start of that secondary sound, which
+    began just before it: it is probed again at the predicted time, past that start, and past
+    each further secondary the probe finds (an echo may be followed by a ring before the
+    impact rises out of them); where no onset of its own rises out of them, the impact takes
+    the predicted time, with the trend's scatter as its 1σ. A probed onset must lie within
+    the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
+    not itself come at a secondary's delay after an earlier impact (an onset there is probed
+    past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
+    told from the ring).
+    An impact that is not found stays in the sequence as a predicted anchor, so that the
+    predictions after it step over it; past the last impact two in a row end the search.
+    """
+    step = _trend_step(coefficients, np.diff(times).min())
+    anchors, loudness = list(times), list(amplitudes)
+    origin = list(range(len(anchors)))  # index into `times`, or -1 for a predicted anchor
+    # From the fourth impact on, each one is predicted from the three intervals before it.
+    added, retimed, i, missing = [], {}, 3, 0
+
+    def secondary(moment, before):
+        earlier = np.asarray(anchors[:before + 1])
+        return delays.size > 0 and bool(np.abs(moment - earlier[:, None] - delays[None, :])
+                                        .min() < _PROBE_SECONDARY_SECONDS)
+
+    def accept(result, predicted, tolerance, before=None):
+        # In time order between its neighbours: where the ratios scatter widely the tolerance
+        # can exceed the interval itself.
+        if before is None:
+            before = anchors[i + 1] if i + 1 < len(anchors) else np.inf
+        return (result is not None and abs(result[0] - predicted) <= tolerance
+                and anchors[i] < result[0] < before
+                and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
+                and not secondary(result[0], i))
+
+    def peel(predicted, tolerance, onset, before=None):
+        # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
+        # sound of its own starting after it, possibly after further secondaries.
+        for _ in range(delays.size + 1):
+            result = probe(predicted, tolerance, onset)
+            if result is None or result[0] <= onset:
+                return None
+            if not secondary(result[0], i):
+                return result if accept(result, predicted, tolerance, before) else None
+            onset = result[0]
+        return None
+
+    for _ in range(20 * len(anchors) + 10):  # a bound on the probes, whatever the trend does
+        predicted, interval = _predict_next(anchors[max(0, i - 3):i + 1], step)
+        if interval < _MERGE_SECONDS or predicted > end:
+            break
+        tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
+        if i + 1 < len(anchors) and anchors[i + 1] - anchors[i] < 1.5 * interval:
+            # The next impact is there; if it sits off the trend at a secondary's delay after
+            # an earlier impact, its onset is that of the ring or echo: time it again.
+            following = anchors[i + 1]
+            before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
+            if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
+                    and following < predicted < before and secondary(following, i)):
+                result = peel(predicted, tolerance, following, before)
+                if result is None:
+                    # No onset of its own rises out of the ring or echo: the impact is there
+                    # (its sound follows), its time is the trend's, with the trend's scatter.
+                    result = (predicted, interval * scatter, loudness[i + 1], None)
+                retimed[origin[i + 1]] = result
+                anchors[i + 1] = result[0]
+            i += 1
+            continue
+        result = probe(predicted, tolerance)
+        if result is not None and secondary(result[0], i):
+            result = peel(predicted, tolerance, result[0])
+        if accept(result, predicted, tolerance):
+            added.append(result)
+            anchors.insert(i + 1, result[0])
+            loudness.insert(i + 1, result[2])
+            missing = 0
+        else:
+            if i + 1 >= len(anchors):
+                missing += 1
+                if missing > 2:
+                    break
+            # Not found: the predicted time stands in for it as an anchor.
+            anchors.insert(i + 1, predicted)
+            loudness.insert(i + 1, loudness[i])
+        origin.insert(i + 1, -1)
+        i += 1
+    return added, retimed
+

@@ -1,0 +1,343 @@
+"""Transients in a recording: the noise-normalised power envelope of every channel, its
+STA/LTA trigger and the AIC picker of the rough onset, streamed block by block (steps 1-2 of
+:mod:`dashpot.ingest.audio`).
+
+References
+----------
+.. [1] R. V. Allen, "Automatic earthquake recognition and timing from single traces", Bull.
+   Seismol. Soc. Am. 68(5), 1521-1532 (1978).
+.. [2] R. Sleeman and T. van Eck, "Robust automatic P-phase picking: an on-line implementation
+   in the analysis of broadband seismogram recordings", Phys. Earth Planet. Inter. 113,
+   265-275 (1999) (the AIC picker of N. Maeda, Zisin 38, 365-379, 1985).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+
+# Detection (step 1).
+_HIGHPASS_ORDER = 2
+_STA_SECONDS = 0.5e-3  # short window after a sample: the first half millisecond of a transient
+_BACKGROUND_SECONDS = 2e-3  # the level just before it
+_NOISE_FRAME_SECONDS = 5e-3  # frames whose RMS gives the noise floor
+_NOISE_PERCENTILE = 10.0  # quiet frames: below the impacts, above digital silence
+_NOISE_FLOOR = 1e-9  # full scale; stands in for the noise of digitally silent channels
+_MAX_NOISE_CORRELATION = 0.99
+# Windows around a transient: the noise before it and the start of it (the data of the onset
+# fit), its peak amplitude and what marks it clipped.
+_PRE_SECONDS = 1e-3  # noise before the onset, for its level and colour
+_SPAN_SECONDS = 1e-3  # start of the transient, for its amplitude and frequency scale
+_AMPLITUDE_SECONDS = 3e-3  # peak amplitude: largest deviation within this time of the onset
+_CLIP_RUN = 3  # samples at the extreme value that mark a flat (clipped) top
+_CLIP_TOLERANCE = 1e-4
+# Rough onset and grouping (step 2).
+_BACK_SEARCH_SECONDS = 3e-3
+_AIC_MARGIN = 4  # samples: shortest segment the AIC picker may leave on either side
+# Lowest sample rate the detector works at: the first 0.5 ms of a transient must span the
+# picker's shortest segment (8 kHz; below about 5 kHz the windows collapse and picking fails).
+MIN_SAMPLE_RATE = int(round(_AIC_MARGIN / _STA_SECONDS))
+_MERGE_SECONDS = 1e-3  # triggers this close to a transient's onset belong to it
+_WEAK_JUMP_FACTOR = 2.0  # weak candidates: power jump down to min_jump / 2 (3 dB lower)
+_RING_GAP_SECONDS = 0.5e-3  # a sound this long before a transient's jump is a sound of its own
+_RING_JUMP = 2.0  # ... if the power then jumps 3 dB over it
+_SPLIT_JUMP = 8.0  # a trigger 9 dB louder than a transient < 1 ms before it is a new one
+
+
+# --------------------------------------------------------------------------------------------
+# Detection on a block
+
+
+def _windows(array, starts, length):
+    """Rows array[s : s + length] for each s in `starts` (1-D array), as a (K, length) array."""
+    return array[starts[:, None] + np.arange(length)[None, :]]
+
+
+def _aic_picks(power, first):
+    """AIC change point of each row of `power`: index of the first sample of the loud part.
+
+    AIC(k) = n_k·ln(mean of the n_k samples before k) + (N − k)·ln(mean of the rest) [2]_, on
+    the power (the square of a zero-mean signal, so its mean is the variance); samples before
+    index ``first`` of a row (the previous transient) are left out.
+    """
+    length = power.shape[1]
+    cumulative = np.cumsum(power + 1e-300, axis=1)  # digital silence has zero power
+    split = np.arange(_AIC_MARGIN, length - _AIC_MARGIN)
+    rows = np.arange(power.shape[0])
+    before_first = np.where(first > 0, cumulative[rows, np.maximum(first - 1, 0)], 0.0)
+    head_count = split[None, :] - first[:, None]
+    head = cumulative[:, split - 1] - before_first[:, None]
+    tail = cumulative[:, -1:] - cumulative[:, split - 1]
+    usable = head_count >= _AIC_MARGIN
+    criterion = np.where(usable, np.maximum(head_count, 1) * np.log(
+        np.maximum(head, 1e-300) / np.maximum(head_count, 1)), np.inf) \
+        + (length - split) * np.log(tail / (length - split))
+    return split[np.argmin(criterion, axis=1)]
+
+
+def _onset_picks(power, first, min_gap, min_tail):
+    """Rough onset of each row of `power`: the AIC change point, moved past an earlier sound.
+
+    The AIC picker finds where the power first leaves the level before it. When a ring or an
+    echo of an earlier impact starts shortly before the transient, that is the start of the
+    ring, not of the transient. A second pick on the rest of the row (from the first pick
+    on) finds the next change point; if it lies at least `min_gap` samples later and the power
+    jumps there by the trigger's weak factor or more over the stretch since the first pick,
+    the stretch is a sound of its own (an impact's rising edge reaches its level well within
+    `min_gap`) and the transient starts at the second pick. The second pick must leave at
+    least `min_tail` samples after it: the mean of a few samples of a loud transient
+    fluctuates by a factor of 2 by itself.
+    """
+    picks = _aic_picks(power, first)
+    length = power.shape[1]
+    later = picks + 2 * _AIC_MARGIN < length - _AIC_MARGIN
+    if not later.any():
+        return picks
+    second = np.where(later, _aic_picks(power, np.where(later, picks, first)), picks)
+    cumulative = np.cumsum(power, axis=1)
+    rows = np.arange(power.shape[0])
+    between = (cumulative[rows, second - 1] - cumulative[rows, picks - 1]) \
+        / np.maximum(second - picks, 1)
+    after = (cumulative[:, -1] - cumulative[rows, second - 1]) / np.maximum(length - second, 1)
+    separate = later & (second - picks >= min_gap) & (length - second >= min_tail) \
+        & (after >= _RING_JUMP * between)
+    return np.where(separate, second, picks)
+
+
+@dataclass(frozen=True)
+class _Settings:
+    """Window lengths (samples) and thresholds of one detection run."""
+
+    sample_rate: int
+    sta: int
+    background: int
+    back_search: int
+    pre: int
+    span: int
+    amplitude: int
+    merge: int
+    min_power: float
+    min_jump: float
+
+    @classmethod
+    def make(cls, sample_rate, min_snr_db, min_jump_db):
+        def samples(seconds):
+            return max(4, int(round(seconds * sample_rate)))
+        return cls(sample_rate=sample_rate, sta=samples(_STA_SECONDS),
+                   background=samples(_BACKGROUND_SECONDS),
+                   back_search=samples(_BACK_SEARCH_SECONDS), pre=samples(_PRE_SECONDS),
+                   span=samples(_SPAN_SECONDS), amplitude=samples(_AMPLITUDE_SECONDS),
+                   merge=samples(_MERGE_SECONDS),
+                   min_power=10.0 ** (min_snr_db / 10.0), min_jump=10.0 ** (min_jump_db / 10.0))
+
+    @property
+    def history(self):
+        """Samples a trigger needs before it (background, back-search, fit pre-window)."""
+        return self.background + self.back_search + self.pre + _AIC_MARGIN
+
+    @property
+    def lookahead(self):
+        """Samples a transient needs after its trigger (fit span, amplitude window)."""
+        return self.sta + self.span + self.amplitude + 1
+
+    @property
+    def carry(self):
+        return self.history + self.lookahead + self.background
+
+
+@dataclass
+class _Stream:
+    """State carried from one block to the next while streaming a file."""
+
+    settings: _Settings
+    channels: int
+    sos: np.ndarray
+    filter_state: np.ndarray | None = None
+    noise: np.ndarray | None = None  # noise RMS of each whitened channel (full scale)
+    rho: np.ndarray | None = None  # lag-1 correlation of each channel's noise
+    raw: np.ndarray | None = None  # carried samples (frames, channels)
+    filtered: np.ndarray | None = None
+    start: int = 0  # absolute index of the first carried sample
+    done_until: int = 0  # absolute index below which triggers have been handled
+    last_onset: int | None = None  # absolute rough onset of the latest transient kept
+    candidates: list = field(default_factory=list)
+    dc_offset: float = 0.0
+
+
+def _process(stream, block, final):
+    """Find the transients in the carried samples + `block` and append them to the stream."""
+    settings = stream.settings
+    if stream.filter_state is None:
+        # Start the high-pass in its steady state for the first sample, so that a DC offset
+        # does not ring through the first milliseconds like an impact.
+        stream.filter_state = signal.sosfilt_zi(stream.sos)[:, :, None] * block[0][None, None, :]
+        # (A matrix product: numpy's mean along the long axis of a (frames, channels) array
+        # is strided and ten times slower.)
+        stream.dc_offset = float(np.abs(np.ones(block.shape[0]) @ block).max() / block.shape[0])
+    filtered_block, stream.filter_state = signal.sosfilt(stream.sos, block, axis=0,
+                                                         zi=stream.filter_state)
+    if stream.raw is None:
+        raw, filtered = block, filtered_block
+    else:
+        raw = np.concatenate([stream.raw, block])
+        filtered = np.concatenate([stream.filtered, filtered_block])
+    frames = raw.shape[0]
+
+    # Noise per channel, from short frames: the quiet ones (RMS at or below the 10th
+    # percentile: the stretches between impacts) give its level and its lag-1 correlation.
+    # A block too short to say keeps the previous estimate.
+    frame = max(2, int(round(_NOISE_FRAME_SECONDS * settings.sample_rate)))
+    n_frames = frames // frame
+    if n_frames >= 20 or (stream.noise is None and n_frames >= 1):
+        framed = filtered[: n_frames * frame].reshape(n_frames, frame, -1)
+        energy = np.einsum("fsc,fsc->fc", framed, framed)
+        lagged = np.einsum("fsc,fsc->fc", framed[:, 1:], framed[:, :-1])
+        quiet = energy <= np.percentile(energy, _NOISE_PERCENTILE, axis=0)
+        quiet_energy = np.where(quiet, energy, 0.0).sum(axis=0)
+        rho = np.divide(np.where(quiet, lagged, 0.0).sum(axis=0), quiet_energy,
+                        out=np.zeros(stream.channels), where=quiet_energy > 0)
+        stream.rho = np.clip(rho, 0.0, _MAX_NOISE_CORRELATION)
+        # Innovation RMS of the quiet frames: the noise of the whitened signal below.
+        innovation = np.maximum(quiet_energy * (1 - stream.rho**2) / (quiet.sum(axis=0) * frame),
+                                0.0)
+        stream.noise = np.maximum(np.sqrt(innovation), _NOISE_FLOOR)
+    elif stream.noise is None:
+        stream.rho = np.zeros(stream.channels)
+        stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)), _NOISE_FLOOR)
+    # Detection runs on the noise whitened by its own lag-1 prediction, y[n] − ρ·y[n−1]:
+    # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
+    # frequencies it removes the slow swells of power that would otherwise look like onsets
+    # in a half-millisecond window.
+    # The mean noise-normalised power over the channels is summed channel by channel, on
+    # contiguous copies of the columns (strided arithmetic on (frames, channels) is slower).
+    weights = 1.0 / (stream.channels * stream.noise**2)
+    power = np.zeros(frames)
+    for c in range(stream.channels):
+        column = np.ascontiguousarray(filtered[:, c])
+        whitened = column[1:] - stream.rho[c] * column[:-1]
+        whitened *= whitened
+        whitened *= weights[c]
+        power[1:] += whitened
+
+    # STA/LTA [1]_: mean power over the next `sta` samples against the `background` before.
+    # Both are differences of one running sum, taken as slices (contiguous passes; loud
+    # recordings pass the STA threshold on half their samples, where gathering by index
+    # would cost more).
+    cumulative = np.empty(frames + 1)
+    cumulative[0] = 0.0
+    np.cumsum(power, out=cumulative[1:])
+    sta = np.zeros(frames)
+    sta[: frames - settings.sta + 1] = (cumulative[settings.sta:]
+                                        - cumulative[:-settings.sta]) / settings.sta
+    limit = frames - settings.lookahead + 1  # triggers need this much recording after them
+    lo, hi = settings.history, max(limit, settings.history)
+    level = cumulative[lo:hi] - cumulative[lo - settings.background:hi
+                                          - settings.background]
+    np.maximum(level, settings.background, out=level)  # floor of 1 (noise-normalised)
+    # Triggers down to a lower jump are kept as weak candidates: the selection looks among
+    # them only where the bounce trend predicts an impact that no strong trigger marks
+    # (an impact landing on the ringing or echo of an earlier one jumps less).
+    weak = settings.min_jump / _WEAK_JUMP_FACTOR / settings.background
+    passing = sta[lo:hi] >= settings.min_power
+    passing &= sta[lo:hi] >= weak * level
+    triggers = np.flatnonzero(passing) + lo
+    jump = sta[triggers] * settings.background / level[triggers - lo]
+    # Runs of consecutive trigger samples; each run is one trigger, at its largest jump.
+    breaks = np.flatnonzero(np.diff(triggers) > 1) + 1
+    run_first = np.concatenate(([0], breaks)) if triggers.size else np.zeros(0, dtype=np.int64)
+    run_last = np.concatenate((breaks, [triggers.size])) - 1 if triggers.size else run_first
+
+    # Runs starting before `limit` are handled now if they have ended; later ones wait for the
+    # next block, whose carried samples overlap this one.
+    first_new = stream.done_until - stream.start
+    starts, stops = triggers[run_first], triggers[run_last] + 1
+    own = starts >= first_new
+    if not final:
+        unfinished = own & (stops >= limit)
+        if unfinished.any():
+            limit = int(starts[unfinished][0])
+            own &= starts < limit
+    if own.any():
+        # First sample of the largest jump of each run (np.argmax's choice on a tie).
+        run_of = np.repeat(np.arange(run_first.size), run_last - run_first + 1)
+        largest = np.maximum.reduceat(jump, run_first)
+        at_peak = np.flatnonzero(jump == largest[run_of])
+        peaks = at_peak[np.r_[True, run_of[at_peak][1:] != run_of[at_peak][:-1]]][own]
+        detections = triggers[peaks]
+        strong = jump[peaks] >= settings.min_jump
+        search_start = detections - settings.back_search
+        length = settings.back_search + settings.sta
+        # The back-search may not reach into the transient triggered just before (a ring or
+        # an echo a few ms before an impact must not capture its onset).
+        previous = np.concatenate((
+            [-length if stream.last_onset is None else stream.last_onset - stream.start],
+            detections[:-1]))
+        first = np.clip(previous + settings.sta - search_start, 0,
+                        length - 2 * _AIC_MARGIN - settings.sta)
+        gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * settings.sample_rate)))
+        onsets = _onset_picks(_windows(power, search_start, length), first, gap,
+                              settings.sta)
+        # Each channel's own whitened signal, y[n] − ρ·y[n−1], over the same stretches.
+        channel_onsets = np.stack([_onset_picks(
+            (_windows(filtered[:, c], search_start, length) - stream.rho[c]
+             * _windows(filtered[:, c], search_start - 1, length)) ** 2, first, gap,
+            settings.sta) for c in range(stream.channels)], axis=1)
+        _keep_transients(stream, raw, filtered, sta, search_start + onsets,
+                         search_start[:, None] + channel_onsets, strong)
+    stream.done_until = stream.start + max(limit, first_new)
+
+    keep_from = max(0, frames - settings.carry)
+    stream.raw, stream.filtered = raw[keep_from:], filtered[keep_from:]
+    stream.start += keep_from
+
+
+def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong):
+    """Group triggers into transients and store what the later steps need of each."""
+    settings = stream.settings
+    channel = np.arange(stream.channels)
+    # Peak deviation of the raw samples (all channels) within `amplitude` samples after each
+    # onset from their mean level over the `pre` samples before it: DC offset excluded.
+    before = raw[(onsets[:, None] + np.arange(-settings.pre, 0))[:, :, None], channel]
+    after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None], channel]
+    amplitudes = np.abs(after - before.mean(axis=1, keepdims=True)).max(axis=(1, 2))
+    # A flat top, several samples at the largest magnitude, is what clipping leaves; a free
+    # transient does not produce it.
+    magnitude = np.abs(after).reshape(onsets.size, -1)
+    extreme = magnitude.max(axis=1, keepdims=True)
+    flat = ((magnitude >= extreme * (1 - _CLIP_TOLERANCE)).sum(axis=1) >= _CLIP_RUN) \
+        & (extreme[:, 0] > 0)
+    # Each channel's high-passed waveform around its own rough onset, for the onset fit.
+    window_starts = channel_onsets - settings.pre
+    windows = filtered[window_starts[:, :, None] + np.arange(settings.pre + settings.span),
+                       channel[None, :, None]]
+    for i, onset in enumerate(onsets.tolist()):
+        absolute = stream.start + onset
+        if stream.last_onset is not None and absolute <= stream.last_onset:
+            continue  # the picker went back into a transient already kept
+        if (stream.last_onset is not None and absolute - stream.last_onset < settings.merge
+                and sta[onset] < _SPLIT_JUMP * stream.candidates[-1]["strength"]):
+            # A second trigger within 1 ms of the onset of the transient just kept: its power
+            # jumped again while rising. The same transient (impacts are further apart),
+            # unless it is 9 dB louder: then the one kept was a faint sound (the ring or echo
+            # of an earlier impact) just before this one, and both stay candidates.
+            kept = stream.candidates[-1]
+            kept["strength"] = max(kept["strength"], float(sta[onset]))
+            kept["amplitude"] = max(kept["amplitude"], float(amplitudes[i]))
+            kept["clipped"] = kept["clipped"] or bool(flat[i])
+            kept["strong"] = kept["strong"] or bool(strong[i])
+            continue
+        stream.candidates.append({
+            "onset": absolute,
+            "window_starts": stream.start + window_starts[i],
+            "windows": windows[i],
+            "strength": float(sta[onset]),
+            "amplitude": float(amplitudes[i]),
+            "clipped": bool(flat[i]),
+            "strong": bool(strong[i]),
+        })
+        stream.last_onset = absolute
+
+

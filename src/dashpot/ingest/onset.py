@@ -1,0 +1,199 @@
+"""Onset time of an impact transient: the posterior of a Bayesian change-point model of its
+rising edge (step 4 of :mod:`dashpot.ingest.audio`).
+
+References
+----------
+.. [3] C. M. Bishop, "Pattern Recognition and Machine Learning", Springer (2006), sections
+   3.3-3.5 (Bayesian linear regression and its marginal likelihood).
+.. [4] S. O. Rice, "Mathematical analysis of random noise", Bell Syst. Tech. J. 23, 282-332
+   (1944) (mean-square frequency from the variance of the derivative).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .envelope import _NOISE_FLOOR
+
+
+# Onset fit (step 4).
+_ONSET_BACK_SECONDS = 1e-4  # how far from the rough onset the fit may put the onset
+_POLY_ORDER = 6
+# Calibration of the 1σ on synthetic modal transients (seeds other than the tests'): the
+# polynomial edge follows a transient to about 0.3 % of its peak, and between samples the
+# posterior mean carries a systematic error of a few hundredths of a sample.
+_MODEL_ERROR = 3e-3  # residual misfit of the edge model, fraction of the transient's peak
+_SUBSAMPLE_FLOOR = 0.03  # samples, added in quadrature to the posterior 1σ
+_PRIOR_FREQUENCY_FACTOR = 1.3
+_MAX_POST_SECONDS = 0.25e-3
+_GRID_STEP = 0.25  # samples, coarse onset grid
+_FINE_DIVISIONS = 8
+
+
+# --------------------------------------------------------------------------------------------
+# Onset fit
+
+
+def _onset_posterior(windows, n_pre, sample_rate):
+    """Posterior mean and 1σ of the onset of a transient in each window (Bayesian fit).
+
+    Parameters
+    ----------
+    windows : ndarray, shape (K, W)
+        High-passed waveform around each rough onset, which sits at index `n_pre`; the
+        window holds `n_pre` samples before it and at least 1 ms after.
+    n_pre : int
+        Index of the rough onset in each window.
+    sample_rate : float
+        Hz.
+
+    Returns
+    -------
+    onset : ndarray, shape (K,)
+        Posterior mean of the onset, in samples from the start of the window (fractional).
+    sigma : ndarray, shape (K,)
+        Its 1σ uncertainty in samples: half the width of the central 68.3 % posterior
+        interval (the posterior is not Gaussian at low SNR; this keeps the stated coverage),
+        with 0.03 sample added in quadrature for the sub-sample error of the edge model.
+    snr : ndarray, shape (K,)
+        Peak of the first millisecond of the transient over the noise RMS (amplitude ratio).
+
+    Notes
+    -----
+    Model: before the onset t0 the window is noise, a first-order autoregressive process
+    (level, colour and innovation variance from the `n_pre` samples before the rough onset,
+    less the last few which may already hold the transient); from t0 on a smooth function is
+    added, f(τ) = Σ_{p=1..6} a_p (Ωτ)^p / p!, τ = t − t0, which starts from zero (an impact
+    sets the surface and the ball in motion from rest). The priors a_p ~ N(0, S²), with S the
+    peak of the first millisecond, say that the edge rises to the size of the transient over
+    about a radian of its own oscillation, Ω = 1.3 × the noise-corrected RMS angular frequency
+    of that millisecond (from the variance of the first difference [4]_). With the
+    coefficients integrated out analytically (linear-Gaussian evidence [3]_) the marginal
+    likelihood of t0 is evaluated on a grid of quarter samples within 0.1 ms of the rough
+    onset (and before the end of the rising edge, a quarter period of Ω, at most 0.25 ms)
+    under a flat prior, then on a grid 8 times finer around its maximum where the posterior
+    is that narrow. The result does
+    not depend on a template of the sound: only on the edge being smooth on the scale of the
+    transient's own frequencies.
+
+    Calibration: the residual variance gets a floor of (0.003·S)², since the polynomial
+    follows a real edge only to a fraction of its peak (without it, onsets at 50-70 dB SNR
+    came out up to a sample early with a 1σ of 0.02 sample), and 0.03 sample is added in
+    quadrature to the 1σ (the posterior mean of synthetic modal onsets errs by a few
+    hundredths of a sample, mostly late, which the posterior does not see). Both were set on
+    synthetic trains other than those of the tests: 69-71 % of the true errors within 1σ,
+    93 % within 2σ; the 2σ coverage is capped by the ~4 % of faint impacts whose rough
+    onset a ring or an echo starting < 1.5 ms before them captured (errors of 0.04-1 ms).
+    """
+    n_windows, width = windows.shape
+    back = max(4, int(np.ceil(_ONSET_BACK_SECONDS * sample_rate)))
+    span = width - n_pre
+    # Noise before the onset: level, lag-1 correlation, innovation variance.
+    quiet = windows[:, : n_pre - back]
+    level = quiet.mean(axis=1)
+    centred = windows - level[:, None]
+    noise = centred[:, : n_pre - back]
+    lag0 = np.einsum("kw,kw->k", noise[:, :-1], noise[:, :-1])
+    lag1 = np.einsum("kw,kw->k", noise[:, 1:], noise[:, :-1])
+    rho = np.clip(np.divide(lag1, lag0, out=np.zeros(n_windows), where=lag0 > 0), -0.5, 0.95)
+    innovations = noise[:, 1:] - rho[:, None] * noise[:, :-1]
+    innovation_var = np.maximum(np.einsum("kw,kw->k", innovations, innovations)
+                                / max(innovations.shape[1] - 2, 1), _NOISE_FLOOR**2)
+    noise_var = innovation_var / (1.0 - rho**2)
+    # Scale of the transient: peak and noise-corrected RMS frequency of its first millisecond.
+    post = centred[:, n_pre:]
+    steps = np.diff(post, axis=1)
+    step_power = np.einsum("kw,kw->k", steps, steps) - 2 * (1 - rho) * noise_var * steps.shape[1]
+    power = np.einsum("kw,kw->k", post, post) - noise_var * post.shape[1]
+    omega = np.sqrt(np.divide(np.maximum(step_power, 0.0), power, out=np.zeros(n_windows),
+                              where=power > 0))
+    omega = np.clip(omega, 0.05, np.pi)  # rad/sample
+    peak = np.maximum(np.abs(post).max(axis=1), np.sqrt(noise_var))
+    # The polynomial edge is a model: it follows a real transient to a fraction of its peak,
+    # not to the last bit. Above that the misfit, not the noise, decides the onset, so the
+    # variance of the residuals gets a floor of (ε·peak)²; loud onsets would otherwise come
+    # out a sample off with a 1σ of a fiftieth of a sample.
+    innovation_var = innovation_var + (_MODEL_ERROR * peak) ** 2
+    max_post = max(3, int(np.ceil(_MAX_POST_SECONDS * sample_rate)))
+    post_len = np.clip(np.ceil((np.pi / 2) / omega).astype(int), 3, min(max_post, span - 1))
+    prior_omega = _PRIOR_FREQUENCY_FACTOR * omega
+
+    # Rows of the fit: from just before the earliest allowed onset to the end of the edge.
+    # Rows before them are noise under every hypothesis and do not change the posterior.
+    first = n_pre - back - 1
+    last = n_pre + int(post_len.max())
+    sample_index = np.arange(first, last + 1, dtype=float)
+    data = centred[:, first:last + 1]
+    rows = sample_index[None, :] <= (n_pre + post_len)[:, None]
+    rows[:, 0] = False  # needs its predecessor for the whitening
+    whitened = np.zeros_like(data)
+    whitened[:, 1:] = data[:, 1:] - rho[:, None] * data[:, :-1]
+    whitened *= rows
+    data_term = np.einsum("kw,kw->k", whitened, whitened)
+
+    def log_evidence(onsets):  # onsets: (K, G) in window samples -> (K, G)
+        tau = np.maximum(sample_index[None, None, :] - onsets[..., None], 0.0)
+        scaled = prior_omega[:, None, None] * tau
+        # Columns (Ωτ)^p / p!, p = 1..P, by successive products (cheaper than powers).
+        design = np.empty(scaled.shape + (_POLY_ORDER,))  # (K, G, rows, P)
+        design[..., 0] = scaled
+        for p in range(1, _POLY_ORDER):
+            np.multiply(design[..., p - 1], scaled / (p + 1), out=design[..., p])
+        white = np.zeros_like(design)
+        white[:, :, 1:] = design[:, :, 1:] - rho[:, None, None, None] * design[:, :, :-1]
+        white *= rows[:, None, :, None]
+        gram = np.swapaxes(white, -1, -2) @ white / innovation_var[:, None, None, None]
+        gram += np.eye(_POLY_ORDER) / peak[:, None, None, None] ** 2
+        projection = np.einsum("kgwp,kw->kgp", white, whitened) / innovation_var[:, None, None]
+        cholesky = np.linalg.cholesky(gram)
+        solved = np.linalg.solve(cholesky, projection[..., None])[..., 0]
+        log_det = 2.0 * np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)).sum(axis=-1)
+        value = -0.5 * (data_term[:, None] / innovation_var[:, None]
+                        - (solved**2).sum(axis=-1)) - 0.5 * log_det
+        allowed = (onsets >= n_pre - back) & (onsets <= np.minimum(n_pre + back,
+                                                                     n_pre + post_len - 1)[:, None])
+        return np.where(allowed, value, -np.inf)
+
+    def summarise(onsets, log_post, step):
+        weights = np.exp(log_post - log_post.max(axis=1, keepdims=True))
+        weights /= weights.sum(axis=1, keepdims=True)
+        cdf = np.cumsum(weights, axis=1) - 0.5 * weights  # at the grid points
+        mean = (weights * onsets).sum(axis=1)
+        half_width = 0.5 * (_quantile(cdf, onsets, 0.8413) - _quantile(cdf, onsets, 0.1587))
+        # A grid point stands for an interval of one step: its uniform spread is added.
+        return mean, np.sqrt(half_width**2 + step**2 / 12.0), weights
+
+    n_grid = int(np.ceil((back + min(back, post_len.max() - 1)) / _GRID_STEP)) + 1
+    coarse = (n_pre - back) + _GRID_STEP * np.arange(n_grid)[None, :] + np.zeros((n_windows, 1))
+    log_post = log_evidence(coarse)
+    onset, sigma, weights = summarise(coarse, log_post, _GRID_STEP)
+    narrow = np.flatnonzero(sigma < _GRID_STEP)
+    if narrow.size:
+        fine_step = _GRID_STEP / _FINE_DIVISIONS
+        centre = coarse[narrow, np.argmax(weights[narrow], axis=1)]
+        offsets = fine_step * np.arange(-2 * _FINE_DIVISIONS, 2 * _FINE_DIVISIONS + 1)
+        fine = centre[:, None] + offsets[None, :]
+        keep = (rho, innovation_var, peak, prior_omega, post_len, whitened, rows, data_term)
+        (rho, innovation_var, peak, prior_omega, post_len, whitened, rows,
+         data_term) = (item[narrow] for item in keep)
+        fine_log_post = log_evidence(fine)
+        fine_log_post[~np.isfinite(fine_log_post).any(axis=1)] = 0.0  # all outside: flat
+        onset[narrow], sigma[narrow], _ = summarise(fine, fine_log_post, fine_step)
+    snr = np.abs(post).max(axis=1) / np.sqrt(noise_var)
+    # Sampling floor: between samples the onset is located through the model of the edge,
+    # whose residual error (a few hundredths of a sample on synthetic modal sounds) the
+    # posterior does not see; added in quadrature.
+    sigma = np.hypot(sigma, _SUBSAMPLE_FLOOR)
+    return onset, sigma, snr
+
+
+def _quantile(cdf, grid, probability):
+    """Linear interpolation of the `probability` quantile, row by row (cdf increasing)."""
+    above = np.clip((cdf < probability).sum(axis=1), 1, cdf.shape[1] - 1)
+    rows = np.arange(cdf.shape[0])
+    c0, c1 = cdf[rows, above - 1], cdf[rows, above]
+    fraction = np.clip(np.divide(probability - c0, c1 - c0, out=np.zeros_like(c0),
+                                 where=c1 > c0), 0.0, 1.0)
+    return grid[rows, above - 1] + fraction * (grid[rows, above] - grid[rows, above - 1])
+
+
