@@ -73,6 +73,7 @@ from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_fill_impacts, _fixed_delays, _louder_between, _probe, _robust_trend,
                     _secondary_delays, _select_bounces)
+from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
                        _process, _Settings, _Stream)
 from .onset import _onset_posterior
