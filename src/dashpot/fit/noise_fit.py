@@ -1199,6 +1199,9 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
         are kept small enough for the stencil to stay inside their bounds; the soft ones' at
         most SOFT_UNIT_MAX.
 
+    After ten iterations a row more than FAR above `reference`, or (without a reference)
+    above a converged start of its train, is left where it is.
+
     Returns
     -------
     _Fits
@@ -1283,6 +1286,11 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             if reference is not None and iteration >= 10:
                 # Far beyond every interval's level: where exactly does not matter.
                 done |= centre - reference[:, None] > FAR
+            if reference is None and shape[1] > 1 and iteration >= 10:
+                # A start still far above one of the same train that has converged is left
+                # where it is: the fit keeps the best start, and this one is not near it.
+                settled = np.where(frozen | done, centre, np.inf).min(axis=1)
+                done |= centre - settled[:, None] > FAR
             frozen |= done | ~usable
             if np.all(frozen):
                 break
