@@ -73,3 +73,38 @@ def test_failed_fits_keep_no_weight_under_the_misfit_scale():
     table, _ = selection_table(_results(chisqr, success=[True, True, False, True, True]))
     assert table.loc[2, "akaike_weight"] == 0 and math.isinf(table.loc[2, "delta_qaic"])
     assert table["akaike_weight"].sum() == pytest.approx(1.0)
+
+
+def _noise_results(bic):
+    """Noise fits with these BIC (same K = 4, n = 39): −2 ln L = BIC − 4 ln 39."""
+    from dashpot.fit import Estimate
+
+    scatter = Estimate(0.003, 3e-4, 0.0027, 0.0033, 0.0024, 0.0036, "1", "fitted")
+    return {name: SimpleNamespace(success=True, nvarys=4, ndata=39, chisqr=39.0, redchi=1.0,
+                                  aic=value - 4 * math.log(39) + 8, bic=value,
+                                  neg2_log_likelihood=value - 4 * math.log(39),
+                                  estimates={"sigma_eps": scatter})
+            for name, value in bic.items()}
+
+
+def test_an_effect_a_kept_fit_carries_is_required_even_where_its_own_step_failed():
+    # With ω0 known, Ia (constant ε plus the known contact duration) is worse than the
+    # constant law, while Ib (the same contact duration plus gravity in contact) beats it:
+    # the selected Ib carries the contact duration, so the data required it.
+    from dashpot.noise_selection import noise_selection_table
+
+    table, verdict = noise_selection_table(_noise_results({"constant": -150.0, "Ia": -137.0,
+                                                           "Ib": -186.0}))
+    table = table.set_index("model")
+    assert table.loc["Ib", "selected"] and not table.loc["Ia", "kept"]
+    assert table.loc["Ib", "simpler"] == "constant"  # Ia not kept: the next rung down
+    assert table.loc["Ib", "bic_gain"] == pytest.approx(36.0)
+    required, _, not_required = verdict.partition("not required")
+    assert "gravity in contact (Ib: ΔBIC = 36.0 against constant)" in required
+    assert "contact duration (carried by Ib; Ia: ΔBIC = -13.0 against constant)" in required
+    assert "contact duration" not in not_required
+    # Where no kept fit carries it, the failed step leaves it not required.
+    _, verdict = noise_selection_table(_noise_results({"constant": -150.0, "Ia": -137.0,
+                                                       "Ib": -140.0}))
+    assert "noise model: constant selected" in verdict
+    assert "not required (ΔBIC < 6): contact duration (Ia: ΔBIC = -13.0" in verdict

@@ -198,3 +198,22 @@ def test_a_gravity_free_train_is_not_handed_to_a_gravity_model():
             verdicts.append(result.verdict)
     print(f"\nIa train: a gravity model preferred in {wrongly} of {TRIALS} trials")
     assert wrongly <= (1.0 - REQUIRED) * TRIALS, verdicts
+
+
+def test_the_scene_fit_reports_gravity_in_contact_as_required():
+    """The same selection as the user gets it from ``fit_scene(..., noise=True)``: one Ib train
+    of the soft contact, the deterministic fits and the noise fits (constant law, Ia, Ib)."""
+    zeta, omega0 = SOFT["zeta"], SOFT["omega0"]
+    scene = Scene(mass=Known(MASS), stiffness=Known(MASS * omega0 ** 2))
+    train, = simulated_trains("Ib", (zeta, G / omega0), 1, count=SOFT["count"],
+                              speed=SOFT["speed"], seed=SEED + 50)
+    impacts = pd.DataFrame({"time": train.time_origin + train.times,
+                            "time_uncertainty": train.sigma})
+    result = fit_scene(impacts, scene, models=("Ia", "Ib"), noise=True,
+                       noise_laws=("constant",))
+    table = result.noise_selection.set_index("model")
+    assert list(table.index) == ["constant", "Ia", "Ib"]
+    assert table.loc["Ib", "selected"] and table.loc["Ib", "kept"]
+    assert result.noise_verdict.startswith("noise model: Ib selected")
+    assert "the data required " in result.noise_verdict
+    assert "gravity in contact (Ib: ΔBIC = " in result.noise_verdict.split("not required")[0]

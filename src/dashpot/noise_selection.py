@@ -77,7 +77,9 @@ def noise_selection_table(results):
         is no rung or a fit failed), ``kept`` (the nested-steps rule) and ``selected``.
     verdict : str
         Plain words: the fit selected, the effects the data required and those they did not,
-        each with its best ΔBIC against its simpler rung.
+        each with its best ΔBIC against its simpler rung; an effect that no fit adding it
+        earned on its own step but that a kept fit carries from a simpler rung (the contact
+        duration of a kept Ib where Ia alone was not kept) is required, "carried by" that fit.
     """
     table, _ = selection_table(results, sigma_known=True)
     rows = {name: table[name].to_numpy() for name in SELECTION_COLUMNS}
@@ -131,6 +133,15 @@ def _depth(name):
     return depth
 
 
+def _carried(name):
+    """Effects a law or model carries: its own and those of its simpler rungs."""
+    effects = set()
+    while name in SIMPLER:
+        effects.add(EFFECTS[name])
+        name = SIMPLER[name]
+    return effects
+
+
 def _verdict(results, table, chosen, base_ok, c_hat):
     """Plain-words reading of the noise selection table."""
     if chosen is None:
@@ -148,14 +159,23 @@ def _verdict(results, table, chosen, base_ok, c_hat):
         return (f"{head}; the nested steps need the constant law, which was not fitted: "
                 f"chosen on BIC alone")
     required, not_required = [], []
+    # Kept fits, the selected one first: the one named as carrying an effect it did not add.
+    kept = sorted(table.loc[table["kept"], "model"], key=lambda name: name != chosen)
     for effect in dict.fromkeys(e for e in table["effect"] if e):
         rows = table[(table["effect"] == effect) & np.isfinite(table["bic_gain"])]
         if rows.empty:
             continue
         best = rows.loc[rows["bic_gain"].idxmax()]
-        text = (f"{effect} ({best['model']}: ΔBIC = {best['bic_gain']:.1f} against "
-                f"{best['simpler']})")
-        (required if bool(best["kept"]) else not_required).append(text)
+        text = f"{best['model']}: ΔBIC = {best['bic_gain']:.1f} against {best['simpler']}"
+        # Required where some kept fit carries the effect: it adds it, or a simpler rung of
+        # its own did (Ib has the contact duration of Ia even where Ia alone was not kept).
+        carrier = next((name for name in kept if effect in _carried(name)), None)
+        if bool(best["kept"]):
+            required.append(f"{effect} ({text})")
+        elif carrier is not None:
+            required.append(f"{effect} (carried by {carrier}; {text})")
+        else:
+            not_required.append(f"{effect} ({text})")
     parts = [head]
     parts.append("the data required " + (", ".join(required) if required else
                                           "no effect beyond a constant restitution"))
