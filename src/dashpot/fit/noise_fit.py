@@ -38,7 +38,8 @@ filter leaves the grid is evaluated directly. Measured by benchmarks/bench_noise
 law on a 50-impact synthetic train and on the ping-pong recording), the fast level's step
 map is within 5e-7 (relative) of the direct one, its −2 ln L within 3e-4 and its fitted
 parameters within 5e-4 standard errors of the exact level's; the standard level's within
-2e-9, 2e-6 and 1e-3 (there the optimizer's own convergence dominates). "auto" fits at fast and
+2e-9, 2e-6 and 1e-5 to 1e-3 (varying from run to run: there the optimizer's own convergence
+dominates). "auto" fits at fast and
 checks at the best fit: where −2 ln L is more than LEVEL_LIKELIHOOD_TOLERANCE = 0.01 from the
 direct evaluation's, or a predicted time more than LEVEL_TIMING_TOLERANCE = 1 % of the
 smallest timing σ, it fits again at the next level (as the deterministic fits' "auto" takes
