@@ -248,11 +248,18 @@ def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, acc
         return []
     fixed = dict(fixed or {})
     levels = ACCURACY_LEVELS if accuracy == "auto" else (accuracy,)
+    missed = []
     for level in levels:
         problem = _Problem(datasets, law, scene, fixed, level)
         results = problem.solve(profile)
         if accuracy != "auto" or all(problem.accurate.values()):
             break
+        missed.append(level)
+    if accuracy == "auto":
+        for result in results:
+            result.notes.append(f"accuracy auto: {result.accuracy or 'none'}" + (
+                f" ({', '.join(missed)} not within the tolerances)" if missed else
+                " (within the tolerances)"))
     return results
 
 
