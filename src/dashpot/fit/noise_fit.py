@@ -1254,6 +1254,7 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             evaluations += spent
             centre, gradient, hessian = _derivatives(values, count, pairs)
             usable = np.all(np.isfinite(values), axis=-1)
+            position = params[..., free]  # where the derivatives are
             scale = np.abs(np.diagonal(hessian, axis1=-2, axis2=-1)) + 1e-12
             system = hessian + damping[..., None, None] * scale[..., :, None] * np.eye(count)
             system = np.where(usable[..., None, None], system, np.eye(count))
@@ -1286,11 +1287,21 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             factor = np.where(definite[..., None], np.sqrt(2.0 * np.abs(marginal)), factor)
             units = np.where(frozen[..., None], units,
                              capped(units * np.clip(factor, 0.01, 100.0), params))
-            # Done where no step gains more than the tolerance, or no step is accepted at all.
+            # Done where the full Newton step would gain less than the tolerance (½gᵀH⁻¹g, H
+            # positive definite; a coordinate held at a bound by its gradient left out), or
+            # no step is accepted at all. The damped step's own gain says nothing of the
+            # distance to the optimum: after rejected steps it is small however far that is.
             tolerance = CONVERGED if reference is None else CONVERGED + 1e-3 * np.maximum(
                 centre - reference[:, None], 0.0)
-            done = (np.abs(gain) < tolerance) | (~better & (damping >= 1e12)) | (
-                better & (centre - trial < tolerance) & (np.abs(gain) < 10 * tolerance))
+            held = ((position <= low) & (gradient > 0.0)) | ((position >= high)
+                                                             & (gradient < 0.0))
+            free_gradient = np.where(usable[..., None] & ~held, gradient, 0.0)
+            newton = 0.5 * np.sum(free_gradient * np.linalg.solve(
+                np.where(definite[..., None, None], safe, np.eye(count)),
+                free_gradient[..., None])[..., 0], axis=-1)
+            newton = np.where(definite, newton, np.inf)
+            done = (newton < tolerance) | (~better & (damping >= 1e12)) | (
+                better & (centre - trial < tolerance) & (newton < 10 * tolerance))
             if reference is not None and iteration >= 10:
                 # Far beyond every interval's level: where exactly does not matter.
                 done |= centre - reference[:, None] > FAR
