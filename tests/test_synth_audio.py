@@ -127,3 +127,71 @@ def test_write_audio_rejects_unknown_suffix_and_bad_shapes(tmp_path):
         write_audio(tmp_path / "train.wav", np.ones((10, 2)), RATE, channels=3)
     with pytest.raises(ValueError, match="cannot hold"):
         write_audio(tmp_path / "train.flac", samples, RATE, subtype="FLOAT")
+
+
+# ------------------------------------------------- quiet sounds besides the impacts (issue 14)
+
+
+def test_disturbances_leave_the_rest_of_the_signal_unchanged_and_are_not_onsets():
+    plain, onsets = impact_sound(TIMES, SPEEDS, seed=7, duration=2.0)
+    disturbed, disturbed_onsets = impact_sound(
+        TIMES, SPEEDS, seed=7, duration=2.0, apex_click_db=-40.0, rest_click_period=0.09,
+        burst_delays=[0.007], burst_levels=[1.5])
+    np.testing.assert_array_equal(onsets, disturbed_onsets)
+    # Before the first onset the signal is the same noise: the disturbances' draws are apart.
+    first = int(onsets[0] * RATE)
+    np.testing.assert_array_equal(plain[:first], disturbed[:first])
+    assert not np.array_equal(plain, disturbed)
+
+
+def test_apex_click_is_40_db_under_its_impacts_near_the_midpoint():
+    times, speeds = np.array([0.0, 0.4]), np.array([1.0, 1.0])
+    quiet, onsets = impact_sound(times, speeds, snr_db=300.0, ring_level=0.0, seed=2)
+    clicked, _ = impact_sound(times, speeds, snr_db=300.0, ring_level=0.0, seed=2,
+                              apex_click_db=-40.0)
+    extra = np.abs(clicked - quiet)
+    # Within ±5 % of the flight around its midpoint, and nowhere else.
+    midpoint = int((onsets[0] + 0.2) * RATE)
+    window = slice(midpoint - int(0.021 * RATE), midpoint + int(0.03 * RATE))
+    assert extra[window].max() == pytest.approx(0.5 * 1e-2, rel=0.03)
+    extra[window] = 0.0
+    assert extra.max() == 0.0
+
+
+def test_rest_clicks_repeat_at_their_period_after_the_last_impact():
+    quiet, onsets = impact_sound(TIMES, SPEEDS, snr_db=300.0, ring_level=0.0, seed=3,
+                                 rest_click_period=0.09, rest_click_duration=0.5)
+    clean, _ = impact_sound(TIMES, SPEEDS, snr_db=300.0, ring_level=0.0, seed=3,
+                            duration=quiet.size / RATE)
+    extra = np.abs(quiet - clean)
+    assert extra[: int(onsets[-1] * RATE)].max() == 0.0
+    # Starts of the clicks: first nonzero sample after silence.
+    active = extra > 1e-9
+    starts = np.flatnonzero(active[1:] & ~active[:-1]) + 1
+    gaps = np.diff(np.concatenate([[onsets[-1] * RATE], starts])) / RATE
+    assert gaps.size == 5
+    np.testing.assert_allclose(gaps, 0.09, rtol=0.02 + 2.0 / (0.09 * RATE))
+    # Each click is half as loud as the last impact (peak 0.5 × 1/2 of the loudest).
+    peak = 0.5 * SPEEDS[-1] / SPEEDS.max()
+    assert extra.max() == pytest.approx(0.5 * peak, rel=0.03)
+
+
+def test_ring_bursts_come_at_their_delays_with_their_levels():
+    base, onsets = impact_sound([0.0], [1.0], snr_db=300.0, ring_level=0.0, duration=0.5)
+    bursting, burst_onsets = impact_sound([0.0], [1.0], snr_db=300.0, ring_level=0.0,
+                                          duration=0.5, burst_delays=[0.007], burst_levels=[1.5])
+    np.testing.assert_array_equal(onsets, burst_onsets)
+    extra = np.abs(bursting - base)
+    start = onsets[0] + 0.007
+    assert extra[: int(np.floor(start * RATE))].max() == 0.0
+    assert extra[int(np.ceil(start * RATE))] > 0.0
+    assert extra.max() == pytest.approx(1.5 * 0.5, rel=0.03)
+
+
+@pytest.mark.parametrize("bad", [dict(burst_delays=[0.01], burst_levels=[]),
+                                 dict(burst_delays=[-0.01], burst_levels=[1.0]),
+                                 dict(rest_click_period=0.0),
+                                 dict(apex_click_db=float("nan"))])
+def test_bad_disturbances_raise_value_error(bad):
+    with pytest.raises(ValueError):
+        impact_sound(TIMES, SPEEDS, **bad)

@@ -5,7 +5,12 @@ decaying sinusoids (modal synthesis [1]_) that starts at the impact with zero va
 finite slope, i.e. the response of the modes to an impulsive contact force. The onset of each
 transient is therefore a sharp, exactly known instant, which is what the audio reader is asked
 to find. On top come the traps of real recordings: a ringing secondary transient, an echo from
-a wall, background noise, a DC offset and clipping.
+a wall, background noise, a DC offset and clipping, and the quiet sounds real recordings hold
+besides the impacts (dashpot issue 14): a faint click near each apex of the flight (a tennis
+ball's recording had one about 40 dB under the impacts, midway between each pair of them), a
+steady periodic click after the ball has come to rest (about every 0.09 s), and rings with
+bursts of their own inside them (a ping-pong ball's ring swells again a few ms after the
+impact, louder than the impact's first burst once the impacts grow quiet).
 
 References
 ----------
@@ -39,6 +44,8 @@ _ECHO_CUTOFF_HZ = 2500.0  # a wall reflection loses the highs: one-pole low-pass
 _FREQUENCY_JITTER = 0.03  # relative scatter of the mode frequencies from impact to impact
 _PEAK_GRID_STEP = 2e-6  # s, grid on which the continuous-time peak of a transient is found
 _NOISE_COLORS = ("white", "pink")
+_APEX_JITTER = 0.05  # the apex click falls within ±5 % of the flight time of the midpoint
+_DISTURBANCE_STREAM = 14  # second key of the generator of the disturbances (see impact_sound)
 
 AUDIO_FORMATS = {".wav": "WAV", ".flac": "FLAC", ".ogg": "OGG"}
 """File suffixes understood by :func:`write_audio` and the libsndfile format each means."""
@@ -112,7 +119,9 @@ def _noise(rng, n_samples, color, sample_rate):
 def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=None, lead_in=0.2,
                  snr_db=40.0, ring_delay=0.02, ring_level=0.3, echo_delay=None, echo_level=0.0,
                  clip_level=None, dc_offset=0.0, seed=0, peak_level=0.5, speed_exponent=1.0,
-                 noise_color="white"):
+                 noise_color="white", apex_click_db=None, rest_click_period=None,
+                 rest_click_level=0.5, rest_click_duration=1.0, burst_delays=(),
+                 burst_levels=()):
     """Microphone signal of a bounce train, and the true onset of every impact transient.
 
     Parameters
@@ -158,6 +167,23 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         force, and so the radiated pressure, is proportional to the impact speed (p = 1).
     noise_color : {"white", "pink"}, default "white"
         Spectrum of the Gaussian background noise (pink: power ∝ 1/f above 20 Hz).
+    apex_click_db : float, optional
+        Level (dB, e.g. −40) of a faint click near the apex of every flight, relative to the
+        geometric mean of the peaks of the two impacts around it; it falls at the midpoint of
+        the flight ±5 % of its duration (uniform). None (default): no apex clicks.
+    rest_click_period : float, optional
+        Period (s, e.g. 0.09) of a steady click heard after the ball has come to rest (a
+        clock, a fan, a relay), starting one period after the last impact, ±2 % jitter per
+        click. None (default): no such tail.
+    rest_click_level : float, default 0.5
+        Peak of each rest click relative to the last impact's peak.
+    rest_click_duration : float, default 1
+        Length (s) of the tail of rest clicks; `duration` is lengthened to hold it.
+    burst_delays, burst_levels : sequence of float, default ()
+        Bursts inside each impact's ring: the direct modes excited again `burst_delays` (s)
+        after the impact's onset with peaks `burst_levels` × the impact's peak (may exceed 1:
+        the swell of a ring can be louder than its first burst). The impact's onset is the
+        start of its first burst.
 
     Returns
     -------
@@ -165,7 +191,8 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         The signal, full scale = 1 (values may exceed 1 unless clipped).
     onset_times : ndarray of float64
         True onset of each impact transient in s on the timeline of `samples` (sample k is at
-        k / sample_rate): the instant the transient starts, between samples in general.
+        k / sample_rate): the instant the transient starts, between samples in general. Apex
+        clicks, rest clicks and ring bursts are not impacts and are not listed.
 
     Notes
     -----
@@ -174,7 +201,11 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
     vary from impact to impact; modes above 0.45·sample_rate are left out. It is scaled so that
     its peak over continuous time is the impact's amplitude. The ringing transient has two
     lower modes (1.1, 1.8 kHz); the echo is a copy of the direct transient low-passed at
-    2.5 kHz (one-pole). References: modal synthesis of contact sounds [1]_.
+    2.5 kHz (one-pole). Apex clicks, rest clicks and ring bursts are direct transients too
+    (the same modes): only their loudness and timing tell them from impacts. Their random
+    draws come from a generator of their own (keyed by `seed` and a constant), so that adding
+    them leaves the rest of the signal, noise included, unchanged. References: modal synthesis
+    of contact sounds [1]_.
     """
     times = _check_array("impact_times", impact_times)
     speeds = _check_array("impact_speeds", impact_speeds, positive=True)
@@ -197,6 +228,20 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         _check_array("clip_level", clip_level, positive=True)
     if noise_color not in _NOISE_COLORS:
         raise ValueError(f"noise_color must be one of {_NOISE_COLORS}; got {noise_color!r}")
+    if apex_click_db is not None:
+        _check_array("apex_click_db", apex_click_db)
+    if rest_click_period is not None:
+        _check_array("rest_click_period", rest_click_period, positive=True)
+        _check_array("rest_click_level", rest_click_level, positive=True)
+        _check_array("rest_click_duration", rest_click_duration, positive=True)
+    burst_delays = np.asarray(burst_delays, dtype=float).ravel()
+    burst_levels = np.asarray(burst_levels, dtype=float).ravel()
+    if burst_delays.shape != burst_levels.shape:
+        raise ValueError(f"burst_delays and burst_levels must have the same length; got "
+                         f"{burst_delays.size} and {burst_levels.size}")
+    if burst_delays.size:
+        _check_array("burst_delays", burst_delays, positive=True)
+        _check_array("burst_levels", burst_levels, positive=True)
 
     onsets = lead_in + times
     if np.any(onsets < 0):
@@ -204,6 +249,10 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
     tail = 8.0 * max(_DIRECT_MODES[:, 1].max(), _RING_MODES[:, 1].max()) + ring_delay
     if echo_delay is not None:
         tail += echo_delay
+    if burst_delays.size:
+        tail += burst_delays.max()
+    if rest_click_period is not None:
+        tail += rest_click_duration
     if duration is None:
         duration = float(onsets.max()) + tail + 0.05
     _check_array("duration", duration, positive=True)
@@ -223,12 +272,38 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         # One-pole low-pass y[n] = (1 − a) x[n] + a y[n−1]: causal, so the echo starts on time.
         pole = np.exp(-2 * np.pi * _ECHO_CUTOFF_HZ / sample_rate)
         samples += signal.lfilter([1.0 - pole], [1.0, -pole], echo)
+    samples += _disturbances(onsets, amplitudes, np.random.default_rng(
+        [int(seed), _DISTURBANCE_STREAM]), sample_rate, n_samples, apex_click_db,
+        rest_click_period, rest_click_level, rest_click_duration, burst_delays, burst_levels)
     noise_rms = peak_level * 10.0 ** (-float(snr_db) / 20.0)
     samples += noise_rms * _noise(rng, n_samples, noise_color, sample_rate)
     samples += dc_offset
     if clip_level is not None:
         samples = np.clip(samples, -clip_level, clip_level)
     return samples, onsets
+
+
+def _disturbances(onsets, amplitudes, rng, sample_rate, n_samples, apex_click_db,
+                  rest_click_period, rest_click_level, rest_click_duration, burst_delays,
+                  burst_levels):
+    """Apex clicks, rest clicks and ring bursts (see :func:`impact_sound`), summed."""
+    times, levels = [np.zeros(0)], [np.zeros(0)]
+    if apex_click_db is not None and onsets.size > 1:
+        flights = np.diff(onsets)
+        times.append(onsets[:-1] + flights * (0.5 + rng.uniform(-_APEX_JITTER, _APEX_JITTER,
+                                                                  flights.size)))
+        levels.append(10.0 ** (apex_click_db / 20.0) * np.sqrt(amplitudes[:-1] * amplitudes[1:]))
+    if rest_click_period is not None:
+        count = int(rest_click_duration / rest_click_period)
+        steps = rest_click_period * (1.0 + 0.02 * rng.uniform(-1.0, 1.0, count))
+        times.append(onsets[-1] + np.cumsum(steps))
+        levels.append(np.full(count, rest_click_level * amplitudes[-1]))
+    for delay, level in zip(burst_delays, burst_levels):
+        times.append(onsets + delay)
+        levels.append(level * amplitudes)
+    times, levels = np.concatenate(times), np.concatenate(levels)
+    inside = times < n_samples / sample_rate
+    return _render(times[inside], levels[inside], _DIRECT_MODES, rng, sample_rate, n_samples)
 
 
 def _subtype_bits(subtype):
