@@ -32,6 +32,8 @@ others):
 ``identifiability``        notes where the data do not determine a parameter
 ``model_fit``              :func:`fit_model`: one model fitted to one scene
 ``scene_fit``              :func:`fit_scene`: every model fitted, and the selection table
+``joint_fit``              :func:`fit_runs`: each run of a multi-run table fitted on its own,
+                           and :func:`fit_joint`: the runs fitted at once sharing ζ and ω0
 ``noise_fit``              a law or model fitted under bounce-to-bounce scatter and timing
                            jitter (:mod:`dashpot.likelihood`)
 ``noise_scene``            the law ladder and the models fitted under the noise model, for
@@ -66,6 +68,7 @@ from __future__ import annotations
 
 from .accuracy import choose_accuracy
 from .data import prepare_data
+from .joint_fit import JointFit, RunsFit, fit_joint, fit_runs, split_runs
 from .levenberg_marquardt import _levenberg_marquardt  # noqa: F401 (used by the tests)
 from .model_fit import fit_model
 from .noise_fit import NoiseFitResult, fit_noise_model, fit_noise_models  # noqa: F401
@@ -76,4 +79,5 @@ from .settings import (ACCURACY_LEVELS, FAST_STEP_SE, PARAMETERS,  # noqa: F401
                        QUANTILES, UNCERTAINTY_METHODS)
 
 __all__ = ["FitData", "FitResult", "Estimate", "prepare_data", "fit_model", "fit_scene",
-           "SceneFit", "choose_accuracy", "ACCURACY_LEVELS", "UNCERTAINTY_METHODS"]
+           "SceneFit", "choose_accuracy", "ACCURACY_LEVELS", "UNCERTAINTY_METHODS", "JointFit",
+           "RunsFit", "fit_joint", "fit_runs", "split_runs"]

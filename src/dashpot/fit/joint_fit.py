@@ -1,0 +1,368 @@
+"""One contact model fitted jointly to several runs of one apparatus: the runs share the
+contact parameters (ζ and ω0, hence β, and k with a known mass), and each keeps its own first
+impact speed v0 and time t0.
+
+The likelihood is that of the single-run fit (:mod:`dashpot.fit.residuals`): each run's
+normalized residuals of impact times and measured speeds, concatenated, with the scene's
+priors on ω0 once and on v0 once per run. Runs are independent measurements, so χ² is the sum
+of the runs' χ² and the joint fit's covariance is that of the stacked residuals [4]_: the
+shared parameters are determined by every run's impacts at once.
+
+References
+----------
+Numbered as in :mod:`dashpot.fit`.
+
+.. [3] K. P. Burnham and D. R. Anderson, *Model Selection and Multimodel Inference*, 2nd ed.,
+   Springer (2002), sec. 2.2 (AIC with known variance: χ² + 2K).
+.. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
+   Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors) and 8.5 (errors from the
+   curvature of χ²).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import lmfit
+import numpy as np
+
+from ..scene import Scene
+from .accuracy import choose_accuracy
+from .covariance import _linear_estimate
+from .residuals import _residual_rows
+from .settings import METHOD, OPTIONS
+from .trains import _TrainPredictor
+
+__all__ = ["JointFit", "RunsFit", "fit_joint", "fit_runs", "split_runs"]
+
+SHARED = ("zeta", "v_star")  # the contact parameters every run shares (fitted coordinates)
+
+
+@dataclass
+class JointFit:
+    """One model fitted jointly to several runs. See :func:`fit_joint`.
+
+    Attributes
+    ----------
+    model : str
+    success : bool
+    message : str
+    estimates : dict of str -> Estimate
+        Shared contact parameters: ``zeta`` (1), ``v_star`` (m/s), ``omega0`` (rad/s),
+        ``beta`` (1/s), with a known mass ``k`` (N/m) and ``gamma`` (kg/s).
+    run_estimates : dict of run -> dict of str -> Estimate
+        Each run's own ``v0`` (m/s) and ``t0`` (s, on the table's clock).
+    chisqr, redchi, aic, bic : float
+    ndata, nvarys, nfev : int
+    varied : tuple of str
+    correlation : ndarray
+    notes : list of str
+    """
+
+    model: str
+    success: bool
+    message: str
+    estimates: dict
+    run_estimates: dict
+    chisqr: float
+    redchi: float
+    aic: float
+    bic: float
+    ndata: int
+    nvarys: int
+    nfev: int
+    varied: tuple
+    correlation: np.ndarray
+    notes: list = field(default_factory=list)
+
+
+def _failed(model, message, runs):
+    return JointFit(model=model, success=False, message=message, estimates={},
+                    run_estimates={run: {} for run in runs}, chisqr=math.inf,
+                    redchi=math.inf, aic=math.inf, bic=math.inf, ndata=0, nvarys=0, nfev=0,
+                    varied=(), correlation=np.zeros((0, 0)), notes=[message])
+
+
+def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
+    """Fit one contact model to several runs at once, the runs sharing ζ and ω0.
+
+    Parameters
+    ----------
+    datas : dict of run -> FitData
+        Each run's prepared impacts (:func:`dashpot.fit.prepare_data` of that run alone);
+        at least two runs.
+    model : {"Ia", "Ib", "IIa", "IIb", "hybrid"}
+    scene : Scene, optional
+        What is known of the apparatus, as for :func:`dashpot.fit.fit_model`: an exact
+        stiffness and mass (or contact time) fix ω0, uncertain ones give it a prior; a known
+        first impact speed fixes v0 of every run or gives each run its prior.
+    starts : dict of run -> FitResult, optional
+        Each run's own fit of `model` (:func:`dashpot.fit.fit_model`), the start values: ζ
+        and v* the median of the successful runs', v0 and t0 each run's own. Required.
+    max_nfev : int, default 4000
+
+    Returns
+    -------
+    JointFit
+        Estimates with 1σ errors by linear propagation from the covariance of the stacked
+        residuals [4]_ (scaled by χ²/ν where the timing uncertainties are unknown, or where
+        the fit misses the data by more than 3σ of its χ² distribution), Gaussian 68.27 % and
+        95.45 % intervals. AIC = χ² + 2K and BIC = χ² + K ln N with known timing errors [3]_.
+        A fit that cannot be made is returned with ``success=False`` and the reason.
+
+    Notes
+    -----
+    The joint fit uses gravity's flight: air drag and rolling friction, which the single-run
+    fits may model, are left out (a note says so where the scene asks for either).
+    """
+    scene = scene or Scene()
+    runs = list(datas)
+    if len(runs) < 2:
+        raise ValueError(f"a joint fit needs at least two runs; got {len(runs)}")
+    starts = starts or {}
+    usable = [run for run in runs if run in starts and starts[run].success]
+    if not usable:
+        return _failed(model, "joint fit not made: no run's own fit succeeded to start from",
+                       runs)
+    notes = []
+    if scene.drag is not None or scene.tries_friction:
+        notes.append("joint fit with gravity's flight: air drag and rolling friction not "
+                     "modelled in it")
+    g = datas[runs[0]].g
+    sigma_known = all(data.sigma_known for data in datas.values())
+    level, trains_solver, _, reason = choose_accuracy(datas[runs[0]], scene.accuracy, model)
+    notes.append(f"accuracy {reason} (from run {runs[0]})")
+
+    mass, stiffness, contact_time = scene.mass, scene.stiffness, scene.contact_time
+    if stiffness is not None and mass is None:
+        stiffness = None
+    if contact_time is not None and stiffness is not None:
+        contact_time = None
+    fixed_v_star = None
+    shared_priors = []
+    if stiffness is not None:
+        omega0 = math.sqrt(stiffness.value / mass.value)
+        if stiffness.uncertainty is None and mass.uncertainty is None:
+            fixed_v_star = g / omega0
+        else:
+            sd = math.hypot(stiffness.uncertainty or 0.0,
+                            stiffness.value * (mass.uncertainty or 0.0) / mass.value)
+            shared_priors.append(("v_star", g / omega0, g / omega0 * 0.5 * sd / stiffness.value))
+    elif contact_time is not None:
+        if contact_time.uncertainty is None:
+            fixed_v_star = g * contact_time.value / math.pi
+        else:
+            shared_priors.append(("v_star", g * contact_time.value / math.pi,
+                                  g * contact_time.uncertainty / math.pi))
+    known_v0 = scene.known_impact_speed
+    fixed_v0 = known_v0 is not None and known_v0.uncertainty is None
+    run_priors = ([("v0", known_v0.value, known_v0.uncertainty)]
+                  if known_v0 is not None and not fixed_v0 else [])
+
+    params = lmfit.Parameters()
+    params.add("zeta", value=float(np.median([starts[r].estimates["zeta"].value
+                                              for r in usable])))
+    params.add("v_star", value=fixed_v_star if fixed_v_star is not None else float(np.median(
+        [starts[r].estimates["v_star"].value for r in usable])), vary=fixed_v_star is None)
+    pooled_v0 = float(np.median([starts[r].estimates["v0"].value for r in usable]))
+    for i, run in enumerate(runs):
+        own = starts.get(run)
+        own = own if own is not None and own.success else None
+        params.add(f"v0_{i}", value=known_v0.value if fixed_v0 else (
+            own.estimates["v0"].value if own else pooled_v0), vary=not fixed_v0)
+        params.add(f"t0_{i}", value=(own.estimates["t0"].value - datas[run].time_origin
+                                     if own else 0.0))
+
+    rows = []
+    for i, run in enumerate(runs):
+        predictor = _TrainPredictor(model, g, datas[run].count, trains_solver)
+        # The first run's rows carry the shared priors; every run its own v0 prior.
+        priors = run_priors + (shared_priors if i == 0 else [])
+        rows.append(functools.partial(_residual_rows, data=datas[run], predictor=predictor,
+                                      priors=priors))
+
+    def residual(p):
+        values = p.valuesdict()
+        return np.concatenate([
+            row(np.array([[values["zeta"], values["v_star"], values[f"v0_{i}"],
+                           values[f"t0_{i}"]]]))[0] for i, row in enumerate(rows)])
+
+    result = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
+                            scale_covar=not sigma_known)
+    values = result.params.valuesdict()
+    if not np.all(np.isfinite(result.residual)) or np.max(np.abs(result.residual)) >= 1e11:
+        return _failed(model, "joint fit failed: ended outside the physical range", runs)
+    varied = tuple(result.var_names)
+    cov = result.covar
+    if cov is None:
+        cov = np.full((len(varied), len(varied)), np.inf)
+        notes.append("covariance not available (singular Jacobian): errors reported as "
+                     "infinite")
+    dof = max(int(result.nfree), 1)
+    if sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
+        cov = cov * result.redchi
+        notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
+                     f"the runs do not share one contact within their uncertainties; errors "
+                     f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
+
+    def sd_of(gradient):
+        """1σ of a quantity from its gradient {parameter: ∂q/∂p} (linear propagation)."""
+        vector = np.array([gradient.get(name, 0.0) for name in varied])
+        if not vector.any():
+            return 0.0
+        used = vector != 0
+        block = cov[np.ix_(used, used)]
+        variance = vector[used] @ block @ vector[used]
+        return float(math.sqrt(variance)) if np.isfinite(variance) and variance >= 0 \
+            else math.inf
+
+    zeta, v_star = values["zeta"], values["v_star"]
+    omega0 = g / v_star
+    status = "fitted" if fixed_v_star is None else "fixed"
+    estimates = {
+        "zeta": _linear_estimate(zeta, sd_of({"zeta": 1.0}), "1", "fitted",
+                                 "shared by every run"),
+        "v_star": _linear_estimate(v_star, sd_of({"v_star": 1.0}), "m/s", status,
+                                   "characteristic speed g/omega0, shared"),
+        "omega0": _linear_estimate(omega0, sd_of({"v_star": -omega0 / v_star}), "rad/s",
+                                   status, "omega0 = g/v_star, shared"),
+        "beta": _linear_estimate(zeta * omega0, sd_of({"zeta": omega0,
+                                                       "v_star": -zeta * omega0 / v_star}),
+                                 "1/s", "derived", "beta = zeta * omega0"),
+    }
+    if mass is not None:
+        mass_sd = (mass.uncertainty or 0.0) / mass.value
+        k = mass.value * omega0 ** 2
+        estimates["k"] = _linear_estimate(
+            k, math.hypot(sd_of({"v_star": -2.0 / v_star}), mass_sd) * k, "N/m", "derived",
+            "k = m * omega0^2")
+        gamma = 2.0 * mass.value * zeta * omega0
+        estimates["gamma"] = _linear_estimate(
+            gamma, math.hypot(sd_of({"zeta": 1.0 / zeta, "v_star": -1.0 / v_star}), mass_sd)
+            * gamma, "kg/s", "derived", "gamma = 2 m beta")
+    run_estimates = {}
+    for i, run in enumerate(runs):
+        run_estimates[run] = {
+            "v0": _linear_estimate(values[f"v0_{i}"], sd_of({f"v0_{i}": 1.0}), "m/s",
+                                   "fixed" if fixed_v0 else "fitted", f"run {run}'s own"),
+            "t0": _linear_estimate(datas[run].time_origin + values[f"t0_{i}"],
+                                   sd_of({f"t0_{i}": 1.0}), "s", "fitted", f"run {run}'s own"),
+        }
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.sqrt(np.diag(cov))
+        correlation = cov / np.outer(scale, scale)
+    correlation = np.where(np.isfinite(correlation), correlation, np.nan)
+    nvarys, ndata, chisqr = len(varied), int(result.ndata), float(result.chisqr)
+    if sigma_known:
+        aic, bic = chisqr + 2 * nvarys, chisqr + nvarys * math.log(ndata)
+    else:
+        aic, bic = float(result.aic), float(result.bic)
+    notes.append(f"{len(runs)} runs share zeta and omega0; each run its own v0 and t0")
+    return JointFit(model=model, success=bool(result.success), message=result.message,
+                    estimates=estimates, run_estimates=run_estimates, chisqr=chisqr,
+                    redchi=float(result.redchi), aic=aic, bic=bic, ndata=ndata, nvarys=nvarys,
+                    nfev=int(result.nfev), varied=varied, correlation=correlation, notes=notes)
+
+
+@dataclass
+class RunsFit:
+    """Every run of a multi-run recording fitted on its own, and the joint fits.
+
+    Attributes
+    ----------
+    runs : dict of run -> SceneFit
+        Each run's own fits (:func:`dashpot.fit.fit_scene` of that run's impacts alone), in
+        the order of the runs' first appearance in the table.
+    joint : dict of model -> JointFit
+        Each model fitted to every run at once (:func:`fit_joint`); empty with one run.
+    notes : list of str
+    """
+
+    runs: dict
+    joint: dict
+    notes: list = field(default_factory=list)
+
+    @property
+    def first(self):
+        """The first run's SceneFit (what a single-run file holds)."""
+        return next(iter(self.runs.values()))
+
+
+def split_runs(impacts):
+    """The impact table of each run, in the order of first appearance (one run: the table).
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest`, optional column ``run``.
+
+    Returns
+    -------
+    dict of run -> pandas.DataFrame
+        Each with the table's ``attrs`` (copied) and its rows in order.
+    """
+    if "run" not in impacts or impacts["run"].nunique() <= 1:
+        run = int(impacts["run"].iloc[0]) if "run" in impacts and len(impacts) else 0
+        return {run: impacts}
+    out = {}
+    for run in dict.fromkeys(impacts["run"].to_numpy()):
+        part = impacts[impacts["run"].to_numpy() == run].reset_index(drop=True)
+        part.attrs = {key: (list(value) if isinstance(value, list) else value)
+                      for key, value in impacts.attrs.items()}
+        out[int(run)] = part
+    return out
+
+
+def fit_runs(impacts, scene=None, models=None, *, progress=None, noise=None):
+    """Each run of an impact table fitted on its own, and each model fitted to all at once.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table (column ``run`` for several runs; without it, or with one run, the
+        result holds that run's fit and no joint fit).
+    scene : Scene, optional
+    models : sequence of str, optional
+    progress : callable, optional
+        Passed to :func:`dashpot.fit.fit_scene` for each run.
+    noise : bool, optional
+        As in :func:`dashpot.fit.fit_scene`.
+
+    Returns
+    -------
+    RunsFit
+
+    Raises
+    ------
+    ValueError
+        A run cannot be prepared for fitting (fewer than three impacts): the message names
+        the run.
+    """
+    from .scene_fit import fit_scene
+
+    scene = scene or Scene()
+    models = tuple(models or scene.models)
+    parts = split_runs(impacts)
+    runs = {}
+    for run, table in parts.items():
+        try:
+            runs[run] = fit_scene(table, scene, models, progress=progress, noise=noise)
+        except ValueError as error:
+            if len(parts) == 1:
+                raise
+            raise ValueError(f"run {run}: {error}") from None
+    joint = {}
+    notes = []
+    if len(runs) > 1:
+        notes.append(f"{len(runs)} runs: each fitted on its own, and every model fitted to "
+                     f"all runs at once sharing zeta and omega0")
+        datas = {run: fit.data for run, fit in runs.items()}
+        for model in models:
+            starts = {run: fit.results[model] for run, fit in runs.items()}
+            try:
+                joint[model] = fit_joint(datas, model, scene, starts)
+            except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
+                joint[model] = _failed(model, f"joint fit failed: {error}", list(datas))
+    return RunsFit(runs=runs, joint=joint, notes=notes)
