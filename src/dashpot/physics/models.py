@@ -37,9 +37,8 @@ from scipy.optimize import elementwise
 from .._validation import check_model, check_nonnegative, check_positive
 # GRAVITY_MODELS is defined with the brackets (the ode method needs it too) and kept importable
 # from here.
-from .brackets import (GRAVITY_MODELS, MODAL_ZETA, _eigenmodes, _halley_in_bracket,  # noqa: F401
-                       _iia_contact_time, _ib_bracket, _ib_excess, _iib_bracket, _iib_release,
-                       _start_guess)
+from .brackets import (GRAVITY_MODELS, MODAL_ZETA, _eigenmodes,  # noqa: F401
+                       _iia_contact_time, _ib_bracket, _ib_solve, _iib_bracket, _iib_release)
 from .contact import Damping, basis
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
@@ -168,29 +167,10 @@ def _model_iia(zeta, vtilde):
 
 # --- model Ib: ξ returns to zero, with gravity ----------------------------------------------
 
-def _ib_excess_and_slope(t, zeta, vtilde):
-    """ξ(t), ξ'(t) = −ṽC + (ζṽ − 1)S, ξ'' and ξ''' with gravity, from one evaluation of C, S."""
-    d = Damping(zeta)
-    c, S, offset = basis(d, t, offset=True)
-    drop = (zeta - vtilde) * S
-    excess = offset + drop
-    slope = -vtilde * c + (zeta * vtilde - 1.0) * S
-    # ξ'' = −1 − ξ − 2ζξ' from the equation of motion.
-    curvature = -1.0 - excess - 2.0 * zeta * slope
-    third = -slope - 2.0 * zeta * curvature
-    return excess, slope, curvature, third, np.abs(offset) + np.abs(drop)
-
-
 def _model_ib(zeta, vtilde):
-    t_min, t_max, xi_max = _ib_bracket(zeta, vtilde)
+    # Bracket, capture and return time by the compiled Halley iteration (brackets._ib_solve).
+    _, _, xi_max, tau = _ib_solve(zeta, vtilde)
     rebound = xi_max > 0.0
-    tau = np.full(zeta.shape, np.inf)
-    lo, hi = t_min[rebound], t_max[rebound]
-    args = (zeta[rebound], vtilde[rebound])
-    start = _start_guess(lo, hi, xi_max[rebound], np.pi / Damping(args[0]).omega, args[1],
-                         lambda i: _ib_excess(lo[i], *(a[i] for a in args)))
-    tau[rebound] = _halley_in_bracket(_ib_excess_and_slope, lo, hi, args, increasing=True,
-                                      start=start)
     eps = np.zeros(zeta.shape)
     one_minus = np.ones(zeta.shape)
     z, v, t = zeta[rebound], vtilde[rebound], tau[rebound]
