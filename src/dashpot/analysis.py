@@ -20,7 +20,7 @@ from .ingest import read_impacts
 from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
 
-__all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze"]
+__all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze", "analyze_runs"]
 
 logger = logging.getLogger(__name__)
 
@@ -106,6 +106,12 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     ------
     InputError
         The recording cannot be read or holds too few impacts to fit.
+
+    Notes
+    -----
+    Of a multi-run recording (Capstone's "Run #1, Run #2, ...", phyphox's several runs, an
+    impact table with a ``run`` column) only the first run is fitted here (the data's notes
+    say so): :func:`analyze_runs` fits every run, and the runs jointly.
     """
     from .fit import fit_scene
     from .fit.settings import NOISE_LAWS
@@ -136,3 +142,70 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     except ValueError as error:
         raise InputError(path, str(error)) from None
     return impacts, scene_fit
+
+
+def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
+    """Impacts and every requested model fitted to every run of a recording, and jointly.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Recording or impact table; several runs where the reader gives a ``run`` column.
+    scene : Scene, optional
+    models : sequence of str, optional
+    progress : callable, optional
+        As in :func:`analyze`, counting the fits of every run and the joint fits.
+    noise : bool, optional
+        As in :func:`analyze`, for each run.
+
+    Returns
+    -------
+    impacts : pandas.DataFrame
+        Every run's impacts.
+    runs_fit : dashpot.fit.RunsFit
+        ``runs``: each run's own SceneFit (:func:`dashpot.fit.fit_scene` of its impacts
+        alone); ``joint``: each model fitted to all runs at once, sharing ζ and ω0
+        (:func:`dashpot.fit.fit_joint`; empty for one run). With one run, ``runs`` holds the
+        fit :func:`analyze` makes.
+
+    Raises
+    ------
+    InputError
+        The recording cannot be read, or a run holds fewer than three impacts or is no bounce
+        train (the message names the run).
+    """
+    from .fit.joint_fit import fit_runs, split_runs
+    from .fit.settings import NOISE_LAWS
+
+    scene = scene or Scene()
+    impacts = scene_impacts(path, scene)
+    parts = split_runs(impacts)
+    several = len(parts) > 1
+    for run, table in parts.items():
+        where = f"run {run}: " if several else ""
+        if len(table) < 3:
+            raise InputError(path, f"{where}only {len(table)} impact(s) found; fitting needs "
+                                   f"three")
+        try:
+            check_bounce_train(table, path)
+        except InputError as error:
+            raise InputError(path, where + error.problem) from None
+    models = tuple(models or scene.models)
+    noise = scene.noise if noise is None else noise
+    per_run = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)
+    steps = len(parts) * per_run + (len(models) if several else 0)
+    done = iter(range(2, 2 + steps))
+    if progress is not None:
+        progress(1, 1 + steps, f"{len(impacts)} impacts in {len(parts)} run(s)")
+
+    def report(model):
+        step = next(done, steps + 1)
+        logger.info("fitted %s (%d of %d)", model, step - 1, steps)
+        if progress is not None:
+            progress(step, 1 + steps, f"fitted {model}")
+
+    try:
+        runs_fit = fit_runs(impacts, scene, models, progress=report, noise=noise)
+    except ValueError as error:
+        raise InputError(path, str(error)) from None
+    return impacts, runs_fit

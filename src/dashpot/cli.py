@@ -22,6 +22,10 @@ from .physics.models import MODELS
 from .scene import STANDARD_GRAVITY
 
 STDOUT = "-"  # the output name that means standard output
+UNCERTAINTY_METHODS = ("covariance", "profile", "posterior")  # as dashpot.fit.settings
+UNCERTAINTY_HELP = ("intervals of beta by these methods besides the covariance: profile "
+                    "(profile likelihood) and posterior (emcee sampling; slow); as the scene "
+                    "key uncertainty, which they replace")
 NOISE_HELP = ("also fit the restitution-law ladder and the models under bounce-to-bounce "
               "scatter and timing jitter, with their own selection (as the scene key "
               "noise: true; slower)")
@@ -141,9 +145,8 @@ def _refuse_standard_output(args, what):
 
 
 def _fit(args, console):
-    from .analysis import analyze, recording_note
+    from .analysis import analyze_runs, recording_note
     from .fit.data import flight_notes
-    from .fit_report import report_text
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -154,17 +157,17 @@ def _fit(args, console):
         raise InputError(args.output, "refusing to overwrite the input with the output")
     if Path(args.output).is_dir():
         raise InputError(args.output, "is a folder; give the HDF5 file to write")
-    impacts, scene_fit = analyze(args.impacts, scene, models=args.models,
-                                 noise=args.noise or None)
+    scene = _with_uncertainty(scene, args)
+    impacts, runs_fit = analyze_runs(args.impacts, scene, models=args.models,
+                                     noise=args.noise or None)
+    scene_fit = runs_fit.first
     try:
         write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
-                        config=_config(scene_fit))
+                        config=_config(scene_fit), runs=runs_fit)
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
     console.say(f"{args.impacts}: {len(impacts)} impacts -> {args.output}")
-    console.say(report_text(scene_fit, notes=[recording_note(args.impacts, scene),
-                                              *flight_notes(scene)],
-                            verbose=console.verbose))
+    _say_reports(console, runs_fit, [recording_note(args.impacts, scene), *flight_notes(scene)])
 
 
 def _analyze(args, console):
@@ -173,11 +176,11 @@ def _analyze(args, console):
 
     from tqdm import tqdm
 
-    from .analysis import analyze, recording_note
+    from .analysis import analyze_runs, recording_note
     from .atomic import atomic_path
     from .figures import load_record, save_scene_figures
     from .fit.data import flight_notes
-    from .fit_report import parameter_table, report_text
+    from .fit_report import parameter_table
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -186,6 +189,7 @@ def _analyze(args, console):
     if not recording.is_file():
         raise InputError(recording, "no such file")
     scene = load_scene(args.scene) if args.scene else Scene(name=recording.stem or "scene")
+    scene = _with_uncertainty(scene, args)
     name = scene.name
     out = Path(args.output)
     if out.exists() and not out.is_dir():
@@ -200,8 +204,9 @@ def _analyze(args, console):
             bar.update(step - bar.n)
 
         bar.set_postfix_str("finding impacts")
-        impacts, scene_fit = analyze(recording, scene, models=models, progress=progress,
-                                     noise=args.noise or None)
+        impacts, runs_fit = analyze_runs(recording, scene, models=models, progress=progress,
+                                         noise=args.noise or None)
+        scene_fit = runs_fit.first
         bar.set_postfix_str("writing")
         created = not out.exists()
         try:
@@ -215,13 +220,13 @@ def _analyze(args, console):
             h5 = staging / f"{name}.h5"
             try:
                 write_scene_fit(h5, scene_fit, impacts, input_path=recording,
-                                config=_config(scene_fit))
+                                config=_config(scene_fit), runs=runs_fit)
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / h5.name, error) from None
             parameters = f"{name}-parameters.csv"
             try:
                 with atomic_path(staging / parameters) as temporary:
-                    parameter_table(scene_fit).to_csv(temporary, index=False)
+                    _parameter_rows(runs_fit, parameter_table).to_csv(temporary, index=False)
             except OSError as error:
                 raise _cannot_write(out / parameters, error) from None
             bar.update(1)
@@ -243,10 +248,103 @@ def _analyze(args, console):
                 _remove_if_empty(out)
     console.say(f"{recording}: {len(impacts)} impacts -> {out / f'{name}.h5'}, "
                 f"{out / parameters}, figures in {out / name}/")
-    console.say(report_text(scene_fit, notes=[recording_note(recording,
-                                                             scene if args.scene else None),
-                                              *flight_notes(scene)],
-                            verbose=console.verbose))
+    _say_reports(console, runs_fit, [recording_note(recording, scene if args.scene else None),
+                                     *flight_notes(scene)])
+
+
+def _with_uncertainty(scene, args):
+    """The scene with the methods of ``--uncertainty`` where given (they replace the scene's
+    ``uncertainty`` key)."""
+    from dataclasses import replace
+
+    methods = getattr(args, "uncertainty", None)
+    if not methods:
+        return scene
+    return replace(scene, uncertainty=tuple(dict.fromkeys(["covariance", *methods])))
+
+
+def _parameter_rows(runs_fit, parameter_table):
+    """The parameter table of every run (column ``run`` first where there are several), and
+    the joint fits' rows (run ``joint``)."""
+    import pandas as pd
+
+    if len(runs_fit.runs) == 1:
+        return parameter_table(runs_fit.first)
+    tables = [parameter_table(fit).assign(run=str(run)) for run, fit in runs_fit.runs.items()]
+    rows = []
+    for model, fit in runs_fit.joint.items():
+        for name, estimate in fit.estimates.items():
+            rows.append({"model": model, "parameter": name, "value": estimate.value,
+                         "stderr": estimate.stderr, "low68": estimate.low68,
+                         "high68": estimate.high68, "low95": estimate.low95,
+                         "high95": estimate.high95, "unit": estimate.unit,
+                         "status": estimate.status, "run": "joint"})
+    table = pd.concat(tables + [pd.DataFrame(rows)], ignore_index=True)
+    return table[["run", *[column for column in table.columns if column != "run"]]]
+
+
+def _say_reports(console, runs_fit, notes):
+    """Each run's report (one run: as always), then the runs side by side with the joint
+    fits."""
+    from .fit_report import report_text
+
+    several = len(runs_fit.runs) > 1
+    for run, fit in runs_fit.runs.items():
+        if several:
+            console.say(f"run {run}:")
+        console.say(report_text(fit, notes=notes, verbose=console.verbose))
+    if several:
+        console.say(joint_text(runs_fit))
+
+
+def joint_text(runs_fit):
+    """The contact parameters of each run's own fit beside those of the joint fit, per model.
+
+    Parameters
+    ----------
+    runs_fit : dashpot.fit.RunsFit
+
+    Returns
+    -------
+    str
+        One line per model and quantity (ζ, ω0 in rad/s, β in 1/s, k in N/m where the mass
+        is known): value ± 1σ of each run and of the joint fit; then the joint fits' notes
+        (χ²/ν of the joint fit says whether the runs share one contact).
+    """
+    runs = list(runs_fit.runs)
+    header = ["model", "quantity", *[f"run {run}" for run in runs], "joint (shared)"]
+    lines = [header]
+
+    def shown(estimate):
+        if estimate is None:
+            return "-"
+        if not math.isfinite(estimate.stderr):
+            return f"{estimate.value:.4g} (not determined)"
+        return f"{estimate.value:.4g} ± {estimate.stderr:.2g}"
+
+    for model, joint in runs_fit.joint.items():
+        for name, label in (("zeta", "zeta"), ("omega0", "omega0 [rad/s]"),
+                            ("beta", "beta [1/s]"), ("k", "k [N/m]")):
+            if name not in joint.estimates and not any(
+                    name in fit.results[model].estimates for fit in runs_fit.runs.values()):
+                continue
+            cells = []
+            for fit in runs_fit.runs.values():
+                result = fit.results[model]
+                cells.append(shown(result.estimates.get(name)) if result.success
+                             else "failed")
+            cells.append(shown(joint.estimates.get(name)) if joint.success else "failed")
+            lines.append([model, label, *cells])
+    widths = [max(len(row[i]) for row in lines) for i in range(len(header))]
+    text = ["runs side by side: each run's own fit, and the joint fit of all runs sharing "
+            "zeta and omega0 (each run its own v0 and t0)"]
+    text += ["  " + "  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip()
+             for row in lines]
+    for model, joint in runs_fit.joint.items():
+        text.append(f"  joint {model}: chi2/nu = {joint.redchi:.3g}"
+                    + ("" if joint.success else f" ({joint.message})"))
+        text += [f"    note: {note}" for note in joint.notes]
+    return "\n".join(text)
 
 
 def _move_into_place(staging, out):
@@ -429,6 +527,8 @@ def build_parser():
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
     fit.add_argument("--noise", action="store_true", help=NOISE_HELP)
+    fit.add_argument("--uncertainty", nargs="+", choices=list(UNCERTAINTY_METHODS),
+                     help=UNCERTAINTY_HELP)
     fit.set_defaults(run=_fit)
     analyze = command("analyze")
     analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
@@ -440,6 +540,8 @@ def build_parser():
     analyze.add_argument("--models", nargs="+", choices=list(MODELS),
                          help="models to fit (default: the scene's, else all five)")
     analyze.add_argument("--noise", action="store_true", help=NOISE_HELP)
+    analyze.add_argument("--uncertainty", nargs="+", choices=list(UNCERTAINTY_METHODS),
+                         help=UNCERTAINTY_HELP)
     analyze.set_defaults(run=_analyze)
     return parser
 

@@ -181,6 +181,9 @@ class Scene:
         Whether the fits try rolling friction in flight (two accelerations, away from and
         toward the bumper; kept only where the data support it). None: tried for cart scenes
         (an incline angle, or a motion sensor's or photogate's recording).
+    uncertainty : tuple of str
+        Methods for the intervals of β (:func:`dashpot.fit.fit_model`): "covariance" (always),
+        "profile" (profile likelihood), "posterior" (emcee sampling); default covariance only.
     """
 
     name: str = "scene"
@@ -203,6 +206,7 @@ class Scene:
     drag_coefficient: Known | None = None
     contact_time: Known | None = None
     friction: bool | None = None
+    uncertainty: tuple = ("covariance",)
 
     @property
     def _acceleration_without_air(self):
@@ -311,7 +315,8 @@ class Scene:
         for item in fields(self):
             value = getattr(self, item.name)
             if (item.name == "noise" and not value) or (item.name == "friction"
-                                                        and value is None):
+                                                        and value is None) or (
+                    item.name == "uncertainty" and tuple(value) == ("covariance",)):
                 continue  # recorded only where asked for: the default scene's record unchanged
             if item.name in _DRAG_KEYS:
                 if not self.needs_drag:
@@ -423,7 +428,7 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                   reader=dict(mapping.get("reader", {})),
                   accuracy=mapping.get("accuracy", "auto"),
                   noise=bool(mapping.get("noise", False)), friction=mapping.get("friction"),
-                  **kwargs)
+                  uncertainty=_uncertainty_methods(mapping.get("uncertainty")), **kwargs)
     _check_drag(scene, source)
     if scene.incline_angle is not None and scene.g_eff is None and \
             scene.driving_acceleration < MIN_DRIVING_ACCELERATION:
@@ -484,3 +489,12 @@ def load_scene(path):
         # The folder's name, which need not follow the pattern a written name must.
         scene = replace(scene, name=path.resolve().parent.name or "scene")
     return scene
+
+
+def _uncertainty_methods(value):
+    """The scene key ``uncertainty`` (one method or a list, schema-checked) as the tuple of
+    methods fitted, "covariance" always first."""
+    if value is None:
+        return ("covariance",)
+    methods = [value] if isinstance(value, str) else list(value)
+    return tuple(dict.fromkeys(["covariance", *methods]))

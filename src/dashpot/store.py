@@ -44,7 +44,7 @@ __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_p
 
 FORMAT = "dashpot-scene-1"
 IMPACT_UNITS = {"time": "s", "time_uncertainty": "s", "amplitude": "1", "impact_speed": "m/s",
-                "rebound_speed": "m/s", "speed_uncertainty": "m/s", "run": "1"}
+                "rebound_speed": "m/s", "speed_uncertainty": "m/s", "run": "1", "flag": "1"}
 BOUNCE_UNITS = {"run": "1", "bounce": "1", "start_time": "s", "interval": "s",
                 "interval_uncertainty": "s", "rebound_speed": "m/s",
                 "rebound_speed_uncertainty": "m/s", "restitution": "1",
@@ -56,7 +56,8 @@ SUMMARY_UNITS = {"beta": "1/s", "beta_stderr": "1/s", "k": "N/m", "k_stderr": "N
                  "omega0": "rad/s", "omega0_stderr": "rad/s", "v0": "m/s", "v0_stderr": "m/s",
                  "sigma_j": "s", "beta_truth": "1/s", "omega0_truth": "rad/s",
                  "v0_truth": "m/s"}
-IMPACT_DTYPES = {**dict.fromkeys(IMPACT_UNITS, "float64"), "run": "int64"}
+IMPACT_DTYPES = {**dict.fromkeys(IMPACT_UNITS, "float64"), "run": "int64", "flag": None}
+JOINT_RUN_UNITS = {"run": "1", "v0": "m/s", "v0_stderr": "m/s", "t0": "s", "t0_stderr": "s"}
 TRUTH_UNITS = {"truth": "see column 'unit'", "value": "see column 'unit'",
                "stderr": "see column 'unit'", "low95": "see column 'unit'",
                "high95": "see column 'unit'"}
@@ -65,7 +66,7 @@ _NETCDF_DIMENSION = "This is a netCDF dimension but not a netCDF variable"
 # The column of each table that is its dimension scale (its coordinate for xarray).
 TABLE_SCALES = {"impacts": "time", "bounces": "bounce", "selection": "model",
                 "noise_selection": "model", "parameters": "name", "intervals": "method",
-                "truth": "parameter", "summary": "scene"}
+                "truth": "parameter", "summary": "scene", "runs": "run"}
 INTERVAL_COLUMNS = ("low68", "high68", "low95", "high95", "cpu_seconds", "samples",
                     "autocorrelation_steps", "converged")
 NOISE_SELECTION_UNITS = {**SELECTION_UNITS, "sigma_j": "s"}
@@ -294,7 +295,8 @@ def _eps_curve(group, fit):
                 curve[name].dims[0].attach_scale(curve["speed"])
 
 
-def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, truth=None):
+def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, truth=None,
+                    runs=None):
     """Write one scene's impacts, bounces, fits and selection to an HDF5 file, atomically.
 
     Parameters
@@ -311,7 +313,14 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
     truth : pandas.DataFrame, optional
         A synthetic scene's truth against fit (:func:`dashpot.truth.truth_comparison`),
         stored as the table ``truth`` with its attributes ``model`` and ``source``.
+    runs : dashpot.fit.RunsFit, optional
+        Every run of a multi-run recording fitted (:func:`dashpot.analysis.analyze_runs`):
+        with more than one run, each run's bounces, fits and selection go to ``runs/<run>``
+        and the joint fits to ``joint/<model>`` (``scene_fit`` is then the first run's, kept
+        at the root as in a single-run file); with one run (or None) the file is a
+        single-run file, without these groups.
     """
+    several = runs is not None and len(runs.runs) > 1
     with _new_hdf5(path, track_order=True) as out:
         out.attrs["format"] = FORMAT
         out.attrs["dashpot_version"] = __version__
@@ -331,12 +340,15 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
         table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
         group = _table(out, "impacts", table, IMPACT_UNITS, IMPACT_DTYPES)
         group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
-        # data.excluded counts rows of the fitted (first) run only.
+        # data.excluded counts rows of its own run only.
         run = impacts["run"].to_numpy() if "run" in impacts else np.zeros(len(table))
-        fitted_rows = np.flatnonzero(run == np.min(run)) if len(table) else np.zeros(0, int)
         used = np.zeros(len(table), bool)
-        used[fitted_rows] = True
-        used[fitted_rows[scene_fit.data.excluded]] = False
+        fitted = (runs.runs.items() if several
+                  else [(np.min(run) if len(table) else 0, scene_fit)])
+        for number, fit in fitted:
+            rows = np.flatnonzero(run == number)
+            used[rows] = True
+            used[rows[fit.data.excluded]] = False
         _attach(group, _dataset(group, "used_in_fit", used, "1"))
         _table(out, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
         fits = out.create_group("fits")
@@ -357,6 +369,51 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
             noise = _table(out, "noise_selection", scene_fit.noise_selection,
                            NOISE_SELECTION_UNITS)
             noise.attrs["verdict"] = scene_fit.noise_verdict
+        if several:
+            # Only for a multi-run recording: a single-run file has the layout it always had.
+            _write_runs(out, runs)
+
+
+def _write_runs(out, runs):
+    """Each run's bounces, fits and selection under runs/<run>, the joint fits under
+    joint/<model>."""
+    group = out.create_group("runs", track_order=True)
+    group.attrs["notes"] = json.dumps(list(runs.notes))
+    for number, fit in runs.runs.items():
+        run = group.create_group(str(number), track_order=True)
+        run.attrs.update({"run": int(number), "verdict": fit.verdict,
+                          "notes": json.dumps(list(fit.data.notes))})
+        _table(run, "bounces", fit.data.bounces, BOUNCE_UNITS)
+        fits = run.create_group("fits")
+        for model, result in fit.results.items():
+            _write_fit(fits.create_group(model), result)
+        selection = _table(run, "selection", fit.selection, SELECTION_UNITS)
+        selection.attrs["verdict"] = fit.verdict
+    joint = out.create_group("joint", track_order=True)
+    for model, fit in runs.joint.items():
+        target = joint.create_group(model, track_order=True)
+        target.attrs.update({"success": fit.success, "message": fit.message,
+                             "chisqr": fit.chisqr, "redchi": fit.redchi, "aic": fit.aic,
+                             "bic": fit.bic, "ndata": fit.ndata, "nvarys": fit.nvarys,
+                             "nfev": fit.nfev, "varied": json.dumps(list(fit.varied)),
+                             "notes": json.dumps(fit.notes)})
+        rows = [{"name": name, "value": e.value, "stderr": e.stderr, "low68": e.low68,
+                 "high68": e.high68, "low95": e.low95, "high95": e.high95, "unit": e.unit,
+                 "status": e.status, "note": e.note} for name, e in fit.estimates.items()]
+        numeric = ("value", "stderr", "low68", "high68", "low95", "high95")
+        parameters = pd.DataFrame(rows, columns=["name", *numeric, "unit", "status", "note"])
+        table = _table(target, "parameters", parameters.astype(dict.fromkeys(numeric, float)),
+                       {})
+        for column in numeric:
+            table[column].attrs["units"] = "see column 'unit'"
+        per_run = pd.DataFrame(
+            [{"run": int(number), **{key: float(getattr(values.get(name), field, np.nan))
+                                     for name in ("v0", "t0")
+                                     for key, field in ((name, "value"),
+                                                        (f"{name}_stderr", "stderr"))}}
+             for number, values in fit.run_estimates.items()],
+            columns=list(JOINT_RUN_UNITS)).astype({"run": "int64"})
+        _table(target, "runs", per_run, JOINT_RUN_UNITS)
 
 
 def _is_dimension(dataset):
@@ -384,7 +441,10 @@ def read_fit(path):
         its ``noise_verdict`` (str) and ``noise_fits``: law -> dict as in ``fits`` without
         ``intervals``, with ``outliers`` and ``timing_sigma`` (arrays); where it holds the
         truth of a synthetic scene also ``truth`` (DataFrame, attributes ``model`` and
-        ``source``).
+        ``source``); where it holds several runs also ``runs``: run -> dict with ``attrs``,
+        ``bounces``, ``selection`` and ``fits`` (as at the root), and ``joint``: model ->
+        dict with ``attrs``, ``parameters`` (DataFrame indexed by name) and ``runs``
+        (DataFrame: each run's v0 and t0 with their errors).
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
@@ -403,6 +463,25 @@ def read_fit(path):
             out["truth"] = read_table(source["truth"])
             out["truth"].attrs.update({key: str(source["truth"].attrs.get(key, ""))
                                        for key in ("model", "source")})
+        if "runs" in source:
+            out["runs"] = {}
+            for number, group in source["runs"].items():
+                out["runs"][int(number)] = {
+                    "attrs": dict(group.attrs), "bounces": read_table(group["bounces"]),
+                    "selection": read_table(group["selection"]),
+                    "fits": {model: {
+                        "attrs": dict(fit.attrs),
+                        "parameters": read_table(fit["parameters"]).set_index("name"),
+                        "intervals": read_table(fit["intervals"]).set_index("method"),
+                        "correlation": fit["correlation"][()],
+                        **{name: _arrays(fit[name])
+                           for name in ("residuals", "predicted", "eps_curve")},
+                    } for model, fit in group["fits"].items()}}
+            out["joint"] = {model: {"attrs": dict(group.attrs),
+                                    "parameters": read_table(group["parameters"]).set_index(
+                                        "name"),
+                                    "runs": read_table(group["runs"])}
+                            for model, group in source["joint"].items()}
         if "noise_fits" in source:
             out["noise_selection"] = read_table(source["noise_selection"])
             out["noise_verdict"] = str(source["noise_selection"].attrs.get("verdict", ""))

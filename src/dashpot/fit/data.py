@@ -35,8 +35,10 @@ def prepare_data(impacts, scene):
     uncertainties are zero or unknown, those are set to r/√12, or without r to the smallest
     positive σ of the table, and the others kept (noted). Impacts the bounce
     table flags as spurious are left out; an interval flagged as hiding a missed impact
-    shifts the later impacts by one place in the train. Only the first run of a multi-run
-    file is fitted.
+    shifts the later impacts by one place in the train. Impacts the motion reader flags
+    ``inferred`` (column ``flag``) keep their place in the train but are not fitted; those
+    flagged ``few_samples`` are fitted with their (larger) stated σ. Only the first run of a
+    multi-run file is fitted here (:func:`dashpot.fit.fit_runs` fits every run).
     """
     table = impacts
     notes = []
@@ -84,6 +86,18 @@ def prepare_data(impacts, scene):
     index = np.arange(times.size) + gaps
     if spurious_impacts.size:
         notes.append(f"left out {spurious_impacts.size} impact(s) flagged as spurious")
+    # The motion reader's flags: an "inferred" impact's time is not measured (its reversal
+    # is not in the samples), so it keeps its place in the train but is not fitted; a
+    # "few_samples" one is fitted with the larger σ the reader gave it.
+    flag = table["flag"].astype(str).to_numpy() if "flag" in table else np.zeros(0, str)
+    inferred = flag == "inferred"
+    if inferred.any():
+        keep &= ~inferred
+        notes.append(f"left out {int(inferred.sum())} impact(s) flagged 'inferred' (no "
+                     f"reversal in the samples); their places in the train kept")
+    if np.any(flag == "few_samples"):
+        notes.append(f"{int(np.sum(flag == 'few_samples'))} impact(s) flagged 'few_samples' "
+                     f"fitted with their larger timing uncertainty")
     if np.any(flags == "missed"):
         notes.append(f"{int(np.sum(flags == 'missed'))} missed impact(s) bridged in the train")
     index = index[keep]

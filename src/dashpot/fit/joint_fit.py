@@ -274,7 +274,7 @@ class RunsFit:
     ----------
     runs : dict of run -> SceneFit
         Each run's own fits (:func:`dashpot.fit.fit_scene` of that run's impacts alone), in
-        the order of the runs' first appearance in the table.
+        increasing run number.
     joint : dict of model -> JointFit
         Each model fitted to every run at once (:func:`fit_joint`); empty with one run.
     notes : list of str
@@ -291,7 +291,7 @@ class RunsFit:
 
 
 def split_runs(impacts):
-    """The impact table of each run, in the order of first appearance (one run: the table).
+    """The impact table of each run, in increasing run number (one run: the table).
 
     Parameters
     ----------
@@ -301,13 +301,14 @@ def split_runs(impacts):
     Returns
     -------
     dict of run -> pandas.DataFrame
-        Each with the table's ``attrs`` (copied) and its rows in order.
+        Each with the table's ``attrs`` (copied) and its rows in order (a reader may sort the
+        rows of several runs by time, interleaving them).
     """
     if "run" not in impacts or impacts["run"].nunique() <= 1:
         run = int(impacts["run"].iloc[0]) if "run" in impacts and len(impacts) else 0
         return {run: impacts}
     out = {}
-    for run in dict.fromkeys(impacts["run"].to_numpy()):
+    for run in np.unique(impacts["run"].to_numpy()):
         part = impacts[impacts["run"].to_numpy() == run].reset_index(drop=True)
         part.attrs = {key: (list(value) if isinstance(value, list) else value)
                       for key, value in impacts.attrs.items()}
@@ -326,7 +327,8 @@ def fit_runs(impacts, scene=None, models=None, *, progress=None, noise=None):
     scene : Scene, optional
     models : sequence of str, optional
     progress : callable, optional
-        Passed to :func:`dashpot.fit.fit_scene` for each run.
+        Passed to :func:`dashpot.fit.fit_scene` for each run; also called with
+        ``"<model> (joint)"`` after each joint fit.
     noise : bool, optional
         As in :func:`dashpot.fit.fit_scene`.
 
@@ -365,4 +367,6 @@ def fit_runs(impacts, scene=None, models=None, *, progress=None, noise=None):
                 joint[model] = fit_joint(datas, model, scene, starts)
             except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
                 joint[model] = _failed(model, f"joint fit failed: {error}", list(datas))
+            if progress is not None:
+                progress(f"{model} (joint)")
     return RunsFit(runs=runs, joint=joint, notes=notes)

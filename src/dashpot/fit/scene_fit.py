@@ -47,7 +47,7 @@ def fit_scene(impacts, scene=None, models=None, *, progress=None, noise=None,
     data = prepare_data(impacts, scene)
     results = {}
     for model in models:
-        results[model] = fit_model(data, model, scene)
+        results[model] = fit_model(data, model, scene, uncertainty=scene.uncertainty)
         if progress is not None:
             progress(model)
     # Said once for the scene (printed with its notes) and kept with each gravity model's fit.
