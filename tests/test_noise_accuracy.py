@@ -115,6 +115,18 @@ def test_a_filter_leaving_the_grid_is_reported_not_extrapolated(drawn):
     assert off_grid.tolist() == [True, False]
     assert stop[0] == pytest.approx(2.0) and np.isnan(stop[1])
     assert np.isnan(result.neg2_log_likelihood[0]) and np.isfinite(result.neg2_log_likelihood[1])
+    # The step it stopped at, evaluated directly and patched in: the row runs on, as the
+    # direct filter does.
+    step = model.step(np.array([stop[0]]))
+    patched, off_grid, _ = table.filter(
+        train.times[:1], start_time=None, start_speed=2.0, process_sigma=SCATTER,
+        jitter=JITTER, patches=(stop[:1, None], np.stack(step[:6], axis=-1)[:, None, :],
+                                np.array([1])))
+    direct = model.filter(train.times[:1], start_time=None, start_speed=2.0,
+                          process_sigma=SCATTER, jitter=JITTER)
+    assert not off_grid[0]
+    assert patched.neg2_log_likelihood[0] == pytest.approx(direct.neg2_log_likelihood[0],
+                                                           abs=1e-3)
 
 
 def test_a_table_at_uneven_speeds_reproduces_the_step_there(drawn):

@@ -465,7 +465,7 @@ class StepTable:
         return tuple(np.where(ok, value, np.nan).reshape(speed.shape) for value in out)
 
     def filter(self, times, *, start_time, start_speed, process_sigma, jitter=0.0,
-               detector_sigma=0.0, sigma_scale=1.0, members=None):
+               detector_sigma=0.0, sigma_scale=1.0, members=None, patches=None):
         """The extended Kalman filter of :meth:`TrainModel.filter` over the tabulated step map.
 
         Parameters
@@ -475,6 +475,13 @@ class StepTable:
         members : array_like of int, shape (batch,), optional
             Which tabulated member (parameter set of the step map) each batch row uses;
             default: row i uses member i.
+        patches : tuple of ndarray, optional
+            ``(speeds (batch, k), steps (batch, k, 6), counts (batch,))``: steps the table
+            cannot give, as :meth:`TrainModel.step` returns them (duration, landing and
+            their slopes, the two noise gains), used where a row's speed is exactly one of
+            its first `counts` patch speeds: a row that stopped at a speed runs on with the
+            step evaluated there directly (the loop is deterministic, so it reaches that very
+            speed again).
 
         Returns
         -------
@@ -514,9 +521,15 @@ class StepTable:
         total = np.empty(flat[0])
         off_grid = np.zeros(flat[0], np.bool_)
         stop_speed = np.full(flat[0], np.nan)
+        if patches is None:
+            patches = (np.zeros((flat[0], 0)), np.zeros((flat[0], 0, 6)),
+                       np.zeros(flat[0], np.intp))
+        patch_speed, patch_step, patch_count = (np.ascontiguousarray(a, dtype=d) for a, d in
+                                                zip(patches, (float, float, np.intp)))
         _filter_table(times, timing_variance, t, diffuse, u, process, members, self.log_low,
-                      self.log_step, self.nodes, self.values, self.slopes, self.unusable, out,
-                      scored, total, off_grid, stop_speed)
+                      self.log_step, self.nodes, self.values, self.slopes, self.unusable,
+                      patch_speed, patch_step, patch_count, out, scored, total, off_grid,
+                      stop_speed)
         out = out.reshape((5,) + batch + (count,))
         result = TrainFilter(neg2_log_likelihood=total.reshape(batch), innovations=out[0],
                              innovation_variance=out[1], predicted_times=out[2],
@@ -643,8 +656,8 @@ def _interpolate_many(speed, members, log_low, log_step, nodes, values, slopes, 
 
 @numba.njit(cache=True)
 def _filter_table(times, timing_variance, start_time, diffuse, start_speed, process, members,
-                  log_low, log_step, nodes, values, slopes, unusable, out, scored, total,
-                  off_grid, stop_speed):
+                  log_low, log_step, nodes, values, slopes, unusable, patch_speed,
+                  patch_step, patch_count, out, scored, total, off_grid, stop_speed):
     """The loop of :meth:`TrainModel.filter`, row by row, over the tabulated step map.
 
     out[0..4] receive the innovations, their variances, the predicted times and speeds and the
@@ -693,6 +706,15 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
             found, duration, landing, f_tu, f_uu, g_t, g_u, interval = _step_at(
                 max(u, 0.0), member, log_low, log_step, nodes, values, slopes, unusable,
                 interval)
+            if not found:
+                speed = max(u, 0.0)
+                for k in range(patch_count[b]):
+                    if patch_speed[b, k] == speed:
+                        found = True
+                        duration, landing = patch_step[b, k, 0], patch_step[b, k, 1]
+                        f_tu, f_uu = patch_step[b, k, 2], patch_step[b, k, 3]
+                        g_t, g_u = patch_step[b, k, 4], patch_step[b, k, 5]
+                        break
             if not found:
                 off_grid[b] = True
                 stop_speed[b] = max(u, 0.0)

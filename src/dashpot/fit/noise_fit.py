@@ -149,6 +149,11 @@ GRID_BELOW, GRID_ABOVE = 1.0 / 16.0, 4.0
 # A level is accurate enough where, at the best fit, its −2 ln L is within this of the direct
 # evaluation's and its predicted times within this fraction of the smallest timing σ.
 LEVEL_LIKELIHOOD_TOLERANCE, LEVEL_TIMING_TOLERANCE = 0.01, 0.01
+# Steps a tabulated filter row may have evaluated directly (where the table cannot give them)
+# before the whole row is.
+PATCHES = 8
+FILTER_FIELDS = ("neg2_log_likelihood", "innovations", "innovation_variance", "predicted_times",
+                 "predicted_speeds", "filtered_speeds", "scored")
 
 
 @dataclass
@@ -418,8 +423,10 @@ class _Problem:
 
     def run_filter(self, rows, trains, broken=None, level=None):
         """Kalman filter of parameter rows (sets, P) against the trains at rows `trains`, at
-        accuracy `level` (default the problem's): rows whose filter leaves the tabulated
-        grid are evaluated directly."""
+        accuracy `level` (default the problem's). A step the tabulated map cannot give (off
+        its grid, or next to a captured node) is evaluated directly at its speed and patched
+        into the row's filter; a row that needs more than PATCHES of them is evaluated
+        directly."""
         level = level or self.level
         broken = np.zeros(rows.shape[0], bool) if broken is None else broken
         arguments = self._filter_arguments(rows, trains)
@@ -427,27 +434,54 @@ class _Problem:
             return self.model(rows, broken).filter(self.times[trains], **arguments)
         table, members = self.table(rows, level)
         result, off, stop = table.filter(self.times[trains], members=members, **arguments)
-        if off.any():
-            # Where the model's own step is not finite at the speed the table stopped at (a
-            # captured ball), so is the direct filter's: the row is broken. The others are
-            # evaluated directly.
-            index = np.flatnonzero(off)
+        index = np.flatnonzero(off)
+        patches = [[] for _ in index]
+        direct = []  # rows evaluated directly after all
+        for attempt in range(PATCHES + 1):
+            if not index.size:
+                break
+            # Where the table cannot give the step (next to a node where the ball is
+            # captured, or off the grid), it is evaluated directly at that speed: where it is
+            # not finite (captured) so is the direct filter's and the row is broken; else
+            # the row runs again with that step patched in, up to PATCHES times, and then
+            # directly.
             speeds = stop[index]
             usable = np.isfinite(speeds)
-            captured = self.step_model(rows[index][:, self.step_columns]).step(
-                np.where(usable, speeds, 0.0))[-1]
-            captured = np.broadcast_to(captured, index.shape) & usable
+            step = self.step_model(rows[index][:, self.step_columns], level).step(
+                np.where(usable, speeds, 0.0))
+            captured = np.broadcast_to(step[-1], index.shape) & usable
             broken[index[captured]] = True
             result.neg2_log_likelihood[index[captured]] = np.inf
-            index = index[~captured]
-            if index.size:
-                part = np.zeros(index.size, bool)
-                direct = self.run_filter(rows[index], trains[index], part, "exact")
-                broken[index] = part
-                for name in ("neg2_log_likelihood", "innovations", "innovation_variance",
-                             "predicted_times", "predicted_speeds", "filtered_speeds",
-                             "scored"):
-                    getattr(result, name)[index] = getattr(direct, name)
+            patch = usable & ~captured & (attempt < PATCHES)
+            direct.append(index[~captured & ~patch])
+            patches = [previous + [(speed, [np.broadcast_to(q, index.shape)[k]
+                                            for q in step[:6]])]
+                       for k, (previous, speed) in enumerate(zip(patches, speeds)) if patch[k]]
+            index = index[patch]
+            if not index.size:
+                break
+            size = max(len(p) for p in patches)
+            patch_speed = np.full((index.size, size), np.nan)
+            patch_step = np.zeros((index.size, size, 6))
+            for k, rows_patches in enumerate(patches):
+                for m, (speed, values) in enumerate(rows_patches):
+                    patch_speed[k, m], patch_step[k, m] = speed, values
+            again, off, again_stop = table.filter(
+                self.times[trains[index]], members=members[index],
+                patches=(patch_speed, patch_step, np.array([len(p) for p in patches])),
+                **self._filter_arguments(rows[index], trains[index]))
+            for name in FILTER_FIELDS:
+                getattr(result, name)[index] = getattr(again, name)
+            stop[index] = again_stop
+            patches = [p for p, still in zip(patches, off) if still]
+            index = index[off]
+        index = np.concatenate(direct + [index]).astype(int)
+        if index.size:
+            part = np.zeros(index.size, bool)
+            exact = self.run_filter(rows[index], trains[index], part, "exact")
+            broken[index] = part
+            for name in FILTER_FIELDS:
+                getattr(result, name)[index] = getattr(exact, name)
         return result
 
     def _filter_arguments(self, rows, trains):
