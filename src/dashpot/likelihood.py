@@ -411,7 +411,9 @@ class StepTable:
 
     A parameter set whose filtered speed leaves the grid, or enters an interval next to a
     node where the step is not finite (a captured ball), is not extrapolated: the filter
-    reports it in ``off_grid`` and the caller evaluates it directly (:meth:`TrainModel.filter`).
+    reports it in ``off_grid`` with the speed it stopped at, and the caller evaluates that
+    step directly and runs the row again with it patched in (``patches``), or evaluates the
+    row directly (:meth:`TrainModel.filter`).
 
     Attributes
     ----------

@@ -33,8 +33,9 @@ distinct set of law parameters in a batch is tabulated once per likelihood call 
 speeds (GRID_BELOW to GRID_ABOVE times the speeds the intervals imply, 8 or 32 nodes per
 e-fold, :meth:`dashpot.likelihood.TrainModel.tabulate`; the dashpot models' collisions from
 the certified surrogate tables of that level) and the filter runs over its cubic Hermite
-interpolant in a compiled loop (:class:`dashpot.likelihood.StepTable`); a parameter set whose
-filter leaves the grid is evaluated directly. Measured by benchmarks/bench_noise.py (every
+interpolant in a compiled loop (:class:`dashpot.likelihood.StepTable`); a step the table
+cannot give (off the grid, or next to a speed where the ball is captured) is evaluated directly
+and patched in. Measured by benchmarks/bench_noise.py (every
 law on a 50-impact synthetic train and on the ping-pong recording), the fast level's step
 map is within 5e-7 (relative) of the direct one, its −2 ln L within 3e-4 and its fitted
 parameters within 5e-4 standard errors of the exact level's; the standard level's within
