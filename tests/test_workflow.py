@@ -146,7 +146,12 @@ def test_scene_files_follow_the_documented_layout(default_run):
 def test_summary_has_one_row_per_scene_and_model(default_run):
     scenes = _synthetic(default_run)
     table = pd.read_csv(default_run / "results" / "summary.csv")
-    assert list(table.columns) == [csv_header(column) for column in SUMMARY_COLUMNS]
+    # The summary's columns with `run` after `scene` (one row per run and model).
+    columns = list(SUMMARY_COLUMNS)
+    columns.insert(columns.index("scene") + 1, "run")
+    assert list(table.columns) == [csv_header(column) for column in columns]
+    # The synthetic recordings have one run each.
+    assert (table.groupby("scene")["run"].nunique() == 1).all()
     assert {"beta [1/s]", "k [N/m]", "omega0 [rad/s]", "v0 [m/s]", "sigma_j [s]",
             "zeta"} <= set(table.columns)
     assert len(table) == len(scenes) * len(MODELS)
@@ -155,7 +160,7 @@ def test_summary_has_one_row_per_scene_and_model(default_run):
     assert (table["status"] == "ok").all() and table["problem"].isna().all()
     with h5py.File(default_run / "results" / "summary.h5", "r") as f:
         assert f.attrs["format"] == "dashpot-summary-1"
-        assert list(f["summary"].attrs["columns"]) == list(SUMMARY_COLUMNS)
+        assert list(f["summary"].attrs["columns"]) == columns
         assert f["summary"]["beta"].attrs["units"] == "1/s"
     # k only where the scene gives the mass: the cart.
     cart = table[table["scene"] == "paper-cart"]

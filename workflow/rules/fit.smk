@@ -12,6 +12,7 @@ rule fit:
     params:
         mapping=config_scene,
         truth=truth_file,
+        uncertainty=config.get("uncertainty", ["covariance"]),
     log:
         "results/logs/fit/{scene}.log",
     benchmark:

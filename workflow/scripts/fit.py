@@ -1,6 +1,9 @@
-"""Snakemake adapter: one scene's recording -> impacts and fits -> results/<scene>.h5."""
+"""Snakemake adapter: one scene's recording -> impacts and fits (every run, and the runs
+jointly) -> results/<scene>.h5."""
 
-from dashpot.analysis import analyze
+from dataclasses import replace
+
+from dashpot.analysis import analyze_runs
 from dashpot.joblog import job_log
 from dashpot.pipeline import workflow_scene
 from dashpot.store import write_scene_fit
@@ -14,7 +17,19 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
                            mapping=snakemake.params.mapping)
     log.info("recording %s, sensor %s, models %s", scene.recording, scene.sensor,
              ", ".join(scene.models))
-    impacts, scene_fit = analyze(scene.recording, scene)
+    methods = snakemake.params.get("uncertainty")
+    if methods and scene.uncertainty == ("covariance",):
+        # The config's methods, for every scene whose scene.yaml does not choose its own.
+        scene = replace(scene, uncertainty=tuple(dict.fromkeys(["covariance", *methods])))
+    impacts, runs_fit = analyze_runs(scene.recording, scene)
+    scene_fit = runs_fit.first  # the first run's, at the root of the file
+    if len(runs_fit.runs) > 1:
+        log.info("%d runs: each fitted on its own, and jointly", len(runs_fit.runs))
+        for run, fit in runs_fit.runs.items():
+            for model, result in fit.results.items():
+                log.info("run %s, %s: %s", run, model, result.message)
+        for model, joint in runs_fit.joint.items():
+            log.info("joint %s: %s (chi2/nu %.3g)", model, joint.message, joint.redchi)
     for note in impacts.attrs.get("notes", []):
         log.info("reader: %s", note)
     for model, fit in scene_fit.results.items():
@@ -30,4 +45,4 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
     write_scene_fit(snakemake.output[0], scene_fit, impacts, input_path=scene.recording,
                     config={"models": list(scene_fit.results),
                             "scene_source": snakemake.input.get("scene") or "config.yaml"},
-                    truth=truth)
+                    truth=truth, runs=runs_fit)
