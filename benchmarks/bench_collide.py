@@ -8,6 +8,12 @@ the evaluations per second on one core, and the ratio against a per-point baseli
   (the straightforward way to write it), after the same closed-form bracketing;
 * ode vs scipy.integrate.solve_ivp called point by point with a terminal event.
 
+A second table puts the exact gravity models against the closed forms (Ia, IIa) at the same
+batch sizes: the ratio "slowest gravity model / closed form" of evaluations per second, with the
+target of issue 16 (<= 8x against the faster closed form) and the baseline of the array code
+before the root finding was compiled (commit 3830686: 7-15x, 1.1e6-2.0e6 evaluations/s for the
+gravity models against 1.5e7-2e7 for the closed forms).
+
 Timings are CPU time (time.process_time) of the best of three runs, so that other load on the
 machine distorts them less. Run with ``make bench``.
 """
@@ -189,7 +195,46 @@ def main():
                   f"{errors[2]:10.1e} {errors[3]:8d} {errors[4]:7d} {rate:10.3g} "
                   f"{base_ode:10.3g} {rate / base_ode:7.1f}")
     print("target: >= 1e6 exact evaluations per second on one core for Ib, IIb and hybrid")
+    gravity_ratio_table()
     surrogate_table(reference)
+
+
+# --- gravity models against the closed forms ---------------------------------------------------
+
+GRAVITY_RATIO_TARGET = 8.0  # issue 16
+GRAVITY_RATIO_BASELINE = "7-15x (commit 3830686, vectorized numpy Halley iteration)"
+RATIO_BATCHES = (1_000, 10_000, 100_000)
+
+
+def gravity_ratio_table():
+    """Evaluations/s of every model at the same batch sizes, and slowest gravity / closed form.
+
+    The compiled solver is warmed up (compiled or loaded from its cache) before timing.
+    """
+    zeta, vtilde = workload(max(RATIO_BATCHES), seed=3)
+    for model in dashpot.MODELS:
+        dashpot.collide(model, zeta[:10], vtilde[:10])
+    closed, gravity = ("Ia", "IIa"), ("Ib", "IIb", "hybrid")
+    header = (f"{'points':>8s} " + " ".join(f"{m + ' /s':>10s}" for m in dashpot.MODELS)
+              + f" {'slowest gravity / fastest closed':>33s} {'/ slowest closed':>17s}")
+    print()
+    print("exact gravity models against the closed forms, same workload and batch sizes "
+          f"(CPU time, best of 3); target <= {GRAVITY_RATIO_TARGET:g}x against the faster "
+          f"closed form (issue 16); baseline {GRAVITY_RATIO_BASELINE}")
+    print(header)
+    print("-" * len(header))
+    for n in RATIO_BATCHES:
+        z, v = zeta[:n], vtilde[:n]
+        calls = max(1, 100_000 // n)
+        rates = {model: cpu_rate(lambda model=model: [dashpot.collide(model, z, v)
+                                                      for _ in range(calls)], n * calls)
+                 for model in dashpot.MODELS}
+        slowest = min(rates[m] for m in gravity)
+        worst = max(rates[m] for m in closed) / slowest
+        best = min(rates[m] for m in closed) / slowest
+        verdict = "meets" if worst <= GRAVITY_RATIO_TARGET else "MISSES"
+        print(f"{n:8d} " + " ".join(f"{rates[m]:10.3g}" for m in dashpot.MODELS)
+              + f" {worst:26.1f}x {verdict:>6s} {best:16.1f}x")
 
 
 # --- surrogate (dashpot.physics.surrogate) -----------------------------------------------------

@@ -39,6 +39,9 @@ __all__ = ["ib_solve", "iib_solve"]
 
 _EPS = float(np.finfo(float).eps)
 _MAX_ITER = 200
+# Above this impact speed IIb's force is evaluated in units of ṽ (its terms are O(ṽ) and would
+# overflow near the float maximum); below it in units of mg, as the array forms.
+_HUGE_SPEED = 1e300
 # Evaluators of the Halley iteration (see _evaluate).
 _IB, _IIB_CS, _IIB_MODAL = 0, 1, 2
 
@@ -113,13 +116,14 @@ def _iia_contact_time(zeta):
 
 
 @_jit
-def _evaluate(kind, t, a0, a1, a2, a3, a4, a5):
+def _evaluate(kind, t, a0, a1, a2, a3, a4, a5, a6):
     """End condition f(t), f', f'', f''' and the rounding scale of f at one point.
 
-    kind _IB: ξ of model Ib, args (ζ, ṽ) (``models._ib_excess_and_slope``);
-    _IIB_CS: force of IIb in the C, S form, args (ζ, 2ζṽ, p, q, p', q')
-    (``brackets._force_and_slope_cs``); _IIB_MODAL: force of IIb in eigenmodes, args
-    (λs, λf, A, B) (``brackets._force_and_slope_modal``).
+    kind _IB: ξ = (C − 1) + (ζ − ṽ)S of model Ib, args (ζ, ṽ); _IIB_CS: force of IIb in the
+    C, S form f = u·(1 + ξ'') = 2ζṽu + pu(C − 1) + quS, args (ζ, 2ζṽu, pu, qu, p'u, q'u, u);
+    _IIB_MODAL: force of IIb in eigenmodes f = u + A·e^{−λs·t} + B·e^{−λf·t}, args
+    (λs, λf, A, B, 0, 0, u). The unit u is 1, or 1/ṽ for impact speeds so large that the
+    O(ṽ) terms would overflow (see :func:`dashpot.physics.brackets._iib_release`).
     """
     if kind == _IB:
         zeta, vtilde = a0, a1
@@ -132,22 +136,22 @@ def _evaluate(kind, t, a0, a1, a2, a3, a4, a5):
         third = -slope - 2.0 * zeta * curvature
         return excess, slope, curvature, third, abs(offset) + abs(drop)
     if kind == _IIB_CS:
-        zeta, start_force, p, q, slope_p, slope_q = a0, a1, a2, a3, a4, a5
+        zeta, start_force, p, q, slope_p, slope_q, unit = a0, a1, a2, a3, a4, a5, a6
         c, S, offset = _basis(zeta, t)
         spring, damper = p * offset, q * S
         value = start_force + spring + damper
         slope = slope_p * c + slope_q * S
         # f − 1 = ξ'' solves the homogeneous equation.
-        curvature = 1.0 - value - 2.0 * zeta * slope
+        curvature = unit - value - 2.0 * zeta * slope
         third = -slope - 2.0 * zeta * curvature
         return value, slope, curvature, third, start_force + abs(spring) + abs(damper)
-    slow, fast, slow_amplitude, fast_amplitude = a0, a1, a2, a3
+    slow, fast, slow_amplitude, fast_amplitude, unit = a0, a1, a2, a3, a6
     slow_part = slow_amplitude * math.exp(-slow * t)
     fast_part = fast_amplitude * math.exp(-fast * t)
-    return (1.0 + slow_part + fast_part, -slow * slow_part - fast * fast_part,
+    return (unit + slow_part + fast_part, -slow * slow_part - fast * fast_part,
             slow * slow * slow_part + fast * fast * fast_part,
             -(slow * slow * slow) * slow_part - fast * fast * fast * fast_part,
-            1.0 + abs(slow_part) + abs(fast_part))
+            unit + abs(slow_part) + abs(fast_part))
 
 
 @_jit
@@ -161,12 +165,12 @@ def _phase_start(lower, upper, value_lower, value_upper):
 
 
 @_jit
-def _halley(kind, a0, a1, a2, a3, a4, a5, lower, upper, start, sign):
+def _halley(kind, a0, a1, a2, a3, a4, a5, a6, lower, upper, start, sign):
     """Root of the end condition in [lower, upper]: ``brackets._halley_in_bracket`` for one
     point (Halley steps, bisection where a step leaves the bracket, same stopping rules)."""
     t, lo, hi = start, lower, upper
     for _ in range(_MAX_ITER):
-        value, slope, curvature, third, scale = _evaluate(kind, t, a0, a1, a2, a3, a4, a5)
+        value, slope, curvature, third, scale = _evaluate(kind, t, a0, a1, a2, a3, a4, a5, a6)
         value, slope, curvature, third = sign * value, sign * slope, sign * curvature, sign * third
         if value < 0.0:
             lo = t
@@ -226,16 +230,16 @@ def ib_solve(zeta, vtilde, solve):
         t_min[i], t_max[i] = low, high
         if not math.isfinite(high):
             continue
-        top = _evaluate(_IB, high, z, v, 0.0, 0.0, 0.0, 0.0)[0]
+        top = _evaluate(_IB, high, z, v, 0.0, 0.0, 0.0, 0.0, 0.0)[0]
         xi_max[i] = top
         if not (solve and top > 0.0):
             continue
         # At high speed gravity is a small correction: Ia's end time is nearly the root.
         start = math.pi / math.sqrt(-s2)
         if not (v > 20.0 and low < start < high):
-            bottom = _evaluate(_IB, low, z, v, 0.0, 0.0, 0.0, 0.0)[0]
+            bottom = _evaluate(_IB, low, z, v, 0.0, 0.0, 0.0, 0.0, 0.0)[0]
             start = _phase_start(low, high, bottom, top)
-        tau[i] = _halley(_IB, z, v, 0.0, 0.0, 0.0, 0.0, low, high, start, 1.0)
+        tau[i] = _halley(_IB, z, v, 0.0, 0.0, 0.0, 0.0, 0.0, low, high, start, 1.0)
     return t_min, t_max, xi_max, tau
 
 
@@ -269,6 +273,7 @@ def iib_solve(zeta, vtilde, solve):
         z, v = zeta[i], vtilde[i]
         start_force = 2.0 * z * v
         force_min[i] = min(start_force, 1.0)
+        unit, rescale = 1.0, 1.0
         if z >= MODAL_ZETA:
             kind = _IIB_MODAL
             # Eigenmodes (brackets._eigenmodes): η = a·e^{−λs·t} + b·e^{−λf·t}.
@@ -282,11 +287,19 @@ def iib_solve(zeta, vtilde, solve):
                 t_min = (math.log(abs(b)) - math.log(abs(a)) + 6.0 * math.log(fast)) / (fast - slow)
                 if t_min > 0.0:
                     high = t_min
-            a0, a1, a2, a3, a4, a5 = slow, fast, slow * slow * a, fast * fast * b, 0.0, 0.0
+            a0, a1, a2, a3 = slow, fast, slow * slow * a, fast * fast * b
+            a4, a5, a6 = 0.0, 0.0, 1.0
         else:
             kind = _IIB_CS
-            p = 2.0 * z * v - 1.0
-            q = z + v * (1.0 - 2.0 * z * z)
+            if v > _HUGE_SPEED:
+                # f/ṽ: the same root and iteration, without overflow of the O(ṽ) terms.
+                unit, rescale = 1.0 / v, v
+                start_force = 2.0 * z
+                p = 2.0 * z - unit
+                q = z * unit + (1.0 - 2.0 * z * z)
+            else:
+                p = 2.0 * z * v - 1.0
+                q = z + v * (1.0 - 2.0 * z * z)
             slope_p, slope_q = q - z * p, (z - 1.0) * (z + 1.0) * p - z * q
             falls_first = slope_p < 0.0 or (slope_p == 0.0 and slope_q < 0.0)
             first = _first_zero(z, slope_p, slope_q)
@@ -294,12 +307,12 @@ def iib_solve(zeta, vtilde, solve):
                 low, high = 0.0, first
             else:
                 low, high = first, first + _half_period(z)
-            a0, a1, a2, a3, a4, a5 = z, start_force, p, q, slope_p, slope_q
+            a0, a1, a2, a3, a4, a5, a6 = z, start_force, p, q, slope_p, slope_q, unit
         t_lo[i], t_hi[i] = low, high
         if not math.isfinite(high):
             continue
-        bottom_force = _evaluate(kind, high, a0, a1, a2, a3, a4, a5)[0]
-        force_min[i] = bottom_force
+        bottom_force = _evaluate(kind, high, a0, a1, a2, a3, a4, a5, a6)[0]
+        force_min[i] = bottom_force * rescale
         if not (solve and bottom_force < 0.0):
             continue
         # At high speed gravity is a small correction: IIa's end time is nearly the root.
@@ -308,7 +321,7 @@ def iib_solve(zeta, vtilde, solve):
             # f at the bracket's lower end: 2ζṽ at impact, else one more evaluation.
             top_force = start_force
             if low > 0.0:
-                top_force = _evaluate(kind, low, a0, a1, a2, a3, a4, a5)[0]
+                top_force = _evaluate(kind, low, a0, a1, a2, a3, a4, a5, a6)[0]
             start = _phase_start(low, high, top_force, bottom_force)
-        tau[i] = _halley(kind, a0, a1, a2, a3, a4, a5, low, high, start, -1.0)
+        tau[i] = _halley(kind, a0, a1, a2, a3, a4, a5, a6, low, high, start, -1.0)
     return t_lo, t_hi, force_min, tau

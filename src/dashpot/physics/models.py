@@ -226,9 +226,11 @@ def _release_state(zeta, vtilde):
     vf[check] = np.where(_from_invariant(direct / v[check], v[check]), v[check] * invariant,
                          direct)
     dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    denominator = v + vf - 2.0 * z
-    usable = denominator > 0.5 * (v + vf)
-    relative = dissipated / np.where(usable, denominator, 1.0)
+    # Halved (exactly) so that ṽ + vf cannot overflow near the float maximum.
+    half_sum = 0.5 * v + 0.5 * vf
+    denominator = half_sum - z
+    usable = denominator > 0.5 * half_sum
+    relative = (0.5 * dissipated) / np.where(usable, denominator, 1.0)
     deficit_ = np.where(usable, relative, 1.0 - vf / v)
     speed = np.zeros(zeta.shape)
     speed[released] = vf
