@@ -37,7 +37,8 @@ runs them over the file.
    beginning just before it, the file is read again around the predicted time and probed
    with a trigger measured against the quietest 0.5 ms before it, or against the ring or
    echo since its start (:func:`_fill_impacts`); an impact whose onset does not rise out of
-   that ring or echo takes the time the trend predicts.
+   that ring or echo is left out (a gap the fit flags as a missed impact), never placed where
+   the trend predicts it: that would be circular evidence for the fit that follows.
    There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
@@ -72,7 +73,7 @@ from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_fill_impacts, _fixed_delays, _louder_between, _probe, _robust_trend,
-                    _secondary_delays, _select_bounces)
+                    _secondary_delays, _select_bounces, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
                        _process, _Settings, _Stream)
@@ -291,11 +292,19 @@ def _impact_table(path, stream, sample_rate, duration):
                                             path, stream, moment, tolerance, timing,
                                             not_before),
                                         duration)
-        for position, (moment, spread, loudness, flat) in retimed.items():
+        for position, result in retimed.items():
+            if result is None:  # no onset of its own: left out below, a gap in the train
+                continue
+            moment, spread, loudness, flat = result
             times[order[position]], sigmas[order[position]] = moment, spread
-            if flat is not None:  # timed on an onset of its own, not from the trend
-                amplitudes[order[position]] = loudness
-                clipped_flags[order[position]] = flat
+            amplitudes[order[position]] = loudness
+            clipped_flags[order[position]] = flat
+        untimed = np.array([order[position] for position, result in retimed.items()
+                            if result is None], dtype=np.int64)
+        if untimed.size:
+            keep = np.setdiff1d(np.arange(times.size), untimed)
+            times, sigmas, amplitudes = times[keep], sigmas[keep], amplitudes[keep]
+            clipped_flags = [clipped_flags[k] for k in keep]
     if filled:
         extra = np.array([row[:3] for row in filled])
         times = np.concatenate([times, extra[:, 0]])
@@ -303,6 +312,16 @@ def _impact_table(path, stream, sample_rate, duration):
         amplitudes = np.concatenate([amplitudes, extra[:, 2]])
         clipped_flags = clipped_flags + [row[3] for row in filled]
 
+    order = np.argsort(times)
+    times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
+    clipped_flags = [clipped_flags[k] for k in order]
+    dropped_end = 0
+    if times.size >= 5:
+        _, scatter = _robust_trend(times)
+        kept = _trim_growing_end(times, sigmas, scatter)
+        dropped_end = times.size - kept
+        times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
+        clipped_flags = clipped_flags[:kept]
     table = pd.DataFrame({
         "time": times,
         "time_uncertainty": sigmas,
@@ -336,16 +355,20 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"their own (lost under ringing or echo, or too faint); the intervals "
                      f"around them span two or more bounces")
     if retimed:
-        from_trend = sum(row[3] is None for row in retimed.values())
+        untimed_count = sum(row is None for row in retimed.values())
         notes.append(f"{len(retimed)} impacts timed again: their first onset was that of a ring "
                      f"or echo of an earlier impact starting just before them"
-                     + (f"; {from_trend} of them have no onset of their own above it and take "
-                        f"the time the interval trend predicts, with its scatter as uncertainty"
-                        if from_trend else ""))
+                     + (f"; {untimed_count} of them have no onset of their own above it and are "
+                        f"left out (missed impacts: the intervals around each span two bounces)"
+                        if untimed_count else ""))
     if filled:
         notes.append(f"{len(filled)} faint impacts found where the interval trend predicts them "
                      f"(their sound jumps over the decaying sound before it less than a "
                      f"trigger's)")
+    if dropped_end:
+        notes.append(f"{dropped_end} transients after the last impact left out: the interval "
+                     f"before them grew beyond the timing noise and the ratios' scatter (a "
+                     f"ball coming to rest bounces ever more often)")
     clipped = [i for i, flag in enumerate(clipped_flags) if flag]
     if clipped:
         notes.append(f"{len(clipped)} impacts clipped (flat tops): their amplitude is a lower "

@@ -42,6 +42,12 @@ _TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak 
 _EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
 _PROBE_WARMUP_SECONDS = 0.05  # high-pass settling before a probed stretch of the file
 _PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
+_CAUSE_DELAY_SECONDS = (_BACK_SEARCH_SECONDS, 0.2)  # of a ring's burst or an echo after its
+# impact; closer ones are the impact's own first arrival, which the rough onset looks back for
+_CAUSE_TOLERANCE = 0.3e-3  # s: the same delay after every impact, to the rough onsets' jitter
+_CAUSE_SHARE = 0.25  # of the members that must have a transient at that delay before them
+_CAUSE_FRACTION = 0.8  # a cause lies within this fraction of the interval before its member
+_CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this different
 
 
 # --------------------------------------------------------------------------------------------
@@ -158,18 +164,85 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
                                    amplitude[candidates])]
     if chain.size < 4:
         return chain, 0
+    chain = _shift_to_causes(times, chain)
     trend = _trend(times[chain])
     candidates = candidates[times[candidates] >= times[chain[0]]]
     chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates], trend),
                                    amplitude[candidates])]
     if chain.size < 4:
         return chain, 0
+    chain = _shift_to_causes(times, chain)
     trend = _trend(times[chain])
     chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
     chain = _polish_chain(times, chain, trend)
     chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
                                    _secondary_delays(times, chain))
-    return _polish_chain(times, chain, trend), skipped
+    return _shift_to_causes(times, _polish_chain(times, chain, trend)), skipped
+
+
+def _shift_to_causes(times, chain):
+    """Chain moved back onto the sounds its members follow at one fixed delay, if any.
+
+    A ring that swells again a few ms after its impact (a second burst, louder than the
+    first once the impacts grow quiet) or an echo is a copy of the impact train at a fixed
+    delay: both chains have the same intervals, and where the copy is louder it can win the
+    chain. A bounce train has no such shadow before it: the delay from a member back to the
+    rings, echoes and apex clicks of earlier impacts changes from bounce to bounce. So where
+    at least a quarter of the members (and four) have a transient at one and the same delay d
+    before them (to 0.3 ms; 3 ms to 200 ms: closer sounds are the first arrival of the impact itself, which the
+    rough onset and :func:`_polish_chain` look back for), the members are secondaries and each is replaced by the
+    transient at d before it: the onset of an impact is where its first burst starts. This
+    is repeated while it applies (an echo of a ring's burst). Members without a transient
+    at d before them stay.
+    """
+    lo_delay, hi_delay = _CAUSE_DELAY_SECONDS
+    for _ in range(2):
+        members = times[chain]
+        first, last = np.searchsorted(times, [members - hi_delay, members - lo_delay])
+        counts = last - first
+        if counts.sum() == 0:
+            return chain
+        owner = np.repeat(np.arange(chain.size), counts)
+        index = np.concatenate([np.arange(a, b) for a, b in zip(first, last)])
+        delays = members[owner] - times[index]
+        # A cause lies well inside the interval before its member (not at the previous
+        # member's own ring or echo, which a slowly shrinking train repeats at slowly
+        # changing delays).
+        before = np.diff(members, prepend=-np.inf)[owner]
+        inside = delays < _CAUSE_FRACTION * before
+        owner, index, delays = owner[inside], index[inside], delays[inside]
+        if owner.size == 0:
+            return chain
+        # Candidate delay: the one most members share (each member counted once per delay).
+        order = np.argsort(delays)
+        sorted_delays, sorted_owner = delays[order], owner[order]
+        reach = np.searchsorted(sorted_delays, sorted_delays + 2 * _CAUSE_TOLERANCE,
+                                side="right")
+        support = np.array([np.unique(sorted_owner[i:j]).size
+                            for i, j in enumerate(reach)])
+        best = int(np.argmax(support))
+        if support[best] < max(4, _CAUSE_SHARE * chain.size):
+            return chain
+        # ... and the same delay over intervals that differ widely: a coincidence of a few
+        # similar intervals is not a fixed delay.
+        spanned = before[inside][order][best:reach[best]]
+        if spanned.max() < _CAUSE_SPAN * spanned.min():
+            return chain
+        delay = float(np.median(sorted_delays[best:reach[best]]))
+        close = np.abs(delays - delay) <= _CAUSE_TOLERANCE
+        replaced = chain.copy()
+        for member in np.unique(owner[close]):
+            picks = np.flatnonzero(close & (owner == member))
+            cause = index[picks[np.argmin(np.abs(delays[picks] - delay))]]
+            # Where the intervals come down to the delay, the cause may be the member before
+            # or too close to it to be another impact.
+            previous = times[replaced[member - 1]] if member > 0 else -np.inf
+            if times[cause] - previous > _MERGE_SECONDS:
+                replaced[member] = cause
+        if np.array_equal(replaced, chain):
+            return chain
+        chain = np.sort(replaced)
+    return chain
 
 
 def _redo_tail(times, power_ratio, amplitude, strong, chain, trend):
@@ -297,12 +370,16 @@ def _predict_next(anchors, step, missing=0):
     moments, intervals = [], []
     for back in range(min(3, len(anchors) - 1)):
         interval = float(anchors[-1 - back] - anchors[-2 - back])
+        if interval <= 0:  # anchors out of order (a predicted one past the next impact)
+            continue
         moment = float(anchors[-1 - back])
         for _ in range(back + 1 + missing):
             interval = step(interval)
             moment += interval
         moments.append(moment)
         intervals.append(interval)
+    if not moments:
+        return np.inf, 0.0
     return median(moments), median(intervals)
 
 
@@ -414,6 +491,13 @@ def _louder_between(times, power_ratio, amplitude, strong, chain):
     around = np.clip(after, 1, chain.size - 1)
     louder = between & primary & (amplitude >= np.maximum(amplitude[chain[around - 1]],
                                                           amplitude[chain[around]]))
+    # A transient at a delay that recurs after the impacts is their ring's burst or echo,
+    # however loud (a ring can swell louder than its impact's first burst).
+    delays = _secondary_delays(times, chain)
+    if delays.size and louder.any():
+        suspects = np.flatnonzero(louder)
+        offsets = times[suspects][:, None, None] - times[chain][None, :, None] - delays
+        louder[suspects[np.abs(offsets).min(axis=(1, 2)) <= _ONSET_JITTER]] = False
     intervals = np.unique(after[louder]).size
     if intervals <= 0.25 * (chain.size - 1):
         return ""
@@ -594,6 +678,29 @@ def _robust_trend(impact_times, rounds=3):
     return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds)
 
 
+def _trim_growing_end(times, sigmas, scatter):
+    """Number of impacts to keep: the train ends before its last intervals grow.
+
+    A ball coming to rest bounces ever more often; past the last bounce, sounds that happen
+    to follow (a ring of the last impacts, the rest tail of a rolling ball, a click) make an
+    interval longer than the one before. The last interval ratio is tested against 1: where
+    its log exceeds 3σ of the onsets' timing noise (`sigmas`, s, on both intervals) plus
+    the scatter of the log ratios about their trend (`scatter`: the restitution's own
+    variation), the last impact is not a bounce of this train and is dropped, and so on
+    backwards (at most a quarter of the impacts).
+    """
+    keep = times.size
+    while keep > max(4, int(0.75 * times.size)):
+        a, b, c = times[keep - 3:keep]
+        first, second = b - a, c - b
+        timing = (sigmas[keep - 3] ** 2 + sigmas[keep - 2] ** 2) / first**2 + (
+            sigmas[keep - 2] ** 2 + sigmas[keep - 1] ** 2) / second**2
+        if np.log(second / first) <= 3.0 * np.sqrt(timing) + scatter:
+            break
+        keep -= 1
+    return keep
+
+
 def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     """Impacts the bounce trend predicts where none was timed, found by `probe`.
 
@@ -617,8 +724,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
         (time, sigma, amplitude, clipped) of each impact found between or after `times`.
     retimed : dict
         Index into `times` -> (time, sigma, amplitude, clipped): impacts whose onset was the
-        start of a ring or an echo just before them, timed again; clipped is None where the
-        time is the trend's prediction (amplitude unchanged).
+        start of a ring or an echo just before them, timed again on an onset of their own;
+        None where no onset of their own rises out of that sound (the impact is then left
+        out of the table: a gap, never a time taken from the trend).
 
     Notes
     -----
@@ -631,8 +739,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     impact (a fixed delay after it) was timed at the start of that secondary sound, which
     began just before it: it is probed again at the predicted time, past that start, and past
     each further secondary the probe finds (an echo may be followed by a ring before the
-    impact rises out of them); where no onset of its own rises out of them, the impact takes
-    the predicted time, with the trend's scatter as its 1σ. A probed onset must lie within
+    impact rises out of them); where no onset of its own rises out of them, the impact is
+    reported missing (a gap), not placed at the predicted time. A probed onset must lie within
     the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
     not itself come at a secondary's delay after an earlier impact (an onset there is probed
     past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
@@ -686,12 +794,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
                     and following < predicted < before and secondary(following, i)):
                 result = peel(predicted, tolerance, following, before)
-                if result is None:
-                    # No onset of its own rises out of the ring or echo: the impact is there
-                    # (its sound follows), its time is the trend's, with the trend's scatter.
-                    result = (predicted, interval * scatter, loudness[i + 1], None)
+                # No onset of its own rises out of the ring or echo: the data do not time
+                # this impact. It is left out (None), a gap in the train for the fit to
+                # flag, rather than given the time the trend predicts, which would be
+                # circular evidence for the fit that follows; the prediction stays as an
+                # anchor for the next ones.
                 retimed[origin[i + 1]] = result
-                anchors[i + 1] = result[0]
+                anchors[i + 1] = predicted if result is None else result[0]
             i += 1
             continue
         result = probe(predicted, tolerance)
