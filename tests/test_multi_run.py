@@ -218,3 +218,69 @@ def test_multi_run_file_follows_the_documented_layout(three_runs, tmp_path):
         found["/runs/"] = found["/joint/"] = None
         assert set(source["runs"]) == {"1", "2", "3"}
     assert found == documented
+
+
+CART = {"beta": 1.87, "omega0": 22.448887927243977, "g": 2.895906542614473, "mass": 0.506}
+
+
+@pytest.fixture(scope="module")
+def capstone_analysis(tmp_path_factory):
+    """A PASCO Capstone export of three runs of the paper's cart (the project's motion-sensor
+    writer: "Time (s) Run #1, Position (m) Run #1, Velocity (m/s) Run #1, ..."), analysed
+    by `dashpot analyze`."""
+    from dashpot.synth.tables import write_motion_sensor
+
+    folder = tmp_path_factory.mktemp("capstone")
+    train = bounce_sequence("hybrid", beta=CART["beta"], omega0=CART["omega0"], g=CART["g"],
+                            v0=1.0, n_max=30)
+    write_motion_sensor(folder / "capstone.csv", train, runs=3, sample_rate=50.0, seed=SEED)
+    (folder / "scene.yaml").write_text(
+        "name: cart\nrecording: capstone.csv\nsensor: motion_sensor\nmodels: [hybrid]\n"
+        f"apparatus: {{mass: {CART['mass']}, g_eff: {CART['g']}}}\n")
+    assert main(["analyze", str(folder / "capstone.csv"), "--scene", str(folder / "scene.yaml"),
+                 "-q", "-o", str(folder / "out")]) == 0
+    return folder / "out"
+
+
+def test_capstone_three_runs_three_fits_and_a_joint_fit(capstone_analysis):
+    record = read_fit(capstone_analysis / "cart.h5")
+    assert sorted(record["runs"]) == [0, 1, 2]  # the reader numbers "Run #1" ... from 0
+    for run in record["runs"].values():
+        assert set(run["bounces"]["run"]) == {run["attrs"]["run"]}
+        assert set(run["fits"]) == {"hybrid"}
+    joint = record["joint"]["hybrid"]
+    assert list(joint["runs"]["run"]) == [0, 1, 2]
+    assert {"beta", "k", "zeta", "omega0"} <= set(joint["parameters"].index)
+    with h5py.File(capstone_analysis / "cart.h5", "r") as source:
+        flags = source["impacts/flag"].asstr()[()]
+        assert set(flags) <= {"ok", "few_samples", "inferred"}
+        assert source["impacts/used_in_fit"][()].sum() == np.sum(flags != "inferred")
+    # The parameter table has every run's rows and the joint fit's.
+    table = pd.read_csv(capstone_analysis / "cart-parameters.csv")
+    assert set(table["run"].astype(str)) == {"0", "1", "2", "joint"}
+    assert (capstone_analysis / "cart").is_dir()  # the figures, of the first run
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "motion reader (dashpot.ingest): in this export 'Run #3' gets no resting tail, its bumper "
+    "is placed 5 cm past the true one and its impacts come out 50 ms late with speeds 14-80 % "
+    "high; that run's own fit gives omega0 = 285 +- 208 rad/s (truth 22.4) and the joint fit "
+    "chi2/nu = 12.9; and run 0's own k = 246 +- 4.1 N/m is 2.2 sigma below the truth 255 "
+    "(measured at the commit adding this test)"))
+def test_capstone_three_runs_recover_the_truth(capstone_analysis):
+    record = read_fit(capstone_analysis / "cart.h5")
+    truth = {"beta": CART["beta"], "k": CART["mass"] * CART["omega0"] ** 2}
+    alone = {name: [] for name in truth}
+    for run in record["runs"].values():
+        fit = run["fits"]["hybrid"]
+        assert fit["attrs"]["success"]
+        for name, value in truth.items():
+            estimate = fit["parameters"].loc[name]
+            assert abs(estimate["value"] - value) < 2 * estimate["stderr"], name
+            alone[name].append(estimate["stderr"])
+    joint = record["joint"]["hybrid"]
+    assert joint["attrs"]["success"]
+    for name, value in truth.items():
+        estimate = joint["parameters"].loc[name]
+        assert abs(estimate["value"] - value) < 2 * estimate["stderr"], name
+        assert estimate["stderr"] < min(alone[name]), name
