@@ -284,3 +284,22 @@ def test_capstone_three_runs_recover_the_truth(capstone_analysis):
         estimate = joint["parameters"].loc[name]
         assert abs(estimate["value"] - value) < 2 * estimate["stderr"], name
         assert estimate["stderr"] < min(alone[name]), name
+
+
+def test_bounces_flag_intervals_at_inferred_impacts(three_runs, tmp_path):
+    """`dashpot bounces` keeps an inferred impact's intervals, flagged as such, and the
+    ratios involving them are never 'ok'."""
+    table = three_runs["table"]
+    run = table[table["run"] == 3].reset_index(drop=True).copy()
+    run["flag"] = ["inferred" if i == 6 else "few_samples" if i == 9 else "ok"
+                   for i in range(len(run))]
+    path = tmp_path / "flags.csv"
+    run.to_csv(path, index=False)
+    out = tmp_path / "bounces.csv"
+    assert main(["bounces", str(path), "-o", str(out), "--g", "9.81", "-q"]) == 0
+    bounces = pd.read_csv(out)
+    assert list(bounces.index[bounces["flag"] == "inferred"]) == [5, 6]
+    assert (bounces.loc[4:6, "restitution_flag"] == "inferred").all()
+    assert (bounces.drop(index=[5, 6])["flag"] == "ok").all()
+    # A few_samples impact is timed (with its σ): its intervals are judged like any other.
+    assert bounces.loc[8, "flag"] == bounces.loc[9, "flag"] == "ok"

@@ -119,7 +119,9 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
     ----------
     impacts : pandas.DataFrame
         Impact table of :mod:`dashpot.ingest`: ``time`` in s, optional ``time_uncertainty``
-        (1σ in s; NaN = unknown) and ``run`` (runs side by side; 0 if absent). Times must
+        (1σ in s; NaN = unknown), ``run`` (runs side by side; 0 if absent) and ``flag`` (the
+        motion reader's "ok", "few_samples" or "inferred"; "few_samples" impacts carry their
+        larger σ into the uncertainties). Times must
         increase within each run; at least one run needs three impacts.
     g : float
         Acceleration pulling the ball back to the surface in m/s² (g·sin θ on an incline;
@@ -142,7 +144,9 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
         and its uncertainty, ``restitution`` T_{n+1}/T_n (NaN for the last interval of a run)
         and its uncertainty, ``flag`` judging the interval T_n: "ok", "missed" (an impact is
         missing inside it), "spurious" (it ends or starts at an impact that is not one),
-        "irregular" (off the trend for another reason); and ``restitution_flag`` judging the
+        "irregular" (off the trend for another reason), "inferred" (it starts or ends at an
+        impact the table's ``flag`` column marks "inferred": a contact the motion reader did
+        not see reversing, its time not measured); and ``restitution_flag`` judging the
         ratio: "ok" only if both of its intervals T_n and T_{n+1} are "ok", else the flag of
         the first of them that is not (a ratio involving a flagged interval is never "ok"),
         and "last" where there is no next interval. ``attrs`` hold the notes.
@@ -191,6 +195,9 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
                          f"{np.flatnonzero(bad)[0]} must be ≥ 0 and finite (NaN = unknown)")
     run = (np.asarray(impacts["run"], dtype=int) if "run" in impacts
            else np.zeros(times.size, dtype=int))
+    # The motion reader's flag of each impact: an "inferred" one was not seen reversing.
+    inferred = (np.asarray(impacts["flag"]).astype(str) == "inferred") if "flag" in impacts \
+        else np.zeros(times.size, bool)
     runs = list(dict.fromkeys(run))  # order of first appearance
     sizes = [int(np.sum(run == number)) for number in runs]
     if max(sizes, default=0) < 3:
@@ -203,7 +210,7 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
             raise ValueError(f"impact times must increase strictly within a run (run {number})")
         if members.size >= 2:
             parts.append(_run_bounces(times[members], sigma[members], g, contact_duration,
-                                      number, drag_constant))
+                                      number, drag_constant, inferred[members]))
     table = pd.concat(parts, ignore_index=True)
     # Each interval contains a contact: a longer contact makes g(T - contact)/2 negative.
     too_short = np.flatnonzero(table["interval"].to_numpy() <= contact_duration)
@@ -217,7 +224,9 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
     table.attrs["notes"] = [
         f"{np.sum(flags == 'missed')} interval(s) hide a missed impact, "
         f"{np.sum(flags == 'spurious')} involve a spurious one, "
-        f"{np.sum(flags == 'irregular')} are off the geometric trend otherwise; flagged rows kept",
+        f"{np.sum(flags == 'irregular')} are off the geometric trend otherwise"
+        + (f", {np.sum(flags == 'inferred')} start or end at an inferred impact"
+           if np.any(flags == "inferred") else "") + "; flagged rows kept",
         f"{int(np.sum(~ratio_flags.isin(['ok', 'last'])))} restitution value(s) involve a "
         f"flagged interval (restitution_flag)",
         "rebound speed from the flight time g(T - contact)/2 with contact duration "
@@ -234,8 +243,9 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
     return table
 
 
-def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None):
-    """Bounce table rows of one run (see bounce_table)."""
+def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None, inferred=None):
+    """Bounce table rows of one run (see bounce_table); `inferred` marks the impacts whose
+    time the reader inferred."""
     intervals = np.diff(times)
     interval_sigma = np.hypot(sigma[:-1], sigma[1:])
     ratio = intervals[1:] / intervals[:-1]
@@ -243,6 +253,11 @@ def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None):
                           + ((1 + ratio) * sigma[1:-1]) ** 2) / intervals[:-1]
     # An unknown σ leaves the timing term out of the flags' tolerance, not the flags out.
     flags = _flag_intervals(intervals, ratio, np.nan_to_num(ratio_sigma))
+    if inferred is not None and inferred.any():
+        # An interval from or to an inferred impact is not measured: said, unless another
+        # flag already judges it.
+        touched = inferred[:-1] | inferred[1:]
+        flags = np.where(touched & (flags == "ok"), "inferred", flags).astype(object)
     ratio_flags = np.where(flags[:-1] != "ok", flags[:-1], flags[1:])
     table = pd.DataFrame({
         "run": np.full(intervals.size, run, dtype=int),

@@ -75,8 +75,10 @@ def prepare_data(impacts, scene):
             notes.append("no timing uncertainty given: estimated from the scatter of the fit")
     g = scene.driving_acceleration
     run = table["run"].to_numpy() if "run" in table else np.zeros(times.size, dtype=int)
-    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma, "run": run}),
-                           g=g)
+    columns = {"time": times, "time_uncertainty": sigma, "run": run}
+    if "flag" in table:
+        columns["flag"] = table["flag"].to_numpy()  # intervals at inferred impacts flagged
+    bounces = bounce_table(pd.DataFrame(columns), g=g)
     flags = bounces["flag"].to_numpy()
     # Interval n ends at impact n + 1: a "spurious" interval pair brackets one false impact.
     spurious_impacts = np.flatnonzero((flags[:-1] == "spurious") & (flags[1:] == "spurious")) + 1
