@@ -13,6 +13,21 @@ import pandas as pd
 from ..scene import Scene
 
 
+def _without_reasons(line):
+    """``fit_line`` text with each "not determined (<bound>; <why>)" cut to "not determined"."""
+    parts = line.split(" not determined (")
+    kept = [parts[0]]
+    for part in parts[1:]:
+        depth, end = 1, len(part)  # to the parenthesis that closes the reason (units hold some)
+        for position, character in enumerate(part):
+            depth += {"(": 1, ")": -1}.get(character, 0)
+            if depth == 0:
+                end = position + 1
+                break
+        kept.append(part[end:])
+    return " not determined".join(kept)
+
+
 @dataclass(frozen=True)
 class FitData:
     """Impact data ready for fitting (SI units).
@@ -116,6 +131,14 @@ class FitResult:
     intervals: dict = field(default_factory=dict)
     accuracy: str = ""
 
+    def __repr__(self) -> str:
+        """One line: the model, its quantities rounded to their errors, the ε range and χ²/ν
+        (:func:`dashpot.fit_report.fit_line`, a quantity the data do not determine said so
+        without its bound), or why it failed."""
+        from ..fit_report import fit_line
+
+        return f"<FitResult {self.model}: {_without_reasons(fit_line(self))}>"
+
 
 @dataclass
 class SceneFit:
@@ -134,3 +157,49 @@ class SceneFit:
     noise_results: dict = field(default_factory=dict)
     noise_selection: pd.DataFrame | None = None
     noise_verdict: str = ""
+
+    def report(self, *, verbose: bool = False) -> str:
+        """The text summary ``dashpot fit`` and ``dashpot analyze`` print, in the spirit of
+        lmfit's ``fit_report``.
+
+        Parameters
+        ----------
+        verbose : bool, default False
+            Also the notes on how each fit was made (accuracy level, start values).
+
+        Returns
+        -------
+        str
+            One line per model (ζ, β in 1/s, k in N/m, each rounded to two significant digits
+            of its 1σ error; the ε range of its train; χ²/ν) with its notes beneath, what the
+            models the data cannot tell apart agree on, the selection's verdict and the
+            scene's notes (:func:`dashpot.fit_report.report_text`).
+        """
+        from ..fit_report import report_text
+
+        return report_text(self, verbose=verbose)
+
+    @property
+    def parameters(self) -> pd.DataFrame:
+        """Every estimate of every fit as a table: one row per model and parameter.
+
+        Columns ``model, parameter, value, stderr, low68, high68, low95, high95, unit, status,
+        note`` in SI units (β in 1/s, k in N/m, ω0 in rad/s, v0 in m/s; σ_j in s), the rows of
+        ``<name>-parameters.csv`` (:func:`dashpot.fit_report.parameter_table`); computed anew
+        on each access.
+        """
+        from ..fit_report import parameter_table
+
+        return parameter_table(self)
+
+    def __repr__(self) -> str:
+        """One line: the scene, the impacts fitted, each model's outcome, the noise fits."""
+        fitted = [model for model, fit in self.results.items() if fit.success]
+        failed = [model for model in self.results if model not in fitted]
+        parts = [f"{len(self.data.times)} impacts",
+                 f"fitted {', '.join(fitted) or 'none'}"]
+        if failed:
+            parts.append(f"failed {', '.join(failed)}")
+        if self.noise_results:
+            parts.append(f"{len(self.noise_results)} fits under the noise model")
+        return f"<SceneFit {self.scene.name!r}: {'; '.join(parts)}; .report() for the summary>"
