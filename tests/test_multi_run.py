@@ -303,3 +303,30 @@ def test_bounces_flag_intervals_at_inferred_impacts(three_runs, tmp_path):
     assert (bounces.drop(index=[5, 6])["flag"] == "ok").all()
     # A few_samples impact is timed (with its σ): its intervals are judged like any other.
     assert bounces.loc[8, "flag"] == bounces.loc[9, "flag"] == "ok"
+
+
+def test_noise_fits_of_every_run_reach_the_file_and_the_summary(three_runs, tmp_path):
+    """With the noise model each run's noise fits are stored under runs/<run> and give that
+    run's `noise:<law>` rows of the summary."""
+    from dashpot.run_summary import summary_by_run
+    from dashpot.store import write_scene_fit
+    from dashpot.summary import summary_from_files
+
+    table = three_runs["table"]
+    two = table[table["run"] != 2].reset_index(drop=True)
+    two = two[two.groupby("run").cumcount() < 12].reset_index(drop=True)
+    two.attrs["notes"] = []
+    runs_fit = fit_runs(two, three_runs["scene"], ("IIb",), noise=True)
+    path = tmp_path / "noisy.h5"
+    write_scene_fit(path, runs_fit.first, two, runs=runs_fit)
+    record = read_fit(path)
+    for number in (1, 3):
+        assert set(record["runs"][number]["noise_fits"]) == set(
+            runs_fit.runs[number].noise_results)
+    summary = summary_by_run(summary_from_files([path]), [path])
+    assert list(dict.fromkeys(summary["run"])) == [1, 3]
+    for number in (1, 3):
+        rows = summary[summary["run"] == number]
+        noise_rows = rows[rows["model"].str.startswith("noise:")]
+        assert len(noise_rows) == len(runs_fit.runs[number].noise_results)
+        assert (rows["noise_verdict"] == runs_fit.runs[number].noise_verdict).all()

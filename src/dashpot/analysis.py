@@ -117,6 +117,9 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     from .fit.settings import NOISE_LAWS
 
     impacts = scene_impacts(path, scene)
+    if "run" in impacts and impacts["run"].nunique() > 1:
+        logger.warning("%s: %d runs; fitted the first only (analyze_runs fits every run, and "
+                       "the runs jointly)", path, impacts["run"].nunique())
     if len(impacts) < 3:
         raise InputError(path, f"only {len(impacts)} impact(s) found; fitting needs three")
     check_bounce_train(impacts, path)  # random clicks or times are not fitted as bounces

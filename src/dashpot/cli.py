@@ -315,12 +315,14 @@ def joint_text(runs_fit):
     header = ["model", "quantity", *[f"run {run}" for run in runs], "joint (shared)"]
     lines = [header]
 
+    from .fit_report import format_measurement
+
     def shown(estimate):
         if estimate is None:
             return "-"
         if not math.isfinite(estimate.stderr):
             return f"{estimate.value:.4g} (not determined)"
-        return f"{estimate.value:.4g} ± {estimate.stderr:.2g}"
+        return format_measurement(estimate.value, estimate.stderr)
 
     for model, joint in runs_fit.joint.items():
         for name, label in (("zeta", "zeta"), ("omega0", "omega0 [rad/s]"),

@@ -59,7 +59,9 @@ def summary_by_run(table, paths):
             continue
         for number, run in sorted(record["runs"].items()):
             view = {"attrs": {"verdict": run["attrs"].get("verdict", "")},
-                    "fits": run["fits"], "selection": run["selection"]}
+                    "fits": run["fits"], "selection": run["selection"],
+                    **{key: run[key] for key in ("noise_fits", "noise_selection",
+                                                 "noise_verdict") if key in run}}
             per_run = summary_from_records({scene: view})
             per_run["status"] = rows["status"].iloc[0]
             per_run["problem"] = rows["problem"].iloc[0]

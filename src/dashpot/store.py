@@ -389,6 +389,12 @@ def _write_runs(out, runs):
             _write_fit(fits.create_group(model), result)
         selection = _table(run, "selection", fit.selection, SELECTION_UNITS)
         selection.attrs["verdict"] = fit.verdict
+        if fit.noise_results:
+            noise_fits = run.create_group("noise_fits")
+            for law, result in fit.noise_results.items():
+                _write_noise_fit(noise_fits.create_group(law), result)
+            noise = _table(run, "noise_selection", fit.noise_selection, NOISE_SELECTION_UNITS)
+            noise.attrs["verdict"] = fit.noise_verdict
     joint = out.create_group("joint", track_order=True)
     for model, fit in runs.joint.items():
         target = joint.create_group(model, track_order=True)
@@ -442,7 +448,8 @@ def read_fit(path):
         ``intervals``, with ``outliers`` and ``timing_sigma`` (arrays); where it holds the
         truth of a synthetic scene also ``truth`` (DataFrame, attributes ``model`` and
         ``source``); where it holds several runs also ``runs``: run -> dict with ``attrs``,
-        ``bounces``, ``selection`` and ``fits`` (as at the root), and ``joint``: model ->
+        ``bounces``, ``selection`` and ``fits`` (as at the root; with the noise fits also
+        ``noise_selection``, ``noise_verdict`` and ``noise_fits``), and ``joint``: model ->
         dict with ``attrs``, ``parameters`` (DataFrame indexed by name) and ``runs``
         (DataFrame: each run's v0 and t0 with their errors).
     """
@@ -477,25 +484,33 @@ def read_fit(path):
                         **{name: _arrays(fit[name])
                            for name in ("residuals", "predicted", "eps_curve")},
                     } for model, fit in group["fits"].items()}}
+                if "noise_fits" in group:
+                    out["runs"][int(number)].update(_noise_record(group))
             out["joint"] = {model: {"attrs": dict(group.attrs),
                                     "parameters": read_table(group["parameters"]).set_index(
                                         "name"),
                                     "runs": read_table(group["runs"])}
                             for model, group in source["joint"].items()}
         if "noise_fits" in source:
-            out["noise_selection"] = read_table(source["noise_selection"])
-            out["noise_verdict"] = str(source["noise_selection"].attrs.get("verdict", ""))
-            out["noise_fits"] = {}
-            for law, group in source["noise_fits"].items():
-                out["noise_fits"][law] = {
-                    "attrs": dict(group.attrs),
-                    "parameters": read_table(group["parameters"]).set_index("name"),
-                    "correlation": group["correlation"][()],
-                    "outliers": group["outliers"][()],
-                    "timing_sigma": group["timing_sigma"][()],
-                    **{name: _arrays(group[name])
-                       for name in ("residuals", "predicted", "eps_curve")},
-                }
+            out.update(_noise_record(source))
+    return out
+
+
+def _noise_record(source):
+    """``noise_selection``, ``noise_verdict`` and ``noise_fits`` of a group holding them (the
+    root, or a run's group), as :func:`read_fit` returns them."""
+    out = {"noise_selection": read_table(source["noise_selection"]),
+           "noise_verdict": str(source["noise_selection"].attrs.get("verdict", "")),
+           "noise_fits": {}}
+    for law, group in source["noise_fits"].items():
+        out["noise_fits"][law] = {
+            "attrs": dict(group.attrs),
+            "parameters": read_table(group["parameters"]).set_index("name"),
+            "correlation": group["correlation"][()],
+            "outliers": group["outliers"][()],
+            "timing_sigma": group["timing_sigma"][()],
+            **{name: _arrays(group[name]) for name in ("residuals", "predicted", "eps_curve")},
+        }
     return out
 
 
