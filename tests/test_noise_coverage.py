@@ -128,14 +128,13 @@ OPTIMUM_SLACK = 0.05
 # Measured with seed SEED + index, on the code as it stands: what fails and by how much.
 KNOWN_FAILURES = {
     "Ib": ("measured over 40 trains (seed SEED + 2): 95 % intervals hold the truth in 30/40 (v0) "
-           "and 32/40 (beta), below the binomial range 33-40; 68 %: v0 19/40, beta 20/40; "
-           "half-width/spread 0.62-0.77 and stderr/spread 0.62-0.68 for zeta, v_star, omega0 "
-           "and beta. In 8-9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
+           "and 31/40 (beta), below the binomial range 33-40; 68 %: v0 19/40, beta 18/40; "
+           "half-width/spread 0.58-0.77 and stderr/spread 0.58-0.77 for zeta, v_star, omega0, "
+           "beta and v0. In 8-9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
            "deterministic branch), and the intervals are then those of the deterministic "
            "train: v0's 68 % interval holds the truth in 0/9 (half-width 0.5 mm/s against a "
            "spread of 3 mm/s), beta's in 2/9. In the other 31, v0's 95 % interval holds it in "
-           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too. "
-           "Since commit 812ad67 also: a sigma_j on its line beats the fit in 2/40 trains"),
+           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too"),
     "constant, no scatter": (
         "measured over 60 trains without scatter (seed SEED + 3): sigma_eps's 68 % interval "
         "holds the truth 0 in 60/60 trains, above the 99.9 % binomial range 40-58 of the "
@@ -146,28 +145,11 @@ KNOWN_FAILURES = {
         "whose slope in sigma_eps^2 at 0 is biased upward by the fitted e and v0 (the "
         "scatter's random walk lies along what they absorb; the bias the adjusted profile "
         "removes from the intervals but not from the estimate)"),
-    "linear": (
-        "a regression of commit 812ad67 (Newton rows frozen once converged; passed at its "
-        "parent): in 13/60 trains (seed SEED + 1) a sigma_j on the line through the fit, the "
-        "rest held, gives a lower -2 ln L (by up to 3.4), and the fits end up to 14.5 above "
-        "those of the parent commit, with sigma_j near its floor (at the 68 % bound in 95 % "
-        "of the trains, 83 % before); sigma_j's 68 % interval then holds the truth in 58/60 "
-        "(99.9 % binomial range 29-52). Fitted one at a time, train 9 reaches the parent's "
-        "-507.03 where the batch stops at -492.54: the batch's rows affect each other"),
-    "Ib, no scatter": (
-        "a regression since commit 812ad67 (profiles continued in stages of points fitted at "
-        "once; passed at its parent with zeta's half-width/spread 1.36, 1.53 at 812ad67, 2.75 "
-        "at b81d33a): at b94e0e7, over 40 deterministic Ib trains with 20 µs timing noise "
-        "(seed SEED + 5), the mean 68 % half-width of zeta is 83 times the spread of its "
-        "estimates, of v_star 1.6e4 and of omega0 6.9e5 times (their standard errors "
-        "0.95-1.00 of it: profile intervals of single trains run out to the bounds), and one "
-        "fit ends 0.45 above the truth's -2 ln L"),
     "Ib, 25 impacts": (
         "measured over 40 trains (seed SEED + 6): zeta, v_star, omega0, beta and v0 cover at "
-        "their rates (beta 24/40 and 38/40, half-width/spread 0.90), but sigma_eps's standard "
-        "error is 0.70 of the spread of its estimates (its 68 % half-width 0.75; estimates "
-        "biased low by 0.9 of their spread), and a sigma_j on its line beats the fit in 1/40 "
-        "trains (the optimizer regression of commit 812ad67, see the 'linear' case)"),
+        "their rates (beta 25/40 and 39/40, half-width/spread 0.93), but sigma_eps's standard "
+        "error is 0.67 of the spread of its estimates (its 68 % half-width 0.78; estimates "
+        "biased low by about 0.9 of their spread)"),
 }
 
 
@@ -244,12 +226,6 @@ def test_a_fit_with_its_noise_held_reaches_the_truth_on_a_noise_free_train():
     assert fit.neg2_log_likelihood <= truth[0] + OPTIMUM_SLACK
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured on the 60 trains of the 'linear' case (seed SEED + 1), fitted without profiles: "
-    "-2 ln L of the batch's fit and of the train's own fit differ by more than 0.05 in 4/60 "
-    "trains (batch - alone: +14.49, -1.67, -1.23, -0.28); at commit 812ad67's parent in 8/60, "
-    "the batch better by up to 7.82. Each row's Newton iteration does not reach the optimum "
-    "reliably, and where it stops depends on the other rows of the batch"))
 def test_a_train_fitted_in_a_batch_gets_the_fit_it_gets_alone():
     """fit_noise_models fits each data set on its own (its docstring): the batch is only a way
     of evaluating many at once."""
