@@ -15,8 +15,12 @@ $(STAMP): pyproject.toml constraints.txt
 install: $(STAMP)
 
 # The Snakefile is at the root, so Snakemake would not find workflow/profiles/default itself.
+# Then every figure with its caption in one page, results/report.html (Snakemake's --report;
+# it needs every figure, so it is built once no scene failed).
+SNAKEMAKE_RUN = $(BIN)/snakemake --profile workflow/profiles/default --snakefile Snakefile
 run: $(STAMP)
-	$(BIN)/snakemake --profile workflow/profiles/default --snakefile Snakefile
+	$(SNAKEMAKE_RUN)
+	$(SNAKEMAKE_RUN) --report results/report.html
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

@@ -35,6 +35,7 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
     for model, fit in scene_fit.results.items():
         log.info("%s: %s", model, fit.message)
     log.info("verdict: %s", scene_fit.verdict)
+    log.info("summary, with each model's notes:\n%s", scene_fit.report())  # as `dashpot fit`
     # A synthetic scene's truth.json: its fit of the generating model against the truth.
     truth = truth_comparison(snakemake.params.truth, scene_fit) if snakemake.params.truth \
         else None
