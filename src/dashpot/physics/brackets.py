@@ -83,6 +83,8 @@ def _ib_solve(zeta, vtilde, *, solve=True):
         ξ(t_max), −inf where there is no maximum.
     tau : ndarray
         Contact time where the ball rebounds (if `solve`), inf elsewhere.
+    rebound_ratio : ndarray
+        ξ'(τ)/ṽ = −C + ζS − S/ṽ where the ball rebounds (if `solve`), 0 elsewhere.
     """
     zeta, vtilde, shape = _flat_pair(zeta, vtilde)
     return tuple(out.reshape(shape) for out in _kernels().ib_solve(zeta, vtilde, solve))
@@ -152,6 +154,9 @@ def _iib_release(zeta, vtilde, *, solve=True):
         released iff it is negative.
     tau : ndarray
         Release time where released, inf elsewhere (only computed if `solve`).
+    release_slope : ndarray
+        ξ'(τ) = −ṽC + (ζṽ − 1)S (or its eigenmode form) where released (if `solve`), 0
+        elsewhere.
     """
     zeta, vtilde, shape = _flat_pair(zeta, vtilde)
     return tuple(out.reshape(shape) for out in _kernels().iib_solve(zeta, vtilde, solve))
@@ -159,5 +164,4 @@ def _iib_release(zeta, vtilde, *, solve=True):
 
 def _iib_bracket(zeta, vtilde):
     """Bracket [t_lo, t_hi] of IIb's release root and the force minimum f(t_hi)."""
-    t_lo, t_hi, force_min, _ = _iib_release(zeta, vtilde, solve=False)
-    return t_lo, t_hi, force_min
+    return _iib_release(zeta, vtilde, solve=False)[:3]

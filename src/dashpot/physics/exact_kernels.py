@@ -217,10 +217,13 @@ def ib_solve(zeta, vtilde, solve):
         ξ(t_max), −inf where there is no maximum; the ball rebounds iff it is positive.
     tau : ndarray
         Contact time ω0·τ where it rebounds (if `solve`), inf elsewhere.
+    rebound_ratio : ndarray
+        ξ'(τ)/ṽ = −C + ζS − S/ṽ at τ where it rebounds (if `solve`), 0 elsewhere.
     """
     n = zeta.size
     t_min, t_max = np.empty(n), np.empty(n)
     xi_max, tau = np.full(n, -np.inf), np.full(n, np.inf)
+    rebound_ratio = np.zeros(n)
     for i in range(n):
         z, v = zeta[i], vtilde[i]
         s2 = (z - 1.0) * (z + 1.0)
@@ -239,8 +242,11 @@ def ib_solve(zeta, vtilde, solve):
         if not (v > 20.0 and low < start < high):
             bottom = _evaluate(_IB, low, z, v, 0.0, 0.0, 0.0, 0.0, 0.0)[0]
             start = _phase_start(low, high, bottom, top)
-        tau[i] = _halley(_IB, z, v, 0.0, 0.0, 0.0, 0.0, 0.0, low, high, start, 1.0)
-    return t_min, t_max, xi_max, tau
+        root = _halley(_IB, z, v, 0.0, 0.0, 0.0, 0.0, 0.0, low, high, start, 1.0)
+        tau[i] = root
+        c, S, _ = _basis(z, root)
+        rebound_ratio[i] = -c + z * S - S / v
+    return t_min, t_max, xi_max, tau, rebound_ratio
 
 
 @_jit
@@ -265,15 +271,19 @@ def iib_solve(zeta, vtilde, solve):
         f(t_hi), or min(2ζṽ, 1) where there is no minimum; released iff negative.
     tau : ndarray
         Release time where released (if `solve`), inf elsewhere.
+    release_slope : ndarray
+        ξ'(τ) where released (if `solve`), 0 elsewhere.
     """
     n = zeta.size
     t_lo, t_hi = np.zeros(n), np.full(n, np.inf)
     force_min, tau = np.empty(n), np.full(n, np.inf)
+    release_slope = np.zeros(n)
     for i in range(n):
         z, v = zeta[i], vtilde[i]
         start_force = 2.0 * z * v
         force_min[i] = min(start_force, 1.0)
         unit, rescale = 1.0, 1.0
+        slow = fast = a = b = 0.0
         if z >= MODAL_ZETA:
             kind = _IIB_MODAL
             # Eigenmodes (brackets._eigenmodes): η = a·e^{−λs·t} + b·e^{−λf·t}.
@@ -323,5 +333,16 @@ def iib_solve(zeta, vtilde, solve):
             if low > 0.0:
                 top_force = _evaluate(kind, low, a0, a1, a2, a3, a4, a5, a6)[0]
             start = _phase_start(low, high, top_force, bottom_force)
-        tau[i] = _halley(kind, a0, a1, a2, a3, a4, a5, a6, low, high, start, -1.0)
-    return t_lo, t_hi, force_min, tau
+        root = _halley(kind, a0, a1, a2, a3, a4, a5, a6, low, high, start, -1.0)
+        tau[i] = root
+        # ξ'(τ) = −ṽC + (ζṽ − 1)S, or −λs·a·e^{−λs·τ} − λf·b·e^{−λf·τ} in eigenmodes.
+        if kind == _IIB_MODAL:
+            release_slope[i] = (-slow * a * math.exp(-slow * root)
+                                - fast * b * math.exp(-fast * root))
+        else:
+            c, S, _ = _basis(z, root)
+            if rescale == 1.0:
+                release_slope[i] = -v * c + (z * v - 1.0) * S
+            else:
+                release_slope[i] = v * (z * S - c) - S  # ζṽ alone could overflow
+    return t_lo, t_hi, force_min, tau, release_slope

@@ -37,9 +37,9 @@ from scipy.optimize import elementwise
 from .._validation import check_model, check_nonnegative, check_positive
 # GRAVITY_MODELS is defined with the brackets (the ode method needs it too) and kept importable
 # from here.
-from .brackets import (GRAVITY_MODELS, MODAL_ZETA, _eigenmodes,  # noqa: F401
-                       _iia_contact_time, _ib_bracket, _ib_solve, _iib_bracket, _iib_release)
-from .contact import Damping, basis
+from .brackets import (GRAVITY_MODELS, _iia_contact_time, _ib_bracket,  # noqa: F401
+                       _ib_solve, _iib_bracket, _iib_release)
+from .contact import Damping
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
 
@@ -169,15 +169,13 @@ def _model_iia(zeta, vtilde):
 
 def _model_ib(zeta, vtilde):
     # Bracket, capture and return time by the compiled Halley iteration (brackets._ib_solve).
-    _, _, xi_max, tau = _ib_solve(zeta, vtilde)
+    _, _, xi_max, tau, rebound_ratio = _ib_solve(zeta, vtilde)
     rebound = xi_max > 0.0
     eps = np.zeros(zeta.shape)
     one_minus = np.ones(zeta.shape)
     z, v, t = zeta[rebound], vtilde[rebound], tau[rebound]
-    dr = Damping(z)
-    c, S = basis(dr, t)
     # ε = ξ'(τ)/ṽ with ξ' = −ṽC + (ζṽ − 1)S; clip the last ulp of a near-tangent return.
-    direct = np.maximum(-c + z * S - S / v, 0.0)
+    direct = np.maximum(rebound_ratio[rebound], 0.0)
     # The quadratic invariant P = η'² + 2ζηη' + η² of the homogeneous part η = ξ + 1 decays as
     # P(τ) = P(0)e^{−2ζτ}. With η = 1 at both ends, w = ṽε solves w² + 2ζw = X with
     # X = ṽ(ṽ − 2ζ)e^{−2ζτ} + expm1(−2ζτ): hardly sensitive to the last ulp of τ, unlike
@@ -187,7 +185,7 @@ def _model_ib(zeta, vtilde):
                  direct)
     # 1 − ε from the same decay: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms
     # are positive: no cancellation for nearly elastic balls.
-    dissipated = _stable_p0_over_v(z, -dr.s2, v) * (-np.expm1(-2.0 * z * t))
+    dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
     deficit = (2.0 * z + dissipated / (1.0 + e)) / v
     eps[rebound] = e
     one_minus[rebound] = deficit
@@ -197,21 +195,9 @@ def _model_ib(zeta, vtilde):
 
 # --- model IIb: force returns to zero, with gravity -----------------------------------------
 
-def _eta_slope(t, zeta, vtilde):
-    """ξ'(t) with gravity: −ṽC + (ζṽ − 1)S, or −λs·a·e^{−λs·t} − λf·b·e^{−λf·t}."""
-    modal = zeta >= MODAL_ZETA
-    out = np.empty(t.shape)
-    cs = ~modal
-    c, S = basis(Damping(zeta[cs]), t[cs])
-    out[cs] = -vtilde[cs] * c + (zeta[cs] * vtilde[cs] - 1.0) * S
-    slow, fast, a, b = _eigenmodes(zeta[modal], vtilde[modal])
-    out[modal] = -slow * a * np.exp(-slow * t[modal]) - fast * b * np.exp(-fast * t[modal])
-    return out
-
-
 def _release_state(zeta, vtilde):
     """IIb's release: (released mask, τ, release speed vf, 1 − vf/ṽ), vf = ξ'(τ) at F = 0."""
-    _, _, force_min, tau = _iib_release(zeta, vtilde)
+    _, _, force_min, tau, release_slope = _iib_release(zeta, vtilde)
     released = force_min < 0.0
     z, v, t = zeta[released], vtilde[released], tau[released]
     # At F = 0, ξ = −2ζξ' makes the invariant P(τ) = vf² − 2ζvf + 1: vf follows from its decay
@@ -221,7 +207,7 @@ def _release_state(zeta, vtilde):
     y, small, large = _invariant_roots(z, v, t)
     vf = v * large
     check = np.flatnonzero(~((y >= 0.0) & _from_invariant(large, v)))
-    direct = _eta_slope(t[check], z[check], v[check])
+    direct = release_slope[released][check]
     invariant = np.where((y[check] >= 0.0) | (direct > z[check]), large[check], -small[check])
     vf[check] = np.where(_from_invariant(direct / v[check], v[check]), v[check] * invariant,
                          direct)
@@ -252,8 +238,10 @@ def _model_hybrid(zeta, vtilde):
     # Climbing |ξ_f| = 2ζvf under gravity: v1² = vf² − 4ζvf; rebound only if vf > 4ζ.
     rebound = released & (vf > 4.0 * zeta)
     v1 = vf * np.sqrt(np.where(rebound, 1.0 - 4.0 * zeta / np.where(rebound, vf, 1.0), 0.0))
-    # Climb time (vf − v1)/g rationalised: 4ζvf/(vf + v1), no cancellation at large ṽ.
-    climb = np.where(rebound, 4.0 * zeta * vf / np.where(rebound, vf + v1, 1.0), 0.0)
+    # Climb time (vf − v1)/g rationalised: 4ζvf/(vf + v1), no cancellation at large ṽ; the
+    # sum halved so that it cannot overflow.
+    climb = np.where(rebound, 2.0 * zeta * (vf / np.where(rebound, 0.5 * vf + 0.5 * v1, 1.0)),
+                     0.0)
     eps = v1 / vtilde
     # 1 − ε = ((ṽ − vf) + (vf − v1))/ṽ: both terms >= 0 where ṽ >= vf; elsewhere ε is far from 1.
     summed = deficit + climb / vtilde
