@@ -201,12 +201,18 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
     if progress is not None:
         progress(1, 1 + steps, f"{len(impacts)} impacts in {len(parts)} run(s)")
 
+    started = time.process_time()
+
     def report(model):
         step = next(done, steps + 1)
-        logger.info("fitted %s (%d of %d)", model, step - 1, steps)
+        logger.info("fitted %s (%d of %d, %.2g s of CPU so far)", model, step - 1, steps,
+                    time.process_time() - started)
         if progress is not None:
             progress(step, 1 + steps, f"fitted {model}")
 
+    logger.info("fitting %s%s%s", ", ".join(models),
+                " and the fits under the noise model" if noise else "",
+                f" to each of {len(parts)} runs and to all jointly" if several else "")
     try:
         runs_fit = fit_runs(impacts, scene, models, progress=report, noise=noise)
     except ValueError as error:
