@@ -48,6 +48,7 @@ _CAUSE_TOLERANCE = 0.3e-3  # s: the same delay after every impact, to the rough 
 _CAUSE_SHARE = 0.25  # of the members that must have a transient at that delay before them
 _CAUSE_FRACTION = 0.8  # a cause lies within this fraction of the interval before its member
 _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this different
+_MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 
 
 # --------------------------------------------------------------------------------------------
@@ -177,7 +178,8 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     chain = _polish_chain(times, chain, trend)
     chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
                                    _secondary_delays(times, chain))
-    return _shift_to_causes(times, _polish_chain(times, chain, trend)), skipped
+    chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
+    return _drop_faint_between(amplitude, chain), skipped
 
 
 def _shift_to_causes(times, chain):
@@ -242,6 +244,31 @@ def _shift_to_causes(times, chain):
         if np.array_equal(replaced, chain):
             return chain
         chain = np.sort(replaced)
+    return chain
+
+
+def _drop_faint_between(amplitude, chain):
+    """Chain without members far fainter than both members around them.
+
+    Impact sounds fade smoothly along a train (amplitude ∝ impact speed, a few % per
+    bounce), so an impact is never 20 dB fainter than both the impact before and the one
+    after it. A sound that is (a faint click near the apex of the flight, as on a real
+    tennis-ball recording, 40 dB under the impacts) splits a real interval in two while the
+    interval ratios may still look geometric: the amplitude pattern, not the timing, tells
+    it out. Removed repeatedly until none is left; the first and last members are judged
+    against their one neighbour.
+    """
+    chain = np.asarray(chain)
+    while chain.size >= 3:
+        loudness = amplitude[chain]
+        previous = np.concatenate(([np.inf], loudness[:-1]))
+        following = np.concatenate((loudness[1:], [np.inf]))
+        neighbours = np.minimum(previous, following)
+        neighbours[0], neighbours[-1] = loudness[1], loudness[-2]
+        faint = loudness * _MIDWAY_LOUDNESS < neighbours
+        if not faint.any():
+            break
+        chain = chain[~faint]
     return chain
 
 

@@ -43,6 +43,9 @@ _RING_MODES = np.array([[1100.0, 4.0e-3, 1.0],
 _ECHO_CUTOFF_HZ = 2500.0  # a wall reflection loses the highs: one-pole low-pass
 _FREQUENCY_JITTER = 0.03  # relative scatter of the mode frequencies from impact to impact
 _PEAK_GRID_STEP = 2e-6  # s, grid on which the continuous-time peak of a transient is found
+_PEAK_SEARCH_DECAYS = 1.5  # ... over this many decay times of the slowest mode (the sum of
+# decaying modes peaks within its first cycles: its envelope is below a quarter of the first
+# lobe after 1.5 decay times)
 _NOISE_COLORS = ("white", "pink")
 _APEX_JITTER = 0.05  # the apex click falls within ±5 % of the flight time of the midpoint
 _DISTURBANCE_STREAM = 14  # second key of the generator of the disturbances (see impact_sound)
@@ -90,7 +93,7 @@ def _render(onsets, amplitudes, modes, rng, sample_rate, n_samples):
         return np.where(tau >= 0.0, waves.sum(axis=-1), 0.0)
 
     # Peak of each transient over continuous time: it falls within the first few ms.
-    grid = np.arange(0.0, 4.0 * modes[:, 1].max(), _PEAK_GRID_STEP)
+    grid = np.arange(0.0, _PEAK_SEARCH_DECAYS * modes[:, 1].max(), _PEAK_GRID_STEP)
     peaks = np.abs(shape(np.broadcast_to(grid, (onsets.size, grid.size)))).max(axis=1)
     gains = amplitudes / peaks
 

@@ -1,0 +1,124 @@
+"""Impacts from sound with the quiet sounds of real recordings, on seeds kept apart (issue 14).
+
+Every train carries the disturbances of :func:`dashpot.synth.audio.impact_sound` that fooled
+the detector on real recordings: a faint click near each apex (−40 dB), a steady click tail
+after rest (period 80-100 ms), a ring, and an echo with a delay drawn across 5-200 ms; half the
+trains also have a burst inside each impact's ring 5-8 ms after it, up to 1.5 times as loud as
+the impact's first burst. Truth: the onsets impact_sound returns (the start of each impact's
+first burst). The block of seeds below was drawn once at random and was never used while
+developing the detector; it must not be changed to make a test pass.
+
+Targets (issue 14): at SNR >= 20 dB (the weakest impact), recall >= 99 %, at most one false
+impact per 500, and the stated 1σ / 2σ covering the true errors at 68.3 % / 95.4 % (to three
+binomial standard deviations).
+"""
+
+import numpy as np
+import pytest
+
+import dashpot
+from dashpot.errors import InputError
+from dashpot.ingest.audio import detect_impacts
+from dashpot.ingest.chain import _drop_faint_between
+from dashpot.synth.audio import impact_sound, write_audio
+
+HELD_OUT_SEEDS = range(640_211, 640_311)  # 100 trains, drawn once; never used in development
+RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faster than 44.1 kHz
+MATCH = 1e-3  # s: a detection within this of a true onset is that impact
+# The targets are not met yet; the figures the expected failures state:
+MEASURED = ("measured on this block: recall 0.915 (3645 of 3985 impacts timed within 1 ms), 84 "
+            "false impacts (10.5 per 500; 33 of them after the last impact), 4 of 100 trains "
+            "refused as not a bounce train, 1σ / 2σ coverage 0.880 / 0.927")
+
+
+def disturbed_train(seed):
+    """(samples, true onsets, options) of one train with the disturbances of issue 14."""
+    rng = np.random.default_rng(seed)
+    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                       omega0=rng.uniform(2000, 4000), g=9.81,
+                                       v0=rng.uniform(0.5, 0.9), n_max=400)
+    # Up to the bounces 6 ms apart: short trains keep the block within the suite's time.
+    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
+    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+    weakest_db = rng.uniform(20.0, 45.0)
+    options = dict(apex_click_db=-40.0, rest_click_period=rng.uniform(0.08, 0.1),
+                   rest_click_duration=0.6, echo_delay=rng.uniform(5e-3, 0.2),
+                   echo_level=rng.uniform(0.1, 0.5), ring_level=rng.uniform(0.0, 0.4),
+                   ring_delay=rng.uniform(0.01, 0.03))
+    if rng.uniform() < 0.5:
+        options.update(burst_delays=[rng.uniform(5e-3, 8e-3)],
+                       burst_levels=[rng.uniform(0.3, 1.5)])
+    samples, onsets = impact_sound(times, speeds, sample_rate=RATE, seed=seed,
+                                   snr_db=weakest_db + 20 * np.log10(speeds.max() / speeds.min()),
+                                   **options)
+    return samples, onsets, options
+
+
+@pytest.fixture(scope="module")
+def held_out(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("disturbed")
+    total = found_count = false = after_rest = refused = 0
+    z = []
+    for seed in HELD_OUT_SEEDS:
+        samples, onsets, _ = disturbed_train(seed)
+        path = write_audio(folder / f"train{seed}.wav", samples, RATE, subtype="FLOAT")
+        total += onsets.size
+        try:
+            table = detect_impacts(path)
+        except InputError:
+            refused += 1
+            continue
+        found = table["time"].to_numpy()
+        sigma = table["time_uncertainty"].to_numpy()
+        distance = np.abs(onsets[:, None] - found[None, :])
+        nearest = distance.argmin(axis=1)
+        hit = distance[np.arange(onsets.size), nearest] < MATCH
+        owned = np.zeros(found.size, dtype=bool)
+        owned[nearest[hit]] = True
+        found_count += np.unique(nearest[hit]).size
+        false += int((~owned).sum())
+        after_rest += int((~owned & (found > onsets[-1] + MATCH)).sum())
+        z.append(np.abs(found[nearest[hit]] - onsets[hit]) / sigma[nearest[hit]])
+    z = np.concatenate(z)
+    return dict(total=total, recall=found_count / total, false=false, after_rest=after_rest,
+                refused=refused, within_1=np.mean(z < 1), within_2=np.mean(z < 2), n=z.size)
+
+
+def _binomial_band(p, n):
+    return 3.0 * np.sqrt(p * (1 - p) / n)
+
+
+@pytest.mark.xfail(strict=True, reason=MEASURED)
+def test_recall_at_least_99_percent(held_out):
+    assert held_out["refused"] == 0
+    assert held_out["recall"] >= 0.99
+
+
+@pytest.mark.xfail(strict=True, reason=MEASURED)
+def test_at_most_one_false_impact_per_500(held_out):
+    assert held_out["false"] <= held_out["total"] / 500
+
+
+@pytest.mark.xfail(strict=True, reason=MEASURED)
+def test_no_click_of_the_rest_tail_is_an_impact(held_out):
+    assert held_out["after_rest"] == 0
+
+
+@pytest.mark.xfail(strict=True, reason=MEASURED)
+def test_uncertainties_cover_at_their_stated_rates(held_out):
+    n = held_out["n"]
+    assert abs(held_out["within_1"] - 0.683) <= _binomial_band(0.683, n)
+    assert abs(held_out["within_2"] - 0.954) <= _binomial_band(0.954, n)
+
+
+def test_a_member_far_fainter_than_both_neighbours_is_not_an_impact():
+    # Impacts fading by 5 % per bounce, with sounds 40 dB under them chained in between.
+    loudness = 0.5 * 0.95 ** np.arange(6)
+    amplitude = np.empty(11)
+    amplitude[0::2] = loudness
+    amplitude[1::2] = 0.01 * np.sqrt(loudness[:-1] * loudness[1:])
+    kept = _drop_faint_between(amplitude, np.arange(11))
+    np.testing.assert_array_equal(kept, np.arange(0, 11, 2))
+    # A train fading smoothly, however far, keeps every member.
+    fading = 0.5 * 0.8 ** np.arange(20)
+    np.testing.assert_array_equal(_drop_faint_between(fading, np.arange(20)), np.arange(20))
