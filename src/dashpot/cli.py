@@ -423,14 +423,18 @@ COMMANDS = {
         "fit β and k under every contact model; HDF5 out",
         "Fit the contact models (default: the scene's, else all five) to an impact table or "
         "a recording, compare them, write the HDF5 file and print each model's parameters "
-        "rounded to their uncertainty, its notes and the selection's verdict.",
+        "rounded to their uncertainty, its notes and the selection's verdict. Every run of a "
+        "multi-run file is fitted on its own, and all runs jointly sharing the contact "
+        "parameters; both are printed side by side.",
         ["dashpot fit impacts.csv --scene scene.yaml -o fit.h5",
-         "dashpot fit drop.wav --models Ib hybrid -o fit.h5"]),
+         "dashpot fit drop.wav --models Ib hybrid -o fit.h5",
+         "dashpot fit impacts.csv --uncertainty profile posterior -o fit.h5"]),
     "analyze": (
         "one recording to an HDF5 file, a parameter table, figures and a summary",
         "Do for one recording what the workflow does for a scene, without Snakemake: write "
         "<name>.h5, <name>-parameters.csv (one row per model and parameter) and the figures "
-        "<name>/*.png|pdf into the output folder, and print the summary of the fits.",
+        "<name>/*.png|pdf into the output folder, and print the summary of the fits (of "
+        "every run of a multi-run file, and of the runs' joint fit).",
         ["dashpot analyze drop.wav --scene scene.yaml -o out/",
          "dashpot analyze drop.wav -o out/ --noise -v"]),
 }
