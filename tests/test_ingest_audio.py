@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import soundfile as sf
+from scipy import signal
 
 import dashpot
 from dashpot.errors import InputError
@@ -18,6 +19,7 @@ from dashpot.ingest import IMPACT_COLUMNS
 from dashpot.ingest import chain as chaining
 from dashpot.ingest import envelope
 from dashpot.ingest.audio import detect_impacts, read_audio
+from dashpot.plausibility import MAX_RATIO_SCATTER, ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
@@ -377,19 +379,83 @@ def test_pingpong_intervals_are_smoother_than_the_authors():
     assert np.std(ratio_ours) < 0.01 < np.std(ratio_picks)
 
 
-@pytest.mark.xfail(strict=True, reason="the picks are not onsets: the 'sound' column is the "
-                   "mean of the 44-45 samples of the 1 ms bin starting at the pick (exactly, for "
-                   "25 of 30 picks), and the author picked a bin where that low-passed signal "
-                   "peaks (for 21 of 30 the largest |mean| within 6 ms). On bounces 11, 13, 14 "
-                   "and 15 (1693-2060 ms) the pick comes 3.3-4.0 ms after the "
-                   "sound starts, 3.2-3.9 ms after it first exceeds 25 % of its peak and "
-                   "2.4-3.1 ms after its loudest sample, so no onset definition is within 2 ms "
-                   "of them; 17/30 picks are within 2 ms of the onsets")
-def test_pingpong_every_pick_within_2_ms_of_an_onset():
+def _ratio_scatter_about_running_trend(times, intervals_from=None):
+    """(interval before each ratio (s), residual of each successive interval ratio about
+    the running median of five ratios)."""
+    intervals = np.diff(times)
+    ratios = intervals[1:] / intervals[:-1]
+    trend = pd.Series(ratios).rolling(5, center=True, min_periods=3).median().to_numpy()
+    return intervals[:-1], ratios - trend
+
+
+def _threshold_onsets(path, times, fraction=0.2):
+    """Plain baseline onset of each impact: the first sample whose high-passed magnitude (any
+    channel) exceeds `fraction` of the impact's peak, searched from 2 ms before to 4 ms
+    after the detector's onset `times` (s)."""
+    samples, rate = sf.read(str(path), always_2d=True)
+    sos = signal.butter(2, 100.0, "highpass", fs=rate, output="sos")
+    magnitude = np.abs(signal.sosfilt(sos, samples, axis=0)).max(axis=1)
+    starts = np.round(times * rate).astype(int) - int(2e-3 * rate)
+    windows = magnitude[starts[:, None] + np.arange(int(6e-3 * rate))]
+    above = windows >= fraction * windows.max(axis=1, keepdims=True)
+    return (starts + above.argmax(axis=1)) / rate
+
+
+BANDS = ((0.085, np.inf), (0.044, 0.085), (0.025, 0.044))
+# Interval-ratio scatter below 25 ms intervals (12-25 ms) of the onsets at issue 14's filing:
+# a bound that must not get worse.
+BELOW_25_MS_TODAY = {"pingpong": 0.0243, "bouncy": 0.0178}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param("pingpong", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured: scatter of successive interval ratios about their running median 0.0040 "
+        "/ 0.0104 / 0.0201 in the >= 85 / 44-85 / 25-44 ms bands against the 20 %-of-peak "
+        "threshold onset's 0.0014 / 0.0055 / 0.0022: the change-point onset is not yet "
+        "robust to how real ping-pong impacts rise"))),
+    "bouncy"])
+def test_interval_ratios_scatter_no_more_than_a_plain_threshold_onset(name):
+    path = {"pingpong": PINGPONG, "bouncy": BOUNCY}[name]
+    table = _real(path)
+    onsets = table["time"].to_numpy()
+    baseline = _threshold_onsets(path, onsets)
+    interval, ours = _ratio_scatter_about_running_trend(onsets)
+    _, theirs = _ratio_scatter_about_running_trend(baseline)
+    for lo, hi in BANDS:
+        band = (interval >= lo) & (interval < hi)
+        assert band.sum() >= 5
+        assert np.std(ours[band]) <= np.std(theirs[band])
+    short = (interval >= 0.012) & (interval < 0.025)
+    assert np.std(ours[short]) <= BELOW_25_MS_TODAY[name]
+
+
+def test_pingpong_ratios_scatter_less_about_their_trend_than_the_picks():
     table = _real(PINGPONG)
     picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3
     onsets = table["time"].to_numpy()
-    assert np.abs(picks[:, None] - onsets[None, :]).min(axis=1).max() <= 2e-3
+    ours = onsets[(onsets > picks[0] - 6e-3) & (onsets < picks[-1] + 1e-3)]
+    assert ours.size == picks.size
+    assert (np.std(_ratio_scatter_about_running_trend(ours)[1])
+            < np.std(_ratio_scatter_about_running_trend(picks)[1]))
+
+
+def test_pingpong_impacts_past_the_last_pick_continue_the_train():
+    """Past the author's last pick every reported impact continues a shrinking train."""
+    table = _real(PINGPONG)
+    picks = pd.read_csv(PICKS)["time"].to_numpy() / 1e3
+    onsets = table["time"].to_numpy()
+    sigma = table["time_uncertainty"].to_numpy()
+    last = int(np.searchsorted(onsets, picks[-1] - 6e-3))
+    tail, tail_sigma = onsets[last - 2:], sigma[last - 2:]
+    intervals = np.diff(tail)
+    growth = np.log(intervals[1:] / intervals[:-1])
+    # 3σ of the stated timing noise on both intervals: a growing interval is not a bounce.
+    timing = np.sqrt((tail_sigma[:-2] ** 2 + tail_sigma[1:-1] ** 2) / intervals[:-1] ** 2
+                     + (tail_sigma[1:-1] ** 2 + tail_sigma[2:] ** 2) / intervals[1:] ** 2)
+    assert (growth <= 3 * timing).all()
+    # ... and the ratios follow a smooth trend as a ball's do (plausibility bound).
+    _, scatter = ratio_trend(tail)
+    assert scatter <= MAX_RATIO_SCATTER
 
 
 def test_bouncy_ball_has_30_impacts_and_no_echo_among_them():
