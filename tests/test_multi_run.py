@@ -330,3 +330,28 @@ def test_noise_fits_of_every_run_reach_the_file_and_the_summary(three_runs, tmp_
         noise_rows = rows[rows["model"].str.startswith("noise:")]
         assert len(noise_rows) == len(runs_fit.runs[number].noise_results)
         assert (rows["noise_verdict"] == runs_fit.runs[number].noise_verdict).all()
+
+
+def test_joint_fit_shares_the_air_drag_of_a_light_ball():
+    """Three drops of a ping-pong ball (drag flights, the scene's mass and diameter): the
+    joint fit shares k_d with the scene's prior and recovers β and ω0 within 2σ."""
+    scene = scene_from_mapping({"models": ["IIb"],
+                                "apparatus": {"mass": 0.0027, "diameter": 0.04}},
+                               source="scene.yaml")
+    k_d, g = scene.drag.drag_constant.value, scene.driving_acceleration
+    rng = np.random.default_rng(SEED)
+    parts = []
+    for run, v0 in ((1, 1.5), (2, 2.0), (3, 2.5)):
+        train = bounce_sequence("IIb", beta=60.0, omega0=4000.0, g=g, v0=v0, n_max=25,
+                                drag=k_d)
+        parts.append(pd.DataFrame({"time": train.impact_times + SIGMA * rng.standard_normal(25),
+                                   "time_uncertainty": SIGMA, "run": run}))
+    table = pd.concat(parts, ignore_index=True)
+    table.attrs["notes"] = []
+    joint = fit_runs(table, scene, ("IIb",)).joint["IIb"]
+    assert joint.success
+    assert joint.estimates["k_d"].status == "prior"
+    for name, value in (("beta", 60.0), ("omega0", 4000.0)):
+        estimate = joint.estimates[name]
+        assert abs(estimate.value - value) < 2 * estimate.stderr, name
+    assert any("air drag in flight shared" in note for note in joint.notes)

@@ -114,8 +114,9 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
 
     Notes
     -----
-    The joint fit uses gravity's flight: air drag and rolling friction, which the single-run
-    fits may model, are left out (a note says so where the scene asks for either).
+    Where the scene models air drag the runs share the drag constant k_d (with the scene's
+    prior, or fixed where exact; ``estimates`` adds ``k_d``, 1/m). Rolling friction, which the
+    single-run fits of cart scenes try, is left out (a note says so).
     """
     scene = scene or Scene()
     runs = list(datas)
@@ -127,9 +128,9 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         return _failed(model, "joint fit not made: no run's own fit succeeded to start from",
                        runs)
     notes = []
-    if scene.drag is not None or scene.tries_friction:
-        notes.append("joint fit with gravity's flight: air drag and rolling friction not "
-                     "modelled in it")
+    if scene.tries_friction:
+        notes.append("joint fit without rolling friction in flight (the single-run fits try "
+                     "it)")
     g = datas[runs[0]].g
     sigma_known = all(data.sigma_known for data in datas.values())
     level, trains_solver, _, reason = choose_accuracy(datas[runs[0]], scene.accuracy, model)
@@ -161,6 +162,18 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
     run_priors = ([("v0", known_v0.value, known_v0.uncertainty)]
                   if known_v0 is not None and not fixed_v0 else [])
 
+    drag = scene.drag
+    flight = ()  # gravity's flight: no flight columns
+    if drag is not None:
+        # Air drag shared by every run (one ball): k_d with the scene's prior, or fixed.
+        k_d = drag.drag_constant
+        flight = ("k_d", g, 0.0)  # k_d, g_eff, friction (FLIGHT_PARAMETERS)
+        if k_d.uncertainty is not None:
+            shared_priors.append(("k_d", k_d.value, k_d.uncertainty))
+        notes.append("air drag in flight shared by every run: " + (
+            f"k_d with the scene's prior {k_d.value:.3g} +- {k_d.uncertainty:.2g} 1/m"
+            if k_d.uncertainty is not None else f"k_d = {k_d.value:.3g} 1/m, exact"))
+
     params = lmfit.Parameters()
     params.add("zeta", value=float(np.median([starts[r].estimates["zeta"].value
                                               for r in usable])))
@@ -175,6 +188,9 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         params.add(f"t0_{i}", value=(own.estimates["t0"].value - datas[run].time_origin
                                      if own else 0.0))
 
+    if drag is not None:
+        params.add("k_d", value=drag.drag_constant.value,
+                   vary=drag.drag_constant.uncertainty is not None)
     rows = []
     for i, run in enumerate(runs):
         predictor = _TrainPredictor(model, g, datas[run].count, trains_solver)
@@ -185,9 +201,10 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
 
     def residual(p):
         values = p.valuesdict()
+        columns = [values["k_d"] if name == "k_d" else name for name in flight]
         return np.concatenate([
             row(np.array([[values["zeta"], values["v_star"], values[f"v0_{i}"],
-                           values[f"t0_{i}"]]]))[0] for i, row in enumerate(rows)])
+                           values[f"t0_{i}"], *columns]]))[0] for i, row in enumerate(rows)])
 
     result = lmfit.minimize(residual, params, method=METHOD, max_nfev=max_nfev, **OPTIONS,
                             scale_covar=not sigma_known)
@@ -242,6 +259,11 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         estimates["gamma"] = _linear_estimate(
             gamma, math.hypot(sd_of({"zeta": 1.0 / zeta, "v_star": -1.0 / v_star}), mass_sd)
             * gamma, "kg/s", "derived", "gamma = 2 m beta")
+    if drag is not None:
+        estimates["k_d"] = _linear_estimate(
+            values["k_d"], sd_of({"k_d": 1.0}), "1/m",
+            "prior" if drag.drag_constant.uncertainty is not None else "fixed",
+            "quadratic drag constant of the flight, shared")
     run_estimates = {}
     for i, run in enumerate(runs):
         run_estimates[run] = {
