@@ -154,3 +154,17 @@ def test_compiled_solver_is_loaded_only_when_a_gravity_model_is_solved():
     completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                                timeout=300)
     assert completed.returncode == 0, completed.stderr
+
+
+@pytest.mark.parametrize("zeta", [3.0, 1e100, 1e151, 1e200, 1e300, 1.7e308])
+def test_iia_contact_time_at_huge_damping(zeta):
+    """2·arccosh(ζ)/√(ζ² − 1) at 40 digits, also where ζ² overflows (IIa; the gravity models'
+    first iterate uses it too)."""
+    with np.errstate(over="ignore"):
+        result = dashpot.collide("IIa", zeta, 1.0)
+    with mp.workdps(40):
+        z = mp.mpf(zeta)
+        reference = float(2 * mp.acosh(z) / mp.sqrt((z - 1) * (z + 1)))
+    assert float(result.contact_time) == pytest.approx(reference, rel=1e-14)
+    assert float(result.one_minus_eps) == 1.0 or zeta < 10
+    assert not np.isnan(float(result.eps))

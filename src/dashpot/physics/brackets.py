@@ -53,13 +53,24 @@ def _iia_contact_time(d: Damping):
 
     Below ζ = 1 the paper's arccos(2ζ² − 1)/ω equals 2φ/ω with φ = atan2(ω, ζ) (no
     cancellation at either end); above, 2ψ/s with ψ = arccosh ζ = log1p(ζ − 1 + s); exactly 2 at
-    ζ = 1 [2]_.
+    ζ = 1 [2]_. Above ζ = HUGE_ZETA, where ζ² overflows, s = ζ√((1 − 1/ζ)(1 + 1/ζ)) and
+    ψ = ln ζ + log1p(s/ζ).
     """
     safe_omega = np.where(d.under, d.omega, 1.0)
-    safe_s = np.where(d.over, d.s, 1.0)
+    over = d.over & (d.zeta <= HUGE_ZETA)
+    safe_s = np.where(over, d.s, 1.0)
     t_under = 2.0 * np.arctan2(d.omega, d.zeta) / safe_omega
-    t_over = 2.0 * np.log1p(np.where(d.over, (d.zeta - 1.0) + d.s, 0.0)) / safe_s
-    return np.where(d.under, t_under, np.where(d.over, t_over, 2.0))
+    t_over = 2.0 * np.log1p(np.where(over, (d.zeta - 1.0) + d.s, 0.0)) / safe_s
+    huge_zeta = np.where(d.zeta > HUGE_ZETA, d.zeta, 2.0 * HUGE_ZETA)
+    inverse = 1.0 / huge_zeta
+    huge_s = huge_zeta * np.sqrt((1.0 - inverse) * (1.0 + inverse))
+    t_huge = 2.0 * (np.log(huge_zeta) + np.log1p(huge_s * inverse)) / huge_s
+    return np.where(d.under, t_under,
+                    np.where(over, t_over, np.where(d.zeta > HUGE_ZETA, t_huge, 2.0)))
+
+
+# Above this damping ratio ζ² (and s² = ζ² − 1) overflow.
+HUGE_ZETA = 1e150
 
 
 # --- model Ib: ξ returns to zero, with gravity ----------------------------------------------

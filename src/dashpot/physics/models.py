@@ -161,7 +161,7 @@ def _model_iia(zeta, vtilde):
     # ξ'(τ) = −(C − ζS)·ṽ reduces to ε·ṽ: at ωτ = 2φ the oscillation factor is exactly −1.
     release_speed = eps * vtilde
     return dict(eps=eps, one_minus_eps=-np.expm1(-zeta * tau), contact_time=tau,
-                captured=np.zeros(eps.shape, bool), release_depth=-2.0 * zeta * release_speed,
+                captured=np.zeros(eps.shape, bool), release_depth=-2.0 * (zeta * release_speed),
                 release_speed=release_speed)
 
 
@@ -230,7 +230,7 @@ def _model_iib(zeta, vtilde):
     eps = np.where(released, vf / vtilde, 0.0)
     one_minus = np.where(released, deficit, 1.0)
     return dict(eps=eps, one_minus_eps=one_minus, contact_time=tau, captured=~released,
-                release_depth=np.where(released, -2.0 * zeta * vf, -1.0), release_speed=vf)
+                release_depth=np.where(released, -2.0 * (zeta * vf), -1.0), release_speed=vf)
 
 
 def _model_hybrid(zeta, vtilde):
@@ -249,7 +249,7 @@ def _model_hybrid(zeta, vtilde):
     one_minus = np.where(rebound, one_minus, 1.0)
     return dict(eps=eps, one_minus_eps=one_minus,
                 contact_time=np.where(rebound, tau_force + climb, np.inf), captured=~rebound,
-                release_depth=np.where(released, -2.0 * zeta * vf, -1.0), release_speed=vf)
+                release_depth=np.where(released, -2.0 * (zeta * vf), -1.0), release_speed=vf)
 
 
 _EXACT = {"Ia": _model_ia, "Ib": _model_ib, "IIa": _model_iia, "IIb": _model_iib,
