@@ -1,18 +1,21 @@
 """Compiled end-of-contact root finding of the gravity models Ib and IIb (and so the hybrid).
 
-One loop over the points, compiled with numba, does per point what the vectorized code of
-:mod:`dashpot.physics.brackets` describes: the closed-form bracket between extrema of ξ (Ib) or
-of the force (IIb), the capture decision from the sign at the bracket's end, the first iterate,
-and the bracketed Halley iteration with its stopping rules. The formulas are those of
-:func:`dashpot.physics.contact.basis`, :func:`~dashpot.physics.contact.first_zero` and the
-regime functions of :mod:`dashpot.physics.brackets`, written for one point at a time (same
-operations in the same order, so the results agree with the array forms to their rounding).
+One loop over the points, compiled with numba, does per point what
+:func:`dashpot.physics.brackets._ib_solve` and :func:`~dashpot.physics.brackets._iib_release`
+describe (their docstrings document the regimes and the iteration): the closed-form bracket
+between extrema of ξ (Ib) or of the force (IIb), the capture decision from the sign at the
+bracket's end, the first iterate, and the bracketed Halley iteration with its stopping rules.
+The oscillator basis and its first zero are those of :func:`dashpot.physics.contact.basis` and
+:func:`~dashpot.physics.contact.first_zero`, written for one point at a time with the same
+operations in the same order.
 
-Compiled per point rather than as array operations because the iteration count differs from
-point to point (2-4 Halley steps for most, bisections for a few): numpy spends most of its time
-compacting the working set and re-evaluating masks, a compiled loop stops each point when it is
-done. This module imports numba; it is imported only when a gravity model is first solved, so
-``import dashpot`` stays cheap. The compiled code is cached on disk (``cache=True``).
+This replaces a vectorized numpy form of the same iteration (up to commit 3830686), which
+agreed with it to a few ulp: compiled per point because the iteration count differs from point
+to point (2-4 Halley steps for most, bisections for a few), where numpy spent most of its time
+compacting the working set and re-evaluating masks. This module imports numba; it is imported
+only when a gravity model is first solved, so that importing the models does not load it. The
+compiled code is cached on disk (``cache=True``): compiling it takes a few seconds once, loading
+it from the cache a fraction of a second.
 
 All quantities are dimensionless: time in 1/ω0, speed in v* = g/ω0.
 
@@ -156,18 +159,24 @@ def _evaluate(kind, t, a0, a1, a2, a3, a4, a5, a6):
 
 @_jit
 def _phase_start(lower, upper, value_lower, value_upper):
-    """First iterate away from high speed (``brackets._start_guess``): between consecutive
-    extrema the end condition is close to a half cosine wave with end values a and b, whose
+    """First iterate away from high speed: between consecutive extrema the end condition is close to a half cosine wave with end values a and b, whose
     root is at the fraction arccos((a + b)/(b − a))/π of the bracket."""
     ratio = min(max((value_lower + value_upper) / (value_upper - value_lower), -1.0), 1.0)
     phase = min(max(math.acos(ratio) / math.pi, 0.05), 0.95)
-    return lower + phase * (upper - lower)
+    start = lower + phase * (upper - lower)
+    # An end value that overflowed leaves no phase: start in the middle rather than at NaN.
+    return start if lower < start < upper else 0.5 * (lower + upper)
 
 
 @_jit
 def _halley(kind, a0, a1, a2, a3, a4, a5, a6, lower, upper, start, sign):
-    """Root of the end condition in [lower, upper]: ``brackets._halley_in_bracket`` for one
-    point (Halley steps, bisection where a step leaves the bracket, same stopping rules)."""
+    """Root of the end condition in [lower, upper], rising (`sign` = 1) or falling (−1).
+
+    Halley steps, replaced by bisection where a step leaves the current bracket; stops when f
+    is at its rounding level (4 ulp of `scale`), when the step is below 4 ulp, when the bracket
+    closes, or when the estimated error left by the step is below one ulp of the root (see
+    :func:`dashpot.physics.brackets._iib_release`).
+    """
     t, lo, hi = start, lower, upper
     for _ in range(_MAX_ITER):
         value, slope, curvature, third, scale = _evaluate(kind, t, a0, a1, a2, a3, a4, a5, a6)
@@ -254,7 +263,7 @@ def iib_solve(zeta, vtilde, solve):
     """Bracket, force minimum and release time of model IIb, point by point.
 
     Below ζ = MODAL_ZETA the force is f = 2ζṽ + p(C − 1) + qS, above it the eigenmode form
-    (see ``brackets._iib_cs`` and ``brackets._iib_modal`` for the brackets).
+    (see :func:`dashpot.physics.brackets._iib_release` for the brackets).
 
     Parameters
     ----------
