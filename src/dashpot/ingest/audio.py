@@ -120,8 +120,10 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
           :func:`_onset_posterior` (sub-sample; the first arrival of the impact's sound at
           the microphone, earlier than the loud part of the transient);
         * ``time_uncertainty`` (s): its 1σ, half the central 68 % posterior interval, from
-          the local noise (level and colour) and the steepness of the edge, plus floors for
-          the edge model's misfit and sub-sample error (see :func:`_onset_posterior`);
+          the local noise (level and colour) and the steepness of the edge, plus the width of
+          the sound's rise (a real impact sound may take a millisecond to rise from the
+          noise; the onset lies somewhere within it) and floors for the edge model's misfit
+          and sub-sample error (see :func:`_onset_posterior`);
         * ``amplitude`` (full scale = 1): the largest deviation of the raw samples from their
           level just before the onset within 3 ms after it, over all channels (DC offset
           excluded; a lower bound where the recording clipped);
