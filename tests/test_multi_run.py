@@ -355,3 +355,17 @@ def test_joint_fit_shares_the_air_drag_of_a_light_ball():
         estimate = joint.estimates[name]
         assert abs(estimate.value - value) < 2 * estimate.stderr, name
     assert any("air drag in flight shared" in note for note in joint.notes)
+
+
+def test_a_run_too_short_to_fit_is_named(three_runs, tmp_path, capsys):
+    """One line naming the file and the run, exit 2, no output file."""
+    table = three_runs["table"]
+    short = pd.concat([table[table["run"] != 2], table[table["run"] == 2].head(2)])
+    path = tmp_path / "short.csv"
+    short.to_csv(path, index=False)
+    out = tmp_path / "short.h5"
+    assert main(["fit", str(path), "--models", "IIb", "-o", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == (f"dashpot fit: error: {path}: run 2: only 2 impact(s) found; fitting "
+                     f"needs three")
+    assert not out.exists()
