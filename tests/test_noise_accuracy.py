@@ -240,3 +240,38 @@ def test_pingpong_recording_fits_agree_across_levels():
     fits = {level: [fit_noise_model(data, "linear", accuracy=level, profile=False)]
             for level in ("exact", "standard", "fast")}
     assert_levels_agree(fits, ("e0", "alpha", "v0", "sigma_eps", "sigma_j"))
+
+
+def test_fits_with_drag_and_friction_agree_with_the_exact_level():
+    """The flight's own parameters (a free k_d; g_eff and a friction deceleration) in the
+    tabulated step map: a drag train fitted with its drag rung, a cart-like train (two
+    accelerations, track_flight) with friction, and a constant fitted with k_d under the C_d
+    prior of a ball scene."""
+    from dashpot.physics.flight import track_flight
+
+    drag = law_model("constant", 0.95, flight=lambda v: drag_flight(v, G, 0.18))
+    train = drag.simulate(40, np.random.default_rng(4411), start_time=0.0,
+                          start_speed=np.array([2.5, 1.8]), process_sigma=SCATTER,
+                          jitter=JITTER, detector_sigma=DETECTOR)
+    datasets = [as_data(times) for times in train.times]
+    fits = {level: fit_noise_models(datasets, "constant", accuracy=level, profile=False,
+                                    effects=("drag",))
+            for level in ("exact", "standard", "fast")}
+    assert_levels_agree(fits, ("e", "k_d", "v0", "sigma_eps", "sigma_j"))
+
+    # An incline of 6°: g_eff = g sin θ ≈ 1.03 m/s² with the angle's prior; friction
+    # 0.04 m/s².
+    scene = Scene(incline_angle=6.0, friction=True)
+    g_eff = scene.flight_acceleration.value
+    cart = TrainModel(LAWS["constant"].bind(np.full(2, 0.9)),
+                      lambda v: track_flight(v, g_eff + 0.04, g_eff - 0.04))
+    train = cart.simulate(25, np.random.default_rng(8127), start_time=0.0,
+                          start_speed=np.array([0.5, 0.4]), process_sigma=SCATTER,
+                          jitter=JITTER, detector_sigma=DETECTOR)
+    datasets = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": DETECTOR}),
+                             scene) for times in train.times]
+    fits = {level: fit_noise_models(datasets, "constant", scene, accuracy=level,
+                                    profile=False, effects=("friction",))
+            for level in ("exact", "standard", "fast")}
+    assert all("g_eff" in f.estimates for f in fits["fast"])
+    assert_levels_agree(fits, ("e", "g_eff", "friction", "v0", "sigma_eps", "sigma_j"))

@@ -58,10 +58,11 @@ def test_summary_has_one_row_per_noise_fit_with_its_scatter_jitter_and_chi_squar
     assert list(table.columns) == list(SUMMARY_COLUMNS)
     assert list(table["model"]) == ["Ia", *(f"noise:{law}" for law in
                                             noisy_fit.noise_selection["model"])]
-    assert set(noisy_fit.noise_results) == {"constant", "Ia"}
+    # The constant law, its drag rung (the scene gives no mass and diameter) and Ia.
+    assert set(noisy_fit.noise_results) == {"constant", "constant+drag", "Ia"}
     rows = table.set_index("model")
     with h5py.File(noisy_path, "r") as source:
-        for law in ("constant", "Ia"):
+        for law in ("constant", "constant+drag", "Ia"):
             stored = source["noise_fits"][law].attrs
             row = rows.loc[f"noise:{law}"]
             assert row["sigma_eps"] == pytest.approx(stored["sigma_eps"], rel=1e-12)
@@ -99,7 +100,8 @@ def test_summary_file_stores_the_jitter_in_seconds(scene_files, tmp_path):
         assert source["summary"]["sigma_j"].attrs["units"] == "s"
         assert source["summary"]["sigma_eps"].attrs["units"] == "1"
     written = pd.read_csv(tmp_path / "summary.csv")
-    assert sorted(written["model"]) == ["Ia", "noise:Ia", "noise:constant"]
+    assert sorted(written["model"]) == ["Ia", "noise:Ia", "noise:constant",
+                                        "noise:constant+drag"]
 
 
 def test_scene_without_noise_keeps_its_rows_and_gets_empty_noise_columns(scene_files):
@@ -146,7 +148,7 @@ def test_selection_figure_has_a_panel_of_the_noise_fits_weights(scene_files):
     heights = [bar.get_height() for bar in noise_axes.patches]
     weights = record["noise_selection"]["akaike_weight"].to_numpy(float)
     assert np.allclose(heights, np.where(record["noise_selection"]["success"], weights, 0.0))
-    labels = {"constant": "constant", "Ia": "Ia (A)"}
+    labels = {"constant": "constant", "constant+drag": "constant+drag", "Ia": "Ia (A)"}
     assert ([tick.get_text() for tick in noise_axes.get_xticklabels()]
             == [labels[m] for m in record["noise_selection"]["model"]])
 

@@ -21,6 +21,7 @@ from cli_run import run_cli
 from dashpot.errors import InputError
 from dashpot.fit import fit_model, fit_scene, prepare_data
 from dashpot.fit.noise_fit import fit_noise_model
+from dashpot.fit.noise_scene import fit_noise_scene
 from dashpot.likelihood import TrainModel
 from dashpot.noise_selection import NESTED_STEP_BIC, NOISE_SELECTION_COLUMNS
 from dashpot.physics.flight import gravity_flight
@@ -78,11 +79,14 @@ def test_a_constant_train_needs_no_speed_term_and_its_scatter_is_covered(constan
     _, _, fit = constant_train
     table = fit.noise_selection.set_index("model")
     assert list(fit.noise_selection.columns) == list(NOISE_SELECTION_COLUMNS)
-    # The whole ladder, then the requested model, all fitted.
-    assert list(table.index) == ["constant", "linear", "quadratic", "power",
+    # The whole ladder (with the drag rung: the scene gives no mass and diameter), then the
+    # requested model, all fitted.
+    assert list(table.index) == ["constant", "constant+drag", "linear", "quadratic", "power",
                                  "viscoelastic-hertz", "hunt-crossley", "Ia"]
     assert table["success"].all()
     assert not table.loc[table["effect"] == "speed term", "kept"].any()
+    assert table.loc["constant+drag", "effect"] == "drag"
+    assert table.loc["constant+drag", "simpler"] == "constant"
     assert table["selected"].sum() == 1 and table.loc["constant", "selected"]
     assert "the data required no effect beyond a constant restitution" in fit.noise_verdict
     assert "noise model: constant selected" in fit.noise_verdict
@@ -109,14 +113,18 @@ def test_a_speed_dependent_train_keeps_its_speed_term():
     fit = fit_scene(impacts, Scene(), ("Ia",), noise=True,
                     noise_laws=("constant", "linear", "quadratic"))
     table = fit.noise_selection.set_index("model")
-    assert list(table.index) == ["constant", "linear", "quadratic", "Ia"]
+    assert list(table.index) == ["constant", "constant+drag", "linear", "quadratic", "Ia"]
     assert table.loc["linear", "kept"]
     assert table.loc["linear", "bic_gain"] >= NESTED_STEP_BIC
     assert not table.loc["constant", "selected"]
     selected = table.index[table["selected"]][0]
-    assert table.loc[selected, "effect"] == "speed term"
-    assert re.search(r"the data required speed term \((linear|quadratic): ΔBIC = ",
-                     fit.noise_verdict), fit.noise_verdict
+    # Without the ball's mass and diameter a free drag mimics a restitution rising as the
+    # ball slows: either may be selected, and the verdict says they are degenerate.
+    assert table.loc[selected, "effect"] in ("speed term", "drag")
+    assert "degenerate with a speed-dependent restitution" in fit.noise_verdict
+    assert "the data required " in fit.noise_verdict
+    assert re.search(r"speed term \((linear|quadratic): ΔBIC = ", fit.noise_verdict.split(
+        "not required")[0]), fit.noise_verdict
     linear = fit.noise_results["linear"].estimates
     assert linear["e0"].low95 <= 0.97 <= linear["e0"].high95, linear["e0"]
     assert linear["alpha"].low95 <= 0.015 <= linear["alpha"].high95, linear["alpha"]
@@ -230,7 +238,7 @@ def test_the_scene_key_turns_the_noise_fits_on_and_is_recorded_only_then(tmp_pat
     assert "noise" in str(error.value) and len(str(error.value).splitlines()) == 1
     impacts = impact_table("constant", (0.95,), seed=60217, count=15)
     fit = fit_scene(impacts, scene, ("Ia",), noise_laws=("constant",))
-    assert list(fit.noise_results) == ["constant", "Ia"]
+    assert list(fit.noise_results) == ["constant", "constant+drag", "Ia"]
     assert not fit_scene(impacts, scene, ("Ia",), noise=False).noise_results
 
 
@@ -243,8 +251,8 @@ def test_fit_and_analyze_take_the_noise_flag(tmp_path):
     assert status == 0, err
     lines = out.splitlines()
     noise_lines = [line for line in lines if line.startswith("  noise ")]
-    # One line per noise fit (the ladder and Ia), then the verdict.
-    assert len(noise_lines) == 6 + 1 + 1
+    # One line per noise fit (the ladder, its drag rung and Ia), then the verdict.
+    assert len(noise_lines) == 6 + 1 + 1 + 1
     constant = next(line for line in noise_lines if re.match(r"\s+noise\s+constant:", line))
     assert re.search(r"e = 0\.9\d+ ± ", constant)
     # Each amplitude as a value ± σ, or as its 95 % upper limit where consistent with 0.
@@ -269,19 +277,24 @@ def test_fit_and_analyze_take_the_noise_flag(tmp_path):
         assert "noise_fits" in source
 
 
-def test_a_drag_scene_notes_the_missing_drag_in_the_deterministic_fits_only():
+def test_a_drag_scene_fits_k_d_with_the_scenes_prior_and_has_no_drag_rung():
     times = np.cumsum(np.r_[0.0, 0.3 * 0.95 ** np.arange(12)])
     impacts = pd.DataFrame({"time": times, "time_uncertainty": np.full(times.size, 1e-5)})
     scene = scene_from_mapping({"apparatus": {"mass": 0.0027, "diameter": 0.04}},
                                source="scene.yaml")
     data = prepare_data(impacts, scene)
     assert not [note for note in data.notes if "drag" in note]
-    deterministic = [note for note in fit_model(data, "Ia", scene).notes
-                     if "do not model air drag" in note]
-    assert len(deterministic) == 1
-    noise = fit_noise_model(data, "constant", scene, profile=False).notes
-    assert not [note for note in noise if "do not model air drag" in note]
-    assert [note for note in noise if note.startswith("air drag: k_d = ")]
+    result = fit_noise_model(data, "constant", scene, profile=False)
+    assert [note for note in result.notes
+            if note.startswith("air drag: k_d fitted with the scene's prior")]
+    k_d, prior = result.estimates["k_d"], scene.drag.drag_constant
+    assert k_d.status == "prior" and k_d.unit == "1/m"
+    # Twelve drag-free bounces say little of drag: the prior keeps k_d near it.
+    assert abs(k_d.value - prior.value) < 3.0 * prior.uncertainty
+    assert 0.0 < k_d.stderr < math.inf and k_d.low95 <= prior.value <= k_d.high95
+    results, table, verdict = fit_noise_scene(data, scene, (), laws=("constant", "linear"))
+    assert list(results) == ["constant", "linear"]
+    assert "with the scene's C_d prior" in verdict
 
 
 @pytest.mark.skipif(not RECORDING.is_file(), reason=f"real recording absent: {RECORDING}")

@@ -9,12 +9,17 @@ fit                                          effect              simpler rung
 ``constant``                                 (the base)          —
 ``linear``, ``quadratic``, ``power``,        speed term          ``constant``
 ``viscoelastic-hertz``, ``hunt-crossley``
+``constant+drag``                            drag                ``constant``
+``constant+friction``                        friction            ``constant``
 ``Ia``, ``IIa``                              contact duration    ``constant``
 ``Ib``                                       gravity in contact  ``Ia``
 ``IIb``, ``hybrid``                          gravity in contact  ``IIa``
 ===========================================  ==================  =========================
 
-(The dashpot models' gravity-free limit v* → 0 is a constant ε with no contact duration; the
+(The drag rung is fitted only where the scene gives no mass and diameter: k_d is then free,
+and drag is degenerate with a speed-dependent ε (ε = e0 − c·v² fits about as well), which the
+verdict says; with them every fit carries k_d with the scene's C_d prior. The dashpot models'
+gravity-free limit v* → 0 is a constant ε with no contact duration; the
 gravity models' is their gravity-free counterpart's.) A fit is *kept* only if its BIC is at
 least :data:`NESTED_STEP_BIC` = 6 below that of its simpler rung, or of the next simpler one
 kept where that rung was not (ΔBIC ≥ 6 is "strong" evidence, 2 ln B ≥ 6 for the Bayes factor
@@ -45,11 +50,12 @@ __all__ = ["noise_selection_table", "NOISE_SELECTION_COLUMNS", "NESTED_STEP_BIC"
 NESTED_STEP_BIC = 6.0
 BASE = "constant"
 SIMPLER = {"linear": BASE, "quadratic": BASE, "power": BASE, "viscoelastic-hertz": BASE,
-           "hunt-crossley": BASE, "Ia": BASE, "IIa": BASE, "Ib": "Ia", "IIb": "IIa",
-           "hybrid": "IIa"}
+           "hunt-crossley": BASE, "constant+drag": BASE, "constant+friction": BASE, "Ia": BASE,
+           "IIa": BASE, "Ib": "Ia", "IIb": "IIa", "hybrid": "IIa"}
 """The simpler rung of each law or model (see the module notes)."""
 EFFECTS = {**{law: "speed term" for law in ("linear", "quadratic", "power",
                                               "viscoelastic-hertz", "hunt-crossley")},
+           "constant+drag": "drag", "constant+friction": "friction",
            "Ia": "contact duration", "IIa": "contact duration", "Ib": "gravity in contact",
            "IIb": "gravity in contact", "hybrid": "gravity in contact"}
 """The effect each law or model adds to its simpler rung."""
@@ -181,4 +187,11 @@ def _verdict(results, table, chosen, base_ok, c_hat):
                                           "no effect beyond a constant restitution"))
     if not_required:
         parts.append(f"not required (ΔBIC < {NESTED_STEP_BIC:g}): " + ", ".join(not_required))
+    if "drag" in set(table["effect"]):
+        parts.append("drag without the ball's mass and diameter is degenerate with a "
+                     "speed-dependent restitution (e = e0 - c v^2 fits about as well)")
+    k_d = fit.estimates.get("k_d")
+    if k_d is not None and k_d.status == "prior":
+        parts.append(f"air drag in every fit with the scene's C_d prior (k_d = "
+                     f"{k_d.value:.3g} ± {k_d.stderr:.2g} 1/m in {chosen})")
     return "; ".join(parts)

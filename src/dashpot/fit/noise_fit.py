@@ -111,7 +111,7 @@ import lmfit
 import numpy as np
 
 from ..likelihood import TrainModel
-from ..physics.flight import drag_flight, gravity_flight
+from ..physics.flight import gravity_flight, track_flight
 from ..physics.laws import LAWS, VISCOELASTIC_C1, dashpot_contact_time, dashpot_step
 from ..physics.models import MODELS
 from ..scene import Scene
@@ -123,6 +123,17 @@ from .start import _flight_ratio_start, _start_values
 __all__ = ["NoiseFitResult", "failed_noise_fit", "fit_noise_model", "fit_noise_models"]
 
 NOISE_PARAMETERS = ("v0", "sigma_eps", "sigma_j")
+FLIGHT_EFFECTS = ("drag", "friction")
+"""Effects of the flight a fit may add (``effects`` of :func:`fit_noise_model`)."""
+# Flight parameters: unit, meaning. k_d free (the drag rung) lies in [0, DRAG_UPPER] 1/m (a
+# terminal speed of 1 m/s at g) and starts at DRAG_START (a stencil needs room above the bound).
+FLIGHT_PARAMETERS = {"k_d": ("1/m", "quadratic drag constant of the flight (k_d v^2)"),
+                     "g_eff": ("m/s^2", "mean acceleration of the flights"),
+                     "friction": ("m/s^2", "friction deceleration of the flights")}
+DRAG_UPPER, DRAG_START = 10.0, 0.05
+# Friction f starts at this fraction of g_eff and stays below FRICTION_UPPER of it (a_toward
+# = g_eff − f > 0).
+FRICTION_START, FRICTION_UPPER = 1e-3, 0.5
 OUTLIER_Z = 4.0  # standardized innovations beyond this are flagged in the notes
 # Floors of the fitted ln σ: below them a noise source is indistinguishable from none.
 SIGMA_EPS_FLOOR, SIGMA_J_FLOOR = 1e-7, 1e-9
@@ -180,7 +191,8 @@ class NoiseFitResult(FitResult):
     timing_sigma: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
-def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy=None):
+def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy=None,
+                    effects=()):
     """Fit one restitution law or dashpot model under the two-source noise model.
 
     Parameters
@@ -204,11 +216,20 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy
         nodes 1/8 and 1/32 apart in ln u; "auto" takes the cheapest level whose −2 ln L at
         the best fit is within 0.01 of the direct evaluation's and whose predicted times are
         within 1 % of the smallest timing σ (else it refits at the next level).
+    effects : sequence of {"drag", "friction"}, default ()
+        Flight effects fitted beyond the scene's own: "drag" a free drag constant k_d ≥ 0
+        (1/m) where the scene gives no mass and diameter (with them k_d is always fitted,
+        with the scene's C_d prior: :attr:`dashpot.scene.Scene.drag`); "friction" the flight's
+        two accelerations a_away = g_eff + f and a_toward = g_eff − f (``g_eff`` with the
+        scene's prior, :attr:`dashpot.scene.Scene.flight_acceleration`; ``friction`` f ≥ 0),
+        the model of :func:`dashpot.fit.fit_model`. The result's ``model`` is then the law's
+        name with "+drag", "+friction" appended.
 
     Returns
     -------
     NoiseFitResult
-        ``estimates`` holds the law's parameters, ``v0`` (m/s), ``sigma_eps`` (1), ``sigma_j``
+        ``estimates`` holds the law's parameters, the flight's (``k_d``, ``g_eff``,
+        ``friction``) where fitted, ``v0`` (m/s), ``sigma_eps`` (1), ``sigma_j``
         (s), and for the dashpot models ``omega0`` (rad/s) and ``beta`` (1/s); see the module
         notes for the intervals, residuals and criteria. ``normalized_residuals`` are the
         standardized innovations (NaN for the first impact, which anchors the train).
@@ -223,17 +244,18 @@ def fit_noise_model(data, law, scene=None, *, fixed=None, profile=True, accuracy
         Unknown law, a fixed parameter the law does not have, or a negative fixed σ.
     """
     return fit_noise_models([data], law, scene, fixed=fixed, profile=profile,
-                            accuracy=accuracy)[0]
+                            accuracy=accuracy, effects=effects)[0]
 
 
-def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, accuracy=None):
+def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, accuracy=None,
+                     effects=()):
     """Fit one law to each of several data sets of one scene, all in one batch.
 
     Parameters
     ----------
     datasets : sequence of FitData
         Trains of the same scene (the same g); each is fitted on its own.
-    law, scene, fixed, profile, accuracy
+    law, scene, fixed, profile, accuracy, effects
         As in :func:`fit_noise_model`. With "auto" the batch is refitted at the next level
         if any of its trains needs it.
 
@@ -252,11 +274,16 @@ def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, acc
     datasets = list(datasets)
     if not datasets:
         return []
+    effects = tuple(dict.fromkeys(effects))
+    unknown = [e for e in effects if e not in FLIGHT_EFFECTS]
+    if unknown:
+        raise ValueError(f"unknown flight effect {unknown[0]!r}; use "
+                         f"{', '.join(FLIGHT_EFFECTS)}")
     fixed = dict(fixed or {})
     levels = ACCURACY_LEVELS if accuracy == "auto" else (accuracy,)
     missed = []
     for level in levels:
-        problem = _Problem(datasets, law, scene, fixed, level)
+        problem = _Problem(datasets, law, scene, fixed, level, effects)
         results = problem.solve(profile)
         if accuracy != "auto" or all(problem.accurate.values()):
             break
@@ -272,20 +299,26 @@ def fit_noise_models(datasets, law, scene=None, *, fixed=None, profile=True, acc
 class _Problem:
     """The fit of one law to a batch of trains: parameter layout, objective, starts."""
 
-    def __init__(self, datasets, law, scene, fixed, level="exact"):
+    def __init__(self, datasets, law, scene, fixed, level="exact", effects=()):
         self.datasets, self.law_name, self.law = datasets, law, LAWS[law]
+        self.model_name = law + "".join(f"+{effect}" for effect in effects)
         self.level = level
         self.accurate = {}  # train -> whether the level met its tolerances at the best fit
         self.g = float(datasets[0].g)
         if any(d.g != self.g for d in datasets):
             raise ValueError("every data set of one batch must have the same g")
-        self.names = self.law.parameter_names + NOISE_PARAMETERS
+        self.notes = []
+        flight_bounds = self._flight_setup(scene, effects)
+        self.names = self.law.parameter_names + tuple(self.flight_start) + NOISE_PARAMETERS
+        # Columns of the law's and the flight's parameters: the step map's own (with v0 they
+        # are the "mean" parameters).
+        self.law_count = len(self.law.parameters) + len(self.flight_start)
         unknown = set(fixed) - set(self.names)
         if unknown:
             raise ValueError(f"cannot fix {sorted(unknown)[0]!r}: the parameters of law "
                              f"{law!r} are {', '.join(self.names)}")
-        self.notes = []
         self.fixed, self.priors = self._known(scene, fixed)
+        self.priors += [p for p in self.flight_priors if p[0] not in fixed]
         count = max(d.count for d in datasets)
         # Times on the train's grid: NaN where an impact was missed (or the train is shorter).
         self.times = np.full((len(datasets), count), np.nan)
@@ -294,14 +327,6 @@ class _Problem:
             self.times[row, d.index] = d.times
             # Without stated uncertainties the jitter is the whole timing noise.
             self.detector[row, d.index] = d.sigma if d.sigma_known else 0.0
-        drag = scene.drag if getattr(scene, "needs_drag", False) else None
-        if drag is None:
-            self.flight = lambda v: gravity_flight(v, self.g)
-        else:
-            k_d = drag.drag_constant.value
-            self.flight = lambda v: drag_flight(v, self.g, k_d)
-            self.notes.append(f"air drag: k_d = {k_d:.4g} 1/m and g_eff = {self.g:.5g} m/s² "
-                              f"from the scene, held fixed")
         self.dashpot = law in MODELS
         # The step map depends on every parameter but v0 and the noise: the rows of a batch
         # that share these share one tabulated step map.
@@ -312,7 +337,7 @@ class _Problem:
         if implied.size == 0:
             implied = np.array([1.0])
         self.grid = (GRID_BELOW * float(np.min(implied)), GRID_ABOVE * float(np.max(implied)))
-        bounds = [(p.lower, p.upper) for p in self.law.parameters]
+        bounds = [(p.lower, p.upper) for p in self.law.parameters] + flight_bounds
         # v0 > 0; ln σ floored (see SIGMA_*_FLOOR), capped at 50 % scatter and 1 s.
         bounds += [(0.0, math.inf), (math.log(SIGMA_EPS_FLOOR), math.log(0.5)),
                    (math.log(SIGMA_J_FLOOR), 0.0)]
@@ -329,6 +354,72 @@ class _Problem:
         self.step_upper = np.where(soft, self.upper, self.upper - 1e-9 * span)
 
     # --- layout ---------------------------------------------------------------------------
+
+    def _flight_setup(self, scene, effects):
+        """The flight's fitted parameters: start values (``flight_start``, in column order),
+        priors (``flight_priors``) and fixed values (``flight_fixed``); returns their bounds.
+
+        k_d is a column where the scene models drag (its prior, or fixed where the scene
+        states C_d exactly) or where `effects` asks for drag (free, ≥ 0); g_eff and the
+        friction f where `effects` asks for friction (g_eff the scene's flight acceleration,
+        a prior or fixed). Without any, the flight is gravity's at g."""
+        self.flight_start, self.flight_priors, self.flight_fixed = {}, [], {}
+        bounds = []
+        drag = scene.drag if getattr(scene, "needs_drag", False) else None
+        if drag is not None:
+            known = drag.drag_constant
+            self.flight_start["k_d"] = known.value
+            bounds.append((0.0, max(DRAG_UPPER, 10.0 * known.value)))
+            if known.uncertainty is None:
+                self.flight_fixed["k_d"] = known.value
+                self.notes.append(f"air drag: k_d = {known.value:.4g} 1/m from the scene, "
+                                  f"held fixed; g_eff = {self.g:.5g} m/s²")
+            else:
+                self.flight_priors.append(("k_d", known.value, known.uncertainty))
+                self.notes.append(f"air drag: k_d fitted with the scene's prior "
+                                  f"{known.value:.4g} ± {known.uncertainty:.2g} 1/m (C_d prior); "
+                                  f"g_eff = {self.g:.5g} m/s²")
+        elif "drag" in effects:
+            self.flight_start["k_d"] = DRAG_START
+            bounds.append((0.0, DRAG_UPPER))
+            self.notes.append(
+                "air drag: k_d fitted free (>= 0), the scene gives no mass and diameter; "
+                "without them drag is degenerate with a speed-dependent restitution "
+                "(e = e0 - c v^2 fits about as well): its rung says whether the data need "
+                "either, not which")
+        if "friction" in effects:
+            known = scene.flight_acceleration
+            self.flight_start["g_eff"] = known.value
+            self.flight_start["friction"] = FRICTION_START * known.value
+            bounds += [(0.5 * known.value, 2.0 * known.value),
+                       (0.0, FRICTION_UPPER * known.value)]
+            if known.uncertainty is None:
+                self.flight_fixed["g_eff"] = known.value
+            else:
+                self.flight_priors.append(("g_eff", known.value, known.uncertainty))
+            self.notes.append(
+                "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - "
+                "friction fitted" + (" (g_eff fixed at the scene's)" if known.uncertainty is None
+                                     else " (the scene's g_eff a prior)"))
+        return bounds
+
+    def flight_of(self, rows):
+        """``flight(v) -> Flight`` at the flight parameters of rows (sets, P) (the columns
+        of the step map, or whole rows: the flight's come right after the law's)."""
+        start = len(self.law.parameters)
+        names = list(self.flight_start)
+        if not names:
+            return lambda v: gravity_flight(v, self.g)
+        column = {name: rows[:, start + k] for k, name in enumerate(names)}
+        k_d = column.get("k_d", 0.0)
+        g_eff = column.get("g_eff", self.g)
+        friction = column.get("friction", 0.0)
+        return lambda v: track_flight(v, g_eff + friction, g_eff - friction, k_d)
+
+    def flight(self, v):
+        """The flight at the start values of the flight parameters (for start values)."""
+        row = np.array([[*([0.0] * len(self.law.parameters)), *self.flight_start.values()]])
+        return self.flight_of(row)(v)
 
     def _known(self, scene, fixed):
         """Fixed values and Gaussian priors (name, centre, sd) from `fixed` and the scene."""
@@ -354,6 +445,9 @@ class _Problem:
                                             (mass.uncertainty or 0.0) / mass.value)
                 priors.append(("v_star", v_star, v_star * relative))
                 self.notes.append("prior on omega0 from the known stiffness and mass")
+        for name, value in self.flight_fixed.items():
+            if name not in fixed:
+                values[name] = value
         for name, value in fixed.items():
             value = float(value)
             if name in ("sigma_eps", "sigma_j"):
@@ -391,7 +485,8 @@ class _Problem:
         contact = None
         if self.dashpot:
             rebound, contact = self._dashpot_maps(law_params, finite)
-        return TrainModel(rebound, lambda v: self.flight(finite(v)), contact)
+        flight = self.flight_of(rows)
+        return TrainModel(rebound, lambda v: flight(finite(v)), contact)
 
     def _dashpot_maps(self, law_params, finite=lambda speed: speed, level="exact"):
         """Rebound and contact-time maps of a dashpot model sharing one collision per speed
@@ -420,7 +515,7 @@ class _Problem:
         else:
             def rebound(speed):
                 return self.law.rebound(speed, *law_params)
-        return TrainModel(rebound, self.flight, contact)
+        return TrainModel(rebound, self.flight_of(law_rows), contact)
 
     def run_filter(self, rows, trains, broken=None, level=None):
         """Kalman filter of parameter rows (sets, P) against the trains at rows `trains`, at
@@ -576,7 +671,7 @@ class _Problem:
         # The law's parameters and v0 inside their bounds (v0 > 0); ln σ anything but NaN or
         # +inf (its bounds limit the steps only, so that the stencil may straddle the floor;
         # −inf is a noise source fixed at 0).
-        bounded = len(self.law.parameters) + 1
+        bounded = self.law_count + 1
         inside = flat[:, :bounded]
         valid = (np.all(np.isfinite(inside), axis=1)
                  & np.all(inside >= self.lower[:bounded], axis=1)
@@ -644,7 +739,8 @@ class _Problem:
                 raise ValueError(f"no start values: {how}")
             start["zeta"], start["v_star"] = values["zeta"], self.g / values["omega0"]
             v0 = values["v0"]
-        return [start[p] for p in self.law.parameter_names] + [v0, 0.0, 0.0]
+        return ([start[p] for p in self.law.parameter_names] + list(self.flight_start.values())
+                + [v0, 0.0, 0.0])
 
     def units(self, rows):
         """Initial coordinate units (about a standard error) of every parameter, per row."""
@@ -654,6 +750,11 @@ class _Problem:
             span = self.upper[i] - self.lower[i]
             units[..., i] = np.where(rows[..., i] != 0.0, 1e-3 * np.abs(rows[..., i]),
                                      1e-4 * span)
+        # The flight's: k_d about its prior's sd (0.02 1/m for a ping-pong ball), the
+        # accelerations 1e-3 of g_eff.
+        for name in self.flight_start:
+            units[..., self.index(name)] = 1e-2 if name == "k_d" else 1e-3 * self.g
+        law_count = self.law_count
         units[..., law_count] = 1e-3 * np.abs(rows[..., law_count])
         units[..., law_count + 1:] = 0.3
         return units
@@ -698,8 +799,8 @@ class _Problem:
         return [self.result(t, best, zero, profiles, evaluations) for t in trains]
 
     def profiled_names(self):
-        return [n for n in self.law.parameter_names + ("sigma_eps", "sigma_j")
-                if n not in self.fixed]
+        return [n for n in self.law.parameter_names + tuple(self.flight_start)
+                + ("sigma_eps", "sigma_j") if n not in self.fixed]
 
     def profiles(self, best, zero, trains):
         """Profile −2 ln L of each profiled parameter on a grid around each train's best fit.
@@ -891,8 +992,8 @@ class _Problem:
             is_noise = name in ("sigma_eps", "sigma_j")
             value_i = float(np.exp(params_row[i]) if is_noise else params_row[i])
             unit = {"v0": "m/s", "sigma_j": "s", "sigma_eps": "1"}.get(
-                name, (self.law.parameters[i].unit if i < len(self.law.parameters) else "")
-                or "1")
+                name, (self.law.parameters[i].unit if i < len(self.law.parameters) else
+                       FLIGHT_PARAMETERS.get(name, ("",))[0]) or "1")
             status = "fitted"
             if name in self.fixed:
                 estimates[name] = Estimate(value_i, 0.0, value_i, value_i, value_i, value_i,
@@ -961,7 +1062,7 @@ class _Problem:
         # The first impact anchors the train: it predicts itself.
         predicted_at = np.where(scored, predicted_at, data.times)
         return NoiseFitResult(
-            model=self.law_name, success=hessian_ok, message=(
+            model=self.model_name, success=hessian_ok, message=(
                 "converged" if hessian_ok else "no positive-definite Hessian at the best fit"),
             estimates=estimates, varied=varied,
             correlation=np.where(np.isfinite(correlation), correlation, np.nan), chisqr=chisqr,
@@ -1006,7 +1107,7 @@ class _Problem:
         floors = {self.index("sigma_eps"): SIGMA_EPS_FLOOR, self.index("sigma_j"): SIGMA_J_FLOOR}
         keep = [k for k, f in enumerate(free)
                 if not (f in floors and row[f] <= math.log(floors[f]) + 1.0)]
-        law_count = len(self.law.parameters)
+        law_count = self.law_count
         dropped = [f for f in free if f < law_count and (
             row[f] - self.lower[f] <= 2.0 * (self.step_lower[f] - self.lower[f])
             or self.upper[f] - row[f] <= 2.0 * (self.upper[f] - self.step_upper[f]))]
@@ -1105,7 +1206,7 @@ class _Problem:
                                      "beta = zeta * omega0 (linear propagation)")
 
     def failed(self, t, message, notes):
-        return failed_noise_fit(self.datasets[t], self.law_name, message, notes)
+        return failed_noise_fit(self.datasets[t], self.model_name, message, notes)
 
 
 def failed_noise_fit(data, law, message, notes=()):

@@ -5,6 +5,13 @@ Opt-in (``fit_scene(..., noise=True)``, the scene key ``noise: true``, ``--noise
 deterministic fits and their selection are made as without it, and these fits are added beside
 them. Their criteria (AIC = −2 ln L + 2K, BIC = −2 ln L + K ln n) compare the noise fits among
 themselves only, never with the deterministic fits' χ²-based ones.
+
+Flight effects as rungs of the ladder (:mod:`dashpot.noise_selection`): where the scene gives no
+mass and diameter, ``constant+drag`` (the constant law with a free drag constant k_d ≥ 0) is
+fitted beside the constant law; with them every fit carries k_d with the scene's C_d prior and
+there is no drag rung. On cart and incline scenes (:attr:`dashpot.scene.Scene.tries_friction`)
+``constant+friction`` adds the friction deceleration of the flights (a_away = g_eff + f,
+a_toward = g_eff − f, g_eff with the scene's prior), as the deterministic fits do.
 """
 
 from __future__ import annotations
@@ -43,7 +50,8 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None, accu
     Returns
     -------
     results : dict of str -> NoiseFitResult
-        Laws first, then the models, each once. A fit that cannot be made (no start values,
+        Laws first (the flight's rungs ``constant+friction`` and ``constant+drag`` right after
+        the constant law, where fitted), then the models, each once. A fit that cannot be made (no start values,
         a singular system) is kept with ``success`` false and its reason, as in the
         deterministic fits.
     table : pandas.DataFrame
@@ -61,13 +69,21 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None, accu
     if unknown:
         raise ValueError(f"unknown restitution law or model {unknown[0]!r}; use "
                          f"{', '.join(LAWS)}")
+    fits = [(law, law, ()) for law in dict.fromkeys(tuple(laws) + tuple(models))]
+    if "constant" in laws:
+        # The flight's effects as rungs on the constant law (module notes).
+        if not getattr(scene, "needs_drag", False):
+            fits.insert(1, ("constant+drag", "constant", ("drag",)))
+        if getattr(scene, "tries_friction", False):
+            fits.insert(1, ("constant+friction", "constant", ("friction",)))
     results = {}
-    for law in dict.fromkeys(tuple(laws) + tuple(models)):
+    for name, law, effects in fits:
         try:
-            results[law] = fit_noise_model(data, law, scene, accuracy=accuracy)
+            results[name] = fit_noise_model(data, law, scene, accuracy=accuracy,
+                                            effects=effects)
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as error:
-            results[law] = failed_noise_fit(data, law, f"fit failed: {error}", data.notes)
+            results[name] = failed_noise_fit(data, name, f"fit failed: {error}", data.notes)
         if progress is not None:
-            progress(law)
+            progress(name)
     table, verdict = noise_selection_table(results)
     return results, table, verdict

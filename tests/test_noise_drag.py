@@ -1,0 +1,111 @@
+"""Air drag as a fitted parameter of the noise fits, and the drag rung of the ladder.
+
+Trains are drawn by the noise model's own simulator (:meth:`TrainModel.simulate`) under the
+closed-form drag flight of :mod:`dashpot.physics.flight` (a ping-pong-like ball: ε = 0.95 from
+2.5 m/s, k_d = 0.18 1/m, σ_ε = 0.3 %), read by ``prepare_data`` as a recording's would be, and
+fitted with the scene giving no mass and diameter, so that k_d is free. Seeds were chosen once.
+Coverage tolerances are binomial: the count of intervals holding the truth within 3σ of its
+mean.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dashpot.fit import prepare_data
+from dashpot.fit.noise_fit import fit_noise_models
+from dashpot.likelihood import TrainModel
+from dashpot.noise_selection import NESTED_STEP_BIC, noise_selection_table
+from dashpot.physics.flight import drag_flight
+from dashpot.physics.laws import LAWS
+from dashpot.scene import Scene
+
+G = 9.80665  # the default scene's g
+EPS, K_D, SPEED, SCATTER, BOUNCES = 0.95, 0.18, 2.5, 0.003, 45
+DETECTOR, JITTER = 10e-6, 20e-6
+TRIALS, NULL_TRIALS = 40, 16
+
+
+def drawn(k_d, trials, seed):
+    """FitData of `trials` trains drawn under drag k_d (1/m) and a constant ε."""
+    model = TrainModel(LAWS["constant"].bind(np.full(trials, EPS)),
+                       lambda v: drag_flight(v, G, k_d))
+    train = model.simulate(BOUNCES, np.random.default_rng(seed), start_time=0.3,
+                           start_speed=SPEED, process_sigma=SCATTER, jitter=JITTER,
+                           detector_sigma=DETECTOR)
+    return [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": DETECTOR}), Scene())
+            for times in train.times]
+
+
+def rungs(data):
+    """The constant law and its drag rung fitted to every train, and which rung is kept."""
+    constant = fit_noise_models(data, "constant", accuracy="fast")
+    drag = fit_noise_models(data, "constant", accuracy="fast", effects=("drag",))
+    kept = [bool(noise_selection_table({"constant": c, "constant+drag": d})[0].set_index(
+        "model").loc["constant+drag", "kept"]) for c, d in zip(constant, drag)]
+    return constant, drag, np.array(kept)
+
+
+@pytest.fixture(scope="module")
+def with_drag():
+    return rungs(drawn(K_D, TRIALS, seed=20261125))
+
+
+@pytest.fixture(scope="module")
+def without_drag():
+    return rungs(drawn(0.0, NULL_TRIALS, seed=7734))
+
+
+def binomial_range(trials, rate):
+    sd = math.sqrt(trials * rate * (1.0 - rate))
+    return trials * rate - 3.0 * sd, trials * rate + 3.0 * sd
+
+
+def test_the_drag_effect_is_many_times_the_scatter():
+    """The scenario qualifies: at the fastest rebound drag takes 1 − L/u of the speed per
+    flight (L the landing speed of the closed form), at least 5σ of the scatter."""
+    rebound = EPS * SPEED
+    loss = 1.0 - float(drag_flight(rebound, G, K_D).landing_speed) / rebound
+    assert loss >= 5.0 * SCATTER
+
+
+def test_the_drag_rung_is_selected_where_the_train_has_drag(with_drag):
+    _, drag, kept = with_drag
+    assert all(result.success for result in drag)
+    assert kept.mean() >= 0.9
+    result = drag[0]
+    assert result.model == "constant+drag"
+    assert result.estimates["k_d"].unit == "1/m"
+    assert any("degenerate with a speed-dependent restitution" in n for n in result.notes)
+
+
+def test_k_d_intervals_cover_at_their_nominal_rates(with_drag):
+    _, drag, _ = with_drag
+    k_d = [result.estimates["k_d"] for result in drag]
+    for level, rate in (("68", 0.6827), ("95", 0.9545)):
+        inside = sum(getattr(e, f"low{level}") <= K_D <= getattr(e, f"high{level}")
+                     for e in k_d)
+        low, high = binomial_range(TRIALS, rate)
+        assert low <= inside <= min(high, TRIALS), (level, inside)
+    # Width: the 68 % interval's half-width against the spread of the estimates (an
+    # inflated interval would cover too).
+    half = np.median([0.5 * (e.high68 - e.low68) for e in k_d])
+    spread = np.std([e.value for e in k_d], ddof=1)
+    assert 0.7 * spread <= half <= 1.4 * spread, (half, spread)
+    # The constant restitution under drag is recovered too.
+    e = [result.estimates["e"] for result in drag]
+    inside = sum(x.low95 <= EPS <= x.high95 for x in e)
+    assert inside >= binomial_range(TRIALS, 0.9545)[0]
+
+
+def test_without_drag_the_drag_rung_is_not_kept(without_drag):
+    constant, drag, kept = without_drag
+    assert kept.mean() <= 0.25
+    gains = np.array([c.bic - d.bic for c, d in zip(constant, drag)])
+    assert np.all(gains[~kept] < NESTED_STEP_BIC)
+    # k_d ≥ 0: its 95 % interval reaches down to (or near) zero.
+    assert np.mean([d.estimates["k_d"].low95 <= 0.02 for d in drag]) >= 0.8
