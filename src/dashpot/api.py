@@ -199,6 +199,11 @@ def analyze(recording: PathLike, scene: SceneLike = None, *,
         The recording or the scene cannot be read, its impacts are not a ball bouncing to
         rest, or they are too few to fit.
 
+    Notes
+    -----
+    Of a file holding several runs only the first is fitted (a warning says so);
+    :func:`dashpot.analysis.analyze_runs` fits every run on its own and all jointly.
+
     See Also
     --------
     dashpot.analysis.analyze : the function this calls.
