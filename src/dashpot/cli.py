@@ -308,20 +308,25 @@ def joint_text(runs_fit):
     -------
     str
         One line per model and quantity (ζ, ω0 in rad/s, β in 1/s, k in N/m where the mass
-        is known): value ± 1σ of each run and of the joint fit; then the joint fits' notes
+        is known): value ± 1σ of each run and of the joint fit, rounded to the uncertainty
+        (:func:`dashpot.fit_report.format_measurement`), or "not determined" where the 1σ
+        exceeds half the value (:data:`dashpot.fit.settings.WEAK_RELATIVE_ERROR`, as the fits'
+        notes say); then the joint fits' notes
         (χ²/ν of the joint fit says whether the runs share one contact).
     """
     runs = list(runs_fit.runs)
     header = ["model", "quantity", *[f"run {run}" for run in runs], "joint (shared)"]
     lines = [header]
 
+    from .fit.settings import WEAK_RELATIVE_ERROR
     from .fit_report import format_measurement
 
     def shown(estimate):
         if estimate is None:
             return "-"
-        if not math.isfinite(estimate.stderr):
-            return f"{estimate.value:.4g} (not determined)"
+        if not math.isfinite(estimate.stderr) or (
+                estimate.stderr > WEAK_RELATIVE_ERROR * abs(estimate.value)):
+            return f"{estimate.value:.3g} (not determined)"
         return format_measurement(estimate.value, estimate.stderr)
 
     for model, joint in runs_fit.joint.items():

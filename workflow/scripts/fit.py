@@ -4,6 +4,7 @@ jointly) -> results/<scene>.h5."""
 from dataclasses import replace
 
 from dashpot.analysis import analyze_runs
+from dashpot.cli import joint_text
 from dashpot.joblog import job_log
 from dashpot.pipeline import workflow_scene
 from dashpot.store import write_scene_fit
@@ -28,8 +29,8 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
         for run, fit in runs_fit.runs.items():
             for model, result in fit.results.items():
                 log.info("run %s, %s: %s", run, model, result.message)
-        for model, joint in runs_fit.joint.items():
-            log.info("joint %s: %s (chi2/nu %.3g)", model, joint.message, joint.redchi)
+        # As `dashpot fit` prints them: each run's fit beside the joint fit.
+        log.info("%s", joint_text(runs_fit))
     for note in impacts.attrs.get("notes", []):
         log.info("reader: %s", note)
     for model, fit in scene_fit.results.items():
