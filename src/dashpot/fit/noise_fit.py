@@ -23,7 +23,13 @@ Known quantities of the scene enter as in :func:`dashpot.fit.fit_model`: a first
 (or drop height) fixes v0, or is a Gaussian prior where the scene gives its uncertainty; a
 stiffness with a mass fixes or gives a prior on v* of the dashpot models. Priors add
 ((p − c)/sd)² to −2 ln L. Where the scene models air drag (mass and diameter) the flight is the
-drag flight at the scene's k_d and g_eff, taken as exact here.
+drag flight at the scene's g_eff and the drag constant ``k_d`` (1/m) is fitted with the scene's
+Gaussian prior (C_d 0.45 ± 0.05 by default, :attr:`dashpot.scene.Scene.drag`; fixed where the
+scene states C_d exactly). ``effects`` adds the flight's effects as parameters of their own
+(:func:`dashpot.physics.flight.track_flight`): "drag" a free k_d ≥ 0 where the scene gives no
+mass and diameter (degenerate then with a speed-dependent ε, which the notes say), "friction"
+g_eff (the scene's prior) and a friction deceleration f with a_away = g_eff + f and
+a_toward = g_eff − f. They are columns of the step map, tabulated with the law's parameters.
 
 Accuracy. The filter needs, at every impact of every parameter set, the step to the next
 impact: duration D(u) = τ(u) + T(R(u)), next impact speed L(R(u)) and their slopes. At the
