@@ -369,3 +369,19 @@ def test_a_run_too_short_to_fit_is_named(three_runs, tmp_path, capsys):
     assert error == (f"dashpot fit: error: {path}: run 2: only 2 impact(s) found; fitting "
                      f"needs three")
     assert not out.exists()
+
+
+def test_joint_fit_with_the_stiffness_known_exactly(three_runs):
+    """An exact stiffness and mass fix ω0 in the joint fit as in each run's: ω0 and k are
+    the scene's, exactly, and ζ (so β) is fitted to every run at once."""
+    from dashpot.scene import Known
+
+    mass = 0.05
+    scene = Scene(name="runs", models=("IIb",), gravity=TRUTH["g"], mass=Known(mass),
+                  stiffness=Known(mass * TRUTH["omega0"] ** 2))
+    joint = fit_runs(three_runs["table"], scene, ("IIb",)).joint["IIb"]
+    assert joint.success and "v_star" not in joint.varied
+    assert joint.estimates["omega0"].value == pytest.approx(TRUTH["omega0"], rel=1e-12)
+    assert joint.estimates["omega0"].stderr == 0 and joint.estimates["omega0"].status == "fixed"
+    beta = joint.estimates["beta"]
+    assert abs(beta.value - TRUTH["beta"]) < 2 * beta.stderr
