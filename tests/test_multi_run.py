@@ -385,3 +385,30 @@ def test_joint_fit_with_the_stiffness_known_exactly(three_runs):
     assert joint.estimates["omega0"].stderr == 0 and joint.estimates["omega0"].status == "fixed"
     beta = joint.estimates["beta"]
     assert abs(beta.value - TRUTH["beta"]) < 2 * beta.stderr
+
+
+def test_joint_fit_intervals_cover_at_their_stated_rates():
+    """200 simulated three-run recordings: the joint fit's 1σ and 2σ intervals of β and ω0
+    cover the truth at 68.27 % and 95.45 %, within 3 binomial standard deviations."""
+    trials = 200
+    scene = Scene(models=("IIb",), gravity=TRUTH["g"], accuracy="fast")
+    trains = [bounce_sequence("IIb", beta=TRUTH["beta"], omega0=TRUTH["omega0"], g=TRUTH["g"],
+                              v0=v0, n_max=20).impact_times for v0 in SPEEDS.values()]
+    pulls = {"beta": [], "omega0": []}
+    for trial in range(trials):
+        rng = np.random.default_rng(SEED + 1 + trial)
+        table = pd.concat([pd.DataFrame({"time": 0.3 + times
+                                         + SIGMA * rng.standard_normal(times.size),
+                                         "time_uncertainty": SIGMA, "run": run})
+                           for run, times in enumerate(trains, start=1)], ignore_index=True)
+        table.attrs["notes"] = []
+        joint = fit_runs(table, scene, ("IIb",)).joint["IIb"]
+        assert joint.success
+        for name in pulls:
+            estimate = joint.estimates[name]
+            pulls[name].append((estimate.value - TRUTH[name]) / estimate.stderr)
+    for name, values in pulls.items():
+        values = np.abs(values)
+        for width, rate in ((1.0, 0.682689), (2.0, 0.954500)):
+            tolerance = 3.0 * np.sqrt(rate * (1.0 - rate) / trials)
+            assert abs(np.mean(values < width) - rate) <= tolerance, (name, width)
