@@ -181,7 +181,8 @@ def _documented_runs_block():
 
 
 def test_multi_run_file_follows_the_documented_layout(three_runs, tmp_path):
-    """runs/<run> mirrors the root's bounces, fits and selection; joint/<model> as listed."""
+    """runs/<run> mirrors the root's bounces, fits and selection; joint/<model> as listed,
+    its intervals as the root fit's."""
     out = tmp_path / "fit.h5"
     assert main(["fit", str(three_runs["path"]), "--models", "IIb", "-q", "-o", str(out)]) == 0
     documented = _documented_runs_block()
@@ -205,8 +206,15 @@ def test_multi_run_file_follows_the_documented_layout(three_runs, tmp_path):
                 if len(parts) > 4 or (len(parts) > 3 and parts[2] != "fits"):
                     return  # a group inside a mirrored item
             elif parts[0] == "joint" and len(parts) > 1:
+                model = parts[1]
                 parts[1] = "<model>"
                 generic = "/" + "/".join(parts)
+                if len(parts) > 3 and parts[2] == "intervals":
+                    # Mirrors the root fit's intervals table: same units and types.
+                    root = source["/".join(["fits", model, *parts[2:]])]
+                    assert item.attrs["units"] == root.attrs["units"], name
+                    assert item.dtype == root.dtype, name
+                    return
             else:
                 return
             if isinstance(item, h5py.Group):
@@ -369,6 +377,20 @@ def test_a_run_too_short_to_fit_is_named(three_runs, tmp_path, capsys):
     assert error == (f"dashpot fit: error: {path}: run 2: only 2 impact(s) found; fitting "
                      f"needs three")
     assert not out.exists()
+
+
+def test_joint_profile_intervals_from_the_scene(three_runs):
+    """A scene asking for the profile likelihood gets it for the joint fit too: an interval
+    of β holding the truth, narrower than any run's own profile interval."""
+    from dataclasses import replace
+
+    scene = replace(three_runs["scene"], uncertainty=("covariance", "profile"))
+    runs_fit = fit_runs(three_runs["table"], scene, ("IIb",))
+    joint = runs_fit.joint["IIb"].intervals["profile"]
+    assert joint["low95"] < TRUTH["beta"] < joint["high95"]
+    for fit in runs_fit.runs.values():
+        own = fit.results["IIb"].intervals["profile"]
+        assert joint["high95"] - joint["low95"] < own["high95"] - own["low95"]
 
 
 def test_joint_fit_with_the_stiffness_known_exactly(three_runs):

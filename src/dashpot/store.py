@@ -189,13 +189,18 @@ def _write_fit(group, fit):
                         "notes": json.dumps(fit.notes)})
     _parameters_and_residuals(group, fit, "every residual of the fit divided by its 1-sigma: "
                               "times, then measured impact and rebound speeds, then priors")
+    _intervals_table(group, fit)
+    _eps_curve(group, fit)
+
+
+def _intervals_table(group, fit):
+    """The table of β's intervals by method of a fit (or a joint fit)."""
     # Numbers only (NaN where a method has no such figure; converged as 1 or 0).
     rows = [{"method": method, **{key: float(row.get(key, np.nan)) for key in INTERVAL_COLUMNS}}
             for method, row in fit.intervals.items()]
     _table(group, "intervals", pd.DataFrame(rows, columns=["method", *INTERVAL_COLUMNS]),
            {**{key: "1/s" for key in INTERVAL_COLUMNS[:4]}, "cpu_seconds": "s", "samples": "1",
             "autocorrelation_steps": "1", "converged": "1"})
-    _eps_curve(group, fit)
 
 
 def _write_noise_fit(group, fit):
@@ -420,6 +425,7 @@ def _write_runs(out, runs):
              for number, values in fit.run_estimates.items()],
             columns=list(JOINT_RUN_UNITS)).astype({"run": "int64"})
         _table(target, "runs", per_run, JOINT_RUN_UNITS)
+        _intervals_table(target, fit)
 
 
 def _is_dimension(dataset):
@@ -450,8 +456,8 @@ def read_fit(path):
         ``source``); where it holds several runs also ``runs``: run -> dict with ``attrs``,
         ``bounces``, ``selection`` and ``fits`` (as at the root; with the noise fits also
         ``noise_selection``, ``noise_verdict`` and ``noise_fits``), and ``joint``: model ->
-        dict with ``attrs``, ``parameters`` (DataFrame indexed by name) and ``runs``
-        (DataFrame: each run's v0 and t0 with their errors).
+        dict with ``attrs``, ``parameters`` (DataFrame indexed by name), ``runs``
+        (DataFrame: each run's v0 and t0 with their errors) and ``intervals`` (as a fit's).
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
@@ -489,7 +495,9 @@ def read_fit(path):
             out["joint"] = {model: {"attrs": dict(group.attrs),
                                     "parameters": read_table(group["parameters"]).set_index(
                                         "name"),
-                                    "runs": read_table(group["runs"])}
+                                    "runs": read_table(group["runs"]),
+                                    "intervals": read_table(group["intervals"]).set_index(
+                                        "method")}
                             for model, group in source["joint"].items()}
         if "noise_fits" in source:
             out.update(_noise_record(source))

@@ -17,12 +17,15 @@ Numbered as in :mod:`dashpot.fit`.
 .. [4] P. R. Bevington and D. K. Robinson, *Data Reduction and Error Analysis for the Physical
    Sciences*, 3rd ed. (2003), sec. 3.2 (propagation of errors) and 8.5 (errors from the
    curvature of χ²).
+.. [5] W. H. Press et al., *Numerical Recipes*, 3rd ed., Cambridge (2007), sec. 15.6
+   (confidence regions from Δχ² = 1 and 4 for one parameter).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import time
 from dataclasses import dataclass, field
 
 import lmfit
@@ -30,7 +33,8 @@ import numpy as np
 
 from ..scene import Scene
 from .accuracy import choose_accuracy
-from .covariance import _linear_estimate
+from .covariance import _interval_row, _linear_estimate
+from .profile_likelihood import _profile_beta
 from .residuals import _residual_rows
 from .settings import METHOD, OPTIONS
 from .trains import _TrainPredictor
@@ -59,6 +63,9 @@ class JointFit:
     varied : tuple of str
     correlation : ndarray
     notes : list of str
+    intervals : dict of str -> dict
+        Intervals of β (1/s) by method, as :attr:`FitResult.intervals`: ``covariance``
+        always, ``profile`` where the scene asks for it (:attr:`Scene.uncertainty`).
     """
 
     model: str
@@ -76,6 +83,7 @@ class JointFit:
     varied: tuple
     correlation: np.ndarray
     notes: list = field(default_factory=list)
+    intervals: dict = field(default_factory=dict)
 
 
 def _failed(model, message, runs):
@@ -112,7 +120,10 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         residuals [4]_ (scaled by χ²/ν where the timing uncertainties are unknown, or where
         the fit misses the data by more than 3σ of its χ² distribution), Gaussian 68.27 % and
         95.45 % intervals. AIC = χ² + 2K and BIC = χ² + K ln N with known timing errors [3]_.
-        A fit that cannot be made is returned with ``success=False`` and the reason.
+        A fit that cannot be made is returned with ``success=False`` and the reason. Where
+        the scene's ``uncertainty`` asks for ``profile``, ``intervals`` adds the profile
+        likelihood's intervals of β over the joint χ² (Δχ² = 1 and 4 [5]_; the posterior is
+        sampled for each run's own fit only).
 
     Notes
     -----
@@ -237,7 +248,9 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         notes.append("covariance not available (singular Jacobian): errors reported as "
                      "infinite")
     dof = max(int(result.nfree), 1)
+    chisqr_scale = 1.0 if sigma_known else float(result.redchi)
     if sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
+        chisqr_scale = float(result.redchi)
         cov = cov * result.redchi
         notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
                      f"the runs do not share one contact within their uncertainties; errors "
@@ -300,11 +313,19 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         aic, bic = chisqr + 2 * nvarys, chisqr + nvarys * math.log(ndata)
     else:
         aic, bic = float(result.aic), float(result.bic)
+    intervals = {"covariance": _interval_row(estimates["beta"])}
+    if "profile" in scene.uncertainty and "v_star" in varied and result.success:
+        started = time.process_time()
+        intervals["profile"] = _profile_beta(residual, result, g, chisqr_scale)
+        intervals["profile"]["cpu_seconds"] = time.process_time() - started
+    if "posterior" in scene.uncertainty:
+        notes.append("no posterior intervals for the joint fit (each run's fit has them)")
     notes.append(f"{len(runs)} runs share zeta and omega0; each run its own v0 and t0")
     return JointFit(model=model, success=bool(result.success), message=result.message,
                     estimates=estimates, run_estimates=run_estimates, chisqr=chisqr,
                     redchi=float(result.redchi), aic=aic, bic=bic, ndata=ndata, nvarys=nvarys,
-                    nfev=int(result.nfev), varied=varied, correlation=correlation, notes=notes)
+                    nfev=int(result.nfev), varied=varied, correlation=correlation, notes=notes,
+                    intervals=intervals)
 
 
 @dataclass
