@@ -3,7 +3,9 @@
 Two scenes: a 50-impact synthetic train drawn from the noise model (hybrid dashpot, ζ = 0.02,
 v* = 5 mm/s, v0 = 1 m/s, σ_ε = 0.3 %, detector σ 10 µs plus 20 µs jitter, seed fixed) and, where
 the shared data are present, the ping-pong recording (../shared/data/pingpong-erickson, 53
-impacts). Each law of the ladder and each dashpot model is fitted (with profile intervals) at
+impacts). Each law of the ladder, the drag rung (``constant+drag``: the constant law with a
+free drag constant, as :func:`dashpot.fit.noise_scene.fit_noise_scene` fits it where the scene
+gives no mass and diameter) and each dashpot model is fitted (with profile intervals) at
 the fast, standard and exact levels and at auto. Prints per law the CPU time at each level, how
 far the fast and standard fits are from the exact one (|Δ(−2 ln L)| and the largest parameter
 shift in standard errors), then the whole ladder plus the five models at auto against the
@@ -56,7 +58,13 @@ BASELINE_COMMIT = "3830686"
 BASELINE_PINGPONG = {"constant": 0.8, "linear": 1.2, "viscoelastic-hertz": 0.8,
                      "hunt-crossley": 10.0, "Ia": 2.0, "IIb": 10.0, "hybrid": 12.4}
 BASELINE_PINGPONG_TOTAL = 55.0
-FITTED = tuple(NOISE_LAWS) + tuple(MODELS)
+FITTED = (NOISE_LAWS[0], "constant+drag") + tuple(NOISE_LAWS[1:]) + tuple(MODELS)
+
+
+def fit(data, name, **options):
+    """A law, model or flight rung ("law+effect") of the ladder fitted under the noise model."""
+    law, *effects = name.split("+")
+    return fit_noise_model(data, law, effects=tuple(effects), **options)
 
 
 def synthetic_data():
@@ -92,12 +100,12 @@ def measure(data):
     """Per law: CPU s at each level and auto, the auto level, and the shifts from exact."""
     rows = {}
     for law in FITTED:
-        fit_noise_model(data, law, accuracy="fast")  # warm-up: compiled loops, surrogate tables
+        fit(data, law, accuracy="fast")  # warm-up: compiled loops, surrogate tables
         row = {}
         fits = {}
         for level in ("fast", "standard", "auto", "exact"):
             row[level], fits[level] = best_cpu(
-                lambda law=law, level=level: fit_noise_model(data, law, accuracy=level),
+                lambda law=law, level=level: fit(data, law, accuracy=level),
                 repeats=1 if level == "exact" else 2)
         row["auto level"] = fits["auto"].accuracy
         for level in ("fast", "standard"):
@@ -141,7 +149,8 @@ def measure_baseline(data_source):
             argument.to_json(path)
             argument = str(path)
         result = subprocess.run(
-            [sys.executable, "-c", BASELINE_WORKER, which, ",".join(FITTED), str(argument)],
+            [sys.executable, "-c", BASELINE_WORKER, which,
+             ",".join(name for name in FITTED if "+" not in name), str(argument)],
             check=True, capture_output=True, text=True,
             env={"PYTHONPATH": str(Path(directory) / "src"), "PATH": "/usr/bin:/bin"})
     return json.loads(result.stdout.strip().splitlines()[-1])

@@ -316,3 +316,11 @@ def test_pingpong_recording_under_the_noise_model():
     assert z.size > 40 and stats.kstest(z, "norm").pvalue > 0.01
     assert fit.results["Ia"].redchi > 100 * chosen.redchi
     assert fit.noise_verdict.startswith(f"noise model: {selected} selected")
+    # The verdict names each effect tried, drag among them (the scene gives no diameter, so
+    # drag is a rung of its own), as required or not, with its BIC step.
+    assert "the data required " in fit.noise_verdict
+    for effect in ("drag", "speed term", "contact duration"):
+        assert re.search(rf"{effect} \((carried by \w+; )?[\w+-]+: ΔBIC = -?\d",
+                         fit.noise_verdict), (effect, fit.noise_verdict)
+    drag = fit.noise_results["constant+drag"].estimates["k_d"]
+    assert drag.unit == "1/m" and 0.0 <= drag.low95 <= drag.value <= drag.high95
