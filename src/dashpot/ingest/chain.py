@@ -190,11 +190,13 @@ def _shift_to_causes(times, chain):
     delay: both chains have the same intervals, and where the copy is louder it can win the
     chain. A bounce train has no such shadow before it: the delay from a member back to the
     rings, echoes and apex clicks of earlier impacts changes from bounce to bounce. So where
-    at least a quarter of the members (and four) have a transient at one and the same delay d
-    before them (to 0.3 ms; 3 ms to 200 ms: closer sounds are the first arrival of the impact itself, which the
-    rough onset and :func:`_polish_chain` look back for), the members are secondaries and each is replaced by the
-    transient at d before it: the onset of an impact is where its first burst starts. This
-    is repeated while it applies (an echo of a ring's burst). Members without a transient
+    at least a quarter of the members (and four), over intervals differing by 1.5 times or
+    more, have a transient at one and the same delay d before them (to 0.3 ms; d from 3 ms,
+    closer sounds being the impact's own first arrival, which the rough onset and
+    :func:`_polish_chain` look back for, to 200 ms, and within 0.8 of the interval before
+    the member), the members are secondaries and each is replaced by the transient at d
+    before it: the onset of an impact is where its first burst starts. This is done once
+    more on the result (an echo of a ring's burst). Members without a transient
     at d before them stay.
     """
     lo_delay, hi_delay = _CAUSE_DELAY_SECONDS
