@@ -215,7 +215,7 @@ def test_the_scene_fit_reports_gravity_in_contact_as_required():
     result = fit_scene(impacts, scene, models=("Ia", "Ib"), noise=True,
                        noise_laws=("constant",))
     table = result.noise_selection.set_index("model")
-    assert list(table.index) == ["constant", "Ia", "Ib"]
+    assert {"constant", "Ia", "Ib"} <= set(table.index)
     assert table.loc["Ib", "selected"] and table.loc["Ib", "kept"]
     assert result.noise_verdict.startswith("noise model: Ib selected")
     assert "the data required " in result.noise_verdict
