@@ -1,16 +1,19 @@
-"""Air drag as a fitted parameter of the noise fits, and the drag rung of the ladder.
+"""Air drag and rolling friction as fitted parameters of the noise fits: the drag and
+friction rungs of the ladder.
 
 Trains are drawn by the noise model's own simulator (:meth:`TrainModel.simulate`) under the
 closed-form drag flight of :mod:`dashpot.physics.flight` (a ping-pong-like ball: ε = 0.95 from
 2.5 m/s, k_d = 0.18 1/m, σ_ε = 0.3 %), read by ``prepare_data`` as a recording's would be, and
 fitted with the scene giving no mass and diameter, so that k_d is free. Seeds were chosen once.
-Coverage tolerances are binomial: the count of intervals holding the truth within 3σ of its
+Cart trains (two accelerations, :func:`dashpot.physics.flight.track_flight`) check the
+friction rung. Coverage tolerances are binomial: the count of intervals holding the truth within 3σ of its
 mean.
 """
 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -109,3 +112,47 @@ def test_without_drag_the_drag_rung_is_not_kept(without_drag):
     assert np.all(gains[~kept] < NESTED_STEP_BIC)
     # k_d ≥ 0: its 95 % interval reaches down to (or near) zero.
     assert np.mean([d.estimates["k_d"].low95 <= 0.02 for d in drag]) >= 0.8
+
+
+# --- rolling friction on a cart ---------------------------------------------------------------
+
+CART_TRIALS = 8
+
+
+@pytest.fixture(scope="module")
+def cart_rungs():
+    """Cart trains on a 6° incline without friction (a_away = a_toward = g sin θ), times
+    only (1 ms timing noise), fitted by the scene's ladder of the constant law."""
+    from dashpot.fit.noise_scene import fit_noise_scene
+    from dashpot.physics.flight import track_flight
+
+    scene = Scene(incline_angle=6.0, friction=True)
+    g_eff = scene.flight_acceleration.value
+    model = TrainModel(LAWS["constant"].bind(np.full(CART_TRIALS, 0.8)),
+                       lambda v: track_flight(v, g_eff, g_eff))
+    train = model.simulate(15, np.random.default_rng(31337), start_time=0.0, start_speed=0.5,
+                           process_sigma=SCATTER, jitter=1e-3)
+    data = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": 1e-3}), scene)
+            for times in train.times]
+    return scene, [fit_noise_scene(d, scene, (), laws=("constant",)) for d in data]
+
+
+def test_a_cart_scene_has_a_friction_rung_kept_only_where_it_pays(cart_rungs):
+    scene, fits = cart_rungs
+    prior = scene.flight_acceleration
+    kept = 0
+    for results, table, verdict in fits:
+        assert list(results) == ["constant", "constant+friction", "constant+drag"]
+        table = table.set_index("model")
+        assert table.loc["constant+friction", "effect"] == "friction"
+        assert table.loc["constant+friction", "simpler"] == "constant"
+        kept += bool(table.loc["constant+friction", "kept"])
+        assert re.search(r"friction \(constant\+friction: ΔBIC = -?\d", verdict), verdict
+        friction = results["constant+friction"]
+        assert friction.success
+        assert friction.estimates["g_eff"].status == "prior"
+        assert friction.estimates["friction"].unit == "m/s^2"
+        # g_eff within its prior's reach; friction f ≥ 0 with a 95 % interval from 0.
+        assert abs(friction.estimates["g_eff"].value - prior.value) < 3.0 * prior.uncertainty
+        assert friction.estimates["friction"].low95 == 0.0
+    assert kept <= CART_TRIALS // 4

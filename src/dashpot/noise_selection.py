@@ -190,6 +190,10 @@ def _verdict(results, table, chosen, base_ok, c_hat):
     if "drag" in set(table["effect"]):
         parts.append("drag without the ball's mass and diameter is degenerate with a "
                      "speed-dependent restitution (e = e0 - c v^2 fits about as well)")
+    if "friction" in set(table["effect"]):
+        parts.append("friction from impact times alone is nearly degenerate with the "
+                     "restitution (both scale each flight's speed); the scene's prior on g_eff "
+                     "and a known first impact speed are what separate them")
     k_d = fit.estimates.get("k_d")
     if k_d is not None and k_d.status == "prior":
         parts.append(f"air drag in every fit with the scene's C_d prior (k_d = "
