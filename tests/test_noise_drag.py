@@ -156,3 +156,35 @@ def test_a_cart_scene_has_a_friction_rung_kept_only_where_it_pays(cart_rungs):
         assert abs(friction.estimates["g_eff"].value - prior.value) < 3.0 * prior.uncertainty
         assert friction.estimates["friction"].low95 == 0.0
     assert kept <= CART_TRIALS // 4
+
+
+# --- drag with the ball's mass and diameter: k_d under the scene's C_d prior ---------------------
+
+PRIOR_TRIALS = 12
+
+
+def test_k_d_under_the_scenes_prior_is_narrowed_by_the_data_and_covers_the_truth():
+    """A 2.7 g, 40 mm ball (C_d prior 0.45 ± 0.05): trains drawn with the scene's own k_d and
+    g_eff (buoyancy and added mass in it); every fit carries k_d with the prior, and 45
+    bounces from 2.5 m/s determine it better than the prior alone."""
+    from dashpot.scene import Known
+
+    scene = Scene(mass=Known(0.0027, 0.0001), diameter=Known(0.040))
+    prior, g_eff = scene.drag.drag_constant, scene.driving_acceleration
+    model = TrainModel(LAWS["constant"].bind(np.full(PRIOR_TRIALS, EPS)),
+                       lambda v: drag_flight(v, g_eff, prior.value))
+    train = model.simulate(BOUNCES, np.random.default_rng(90210), start_time=0.3,
+                           start_speed=SPEED, process_sigma=SCATTER, jitter=JITTER,
+                           detector_sigma=DETECTOR)
+    data = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": DETECTOR}), scene)
+            for times in train.times]
+    fits = fit_noise_models(data, "constant", scene, accuracy="fast")
+    k_d = [fit.estimates["k_d"] for fit in fits]
+    assert all(e.status == "prior" for e in k_d)
+    assert all(any(n.startswith("air drag: k_d fitted with the scene's prior") for n in f.notes)
+               for f in fits)
+    inside = sum(e.low95 <= prior.value <= e.high95 for e in k_d)
+    assert inside >= binomial_range(PRIOR_TRIALS, 0.9545)[0]
+    assert np.median([e.stderr for e in k_d]) < prior.uncertainty
+    e = [fit.estimates["e"] for fit in fits]
+    assert sum(x.low95 <= EPS <= x.high95 for x in e) >= binomial_range(PRIOR_TRIALS, 0.9545)[0]
