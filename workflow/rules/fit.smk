@@ -13,6 +13,7 @@ rule fit:
         mapping=config_scene,
         truth=truth_file,
         uncertainty=config.get("uncertainty", ["covariance"]),
+        noise=config.get("noise", False),
     log:
         "results/logs/fit/{scene}.log",
     benchmark:

@@ -22,6 +22,9 @@ with job_log(snakemake.log[0], f"fit scene {name}") as log:
     if methods and scene.uncertainty == ("covariance",):
         # The config's methods, for every scene whose scene.yaml does not choose its own.
         scene = replace(scene, uncertainty=tuple(dict.fromkeys(["covariance", *methods])))
+    if snakemake.params.get("noise") and not scene.noise:
+        # The config's noise model, for every scene (a scene.yaml can only add it).
+        scene = replace(scene, noise=True)
     impacts, runs_fit = analyze_runs(scene.recording, scene)
     scene_fit = runs_fit.first  # the first run's, at the root of the file
     if len(runs_fit.runs) > 1:
