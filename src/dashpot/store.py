@@ -207,12 +207,13 @@ def _write_noise_fit(group, fit):
     """A fit under the noise model: as a deterministic fit's group, with −2 ln L, σ_ε and σ_j
     (with their intervals) as attributes, the standardized innovations as the normalized
     residuals, the flagged impacts and each impact's timing noise; no intervals table (the
-    parameters table holds every interval) and no accuracy figures (the filter is exact)."""
+    parameters table holds every interval); the accuracy figures are the filter's step map's."""
     attrs = {"success": fit.success, "message": fit.message, "chisqr": fit.chisqr,
              "redchi": fit.redchi, "aic": fit.aic, "bic": fit.bic,
              "neg2_log_likelihood": fit.neg2_log_likelihood, "ndata": fit.ndata,
-             "nvarys": fit.nvarys, "nfev": fit.nfev, "varied": json.dumps(list(fit.varied)),
-             "notes": json.dumps(fit.notes)}
+             "nvarys": fit.nvarys, "nfev": fit.nfev, "accuracy": fit.accuracy or "",
+             "error_bound": fit.error_bound, "numerical_tolerance": fit.numerical_tolerance,
+             "varied": json.dumps(list(fit.varied)), "notes": json.dumps(fit.notes)}
     for name in ("sigma_eps", "sigma_j"):
         estimate = fit.estimates.get(name)
         values = ((estimate.value, estimate.low68, estimate.high68, estimate.low95,
