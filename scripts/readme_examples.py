@@ -11,7 +11,9 @@ fresh folder, and rewrites those blocks, so the README cannot drift from the cod
 The recording is the shared ping-pong one (``../shared/data/pingpong-erickson/pingpong.wav``
 beside the repository, with its scene ``data/pingpong-erickson/scene.yaml``); where it is
 absent, the workflow's synthetic ``light-ball-audio`` scene is written and used instead (and
-the script says so: the README is meant to show the real recording).
+the script says so: the README is meant to show the real recording). Both scenes ask for the
+noise model (``noise: true``): one run gives the quick start's block (the deterministic fits)
+and the noise section's (the fits under the noise model).
 ``tests/test_readme_examples.py`` checks that the README holds what this script would write.
 """
 
@@ -31,12 +33,16 @@ PINGPONG = Path("../shared/data/pingpong-erickson/pingpong.wav")  # relative to 
 PINGPONG_SCENE = Path("data/pingpong-erickson/scene.yaml")
 SYNTHETIC = "light-ball-audio"  # the workflow's synthetic scene used where PINGPONG is absent
 
-# name -> (arguments after `dashpot`, with {recording} and {scene}; which lines to show).
+# name -> (arguments after `dashpot`, with {recording} and {scene}; which lines to show). The
+# ping-pong scene asks for the noise model (noise: true): one run gives both blocks, the quick
+# start's without the noise fits' lines and the noise section's with only those.
+ANALYZE = ("analyze", "{recording}", "--scene", "{scene}", "-o", "out")
 EXAMPLES = {
-    "analyze": (["analyze", "{recording}", "--scene", "{scene}", "-o", "out"], "all"),
-    "analyze-noise": (["analyze", "{recording}", "--scene", "{scene}", "-o", "out",
-                       "--noise"], "noise"),
+    "analyze": (ANALYZE, "deterministic"),
+    "analyze-noise": (ANALYZE, "noise"),
 }
+NOISE_PREFIX = "  noise"  # how report_text starts the lines of the fits under the noise model
+OMITTED = "  ..."
 BLOCK = re.compile(r"(<!-- output: (?P<name>[\w-]+) -->\n)(?P<body>.*?)(<!-- end output -->)",
                    re.S)
 
@@ -54,17 +60,32 @@ def _synthetic_scene(folder):
     from dashpot.pipeline import write_synthetic_scene
 
     spec = yaml.safe_load((REPO / "config" / "config.yaml").read_text())["synthetic"][SYNTHETIC]
+    spec["scene"] = {**(spec.get("scene") or {}), "noise": True}  # as the ping-pong scene
     scene = write_synthetic_scene(folder / SYNTHETIC, spec, name=SYNTHETIC)
     recording = yaml.safe_load(scene.read_text())["recording"]
     return Path(SYNTHETIC) / recording, Path(SYNTHETIC) / "scene.yaml"
 
 
 def _shown(lines, which):
-    """The lines of an output the README shows: all, or the noise model's (the rest is
-    the first example's) after its first line."""
+    """The lines of an output the README shows: all, those before the fits under the noise
+    model (the first line and the deterministic fits), or the first line and the noise
+    model's with their notes (the last group :func:`dashpot.report_text` prints); "  ..."
+    stands where lines are left out.
+
+    Raises
+    ------
+    RuntimeError
+        The output has no line of the kind asked for (then the README's text around the block
+        no longer describes it).
+    """
+    noise = [index for index, line in enumerate(lines) if line.startswith(NOISE_PREFIX)]
+    if which != "all" and not noise:
+        raise RuntimeError("the example printed no fit under the noise model")
     if which == "all":
         return lines
-    return [lines[0], "  ...", *(line for line in lines[1:] if line.startswith("  noise"))]
+    if which == "deterministic":
+        return [*lines[:noise[0]], OMITTED]
+    return [lines[0], OMITTED, *lines[noise[0]:]]  # the noise group comes last, notes too
 
 
 def generate(repo=REPO, names=None):
@@ -102,15 +123,18 @@ def generate(repo=REPO, names=None):
         else:
             recording, scene = _synthetic_scene(folder)
         environment = {**os.environ, "COLUMNS": "100", "NO_COLOR": "1"}
+        printed = {}  # each command is run once, however many blocks show it
         for name in names or EXAMPLES:
             arguments, which = EXAMPLES[name]
-            argv = [part.format(recording=recording, scene=scene) for part in arguments]
-            run = subprocess.run([sys.executable, "-m", "dashpot", *argv], cwd=folder,
-                                 capture_output=True, text=True, env=environment)
-            if run.returncode != 0:
-                raise RuntimeError(f"dashpot {' '.join(argv)} exited with {run.returncode}: "
-                                   f"{run.stderr.strip()}")
-            lines = _shown(run.stdout.rstrip("\n").split("\n"), which)
+            argv = tuple(part.format(recording=recording, scene=scene) for part in arguments)
+            if argv not in printed:
+                run = subprocess.run([sys.executable, "-m", "dashpot", *argv], cwd=folder,
+                                     capture_output=True, text=True, env=environment)
+                if run.returncode != 0:
+                    raise RuntimeError(f"dashpot {' '.join(argv)} exited with "
+                                       f"{run.returncode}: {run.stderr.strip()}")
+                printed[argv] = run.stdout.rstrip("\n").split("\n")
+            lines = _shown(printed[argv], which)
             outputs[name] = "".join(f"{line}\n" for line in [f"$ dashpot {' '.join(argv)}",
                                                              *lines])
     return outputs
