@@ -84,6 +84,14 @@ def test_summary_has_one_row_per_noise_fit_with_its_scatter_jitter_and_chi_squar
     # Every row of the scene carries its noise verdict; the deterministic row has no σ's.
     assert verdict and (table["noise_verdict"] == verdict).all()
     assert math.isnan(rows.loc["Ia", "sigma_eps"]) and math.isnan(rows.loc["Ia", "sigma_j"])
+    # Each row carries its own fit's notes in plain words, the routine ones left out.
+    for model, fit in [*((m, noisy_fit.results[m]) for m in noisy_fit.results),
+                       *((f"noise:{law}", f) for law, f in noisy_fit.noise_results.items())]:
+        shown = rows.loc[model, "notes"].split(" | ") if rows.loc[model, "notes"] else []
+        plain = [note for note in fit.notes
+                 if not note.startswith(("accuracy ", "start: ", "noise model: rebound"))]
+        assert shown == plain, model
+    assert any(rows["notes"].str.len() > 0)
     # The summary of the file and of the fit in memory are the same rows.
     from dashpot.select import summary_table
     memory = summary_table({"noisy": noisy_fit})
@@ -107,7 +115,7 @@ def test_summary_file_stores_the_jitter_in_seconds(scene_files, tmp_path):
 def test_scene_without_noise_keeps_its_rows_and_gets_empty_noise_columns(scene_files):
     plain_path, _, _ = scene_files
     table = summary_from_records({"plain": load_record(plain_path)})
-    assert list(table.columns) == [*COLUMNS_WITHOUT_NOISE[:-2], *NOISE_COLUMNS,
+    assert list(table.columns) == [*COLUMNS_WITHOUT_NOISE[:-2], *NOISE_COLUMNS, "notes",
                                    *TRUTH_SUMMARY_COLUMNS, "status", "problem"]
     assert list(table["model"]) == ["Ia"]
     assert table["sigma_eps"].isna().all() and table["sigma_j"].isna().all()

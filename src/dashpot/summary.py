@@ -14,6 +14,7 @@ marks the scenes the workflow could not run, so the table says which rows are st
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -37,8 +38,8 @@ SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "de
                    "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
                    "k_note", "omega0",
                    "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
-                   "sigma_eps", "sigma_j", "noise_verdict", *TRUTH_SUMMARY_COLUMNS, "status",
-                   "problem")
+                   "sigma_eps", "sigma_j", "noise_verdict", "notes", *TRUTH_SUMMARY_COLUMNS,
+                   "status", "problem")
 """Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`; the
 CSV's headers carry them, :func:`dashpot.store.csv_header`)."""
 
@@ -50,8 +51,8 @@ STATUSES = {
 }
 """Values of the ``status`` column and what each means."""
 
-_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "noise_verdict", "status",
-                 "problem")
+_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "noise_verdict", "notes",
+                 "status", "problem")
 # h5py raises all of these for a damaged or foreign file, depending on where the damage is.
 _READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 
@@ -99,7 +100,8 @@ def summary_from_records(records):
         determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
         ``noise_verdict``: empty for the deterministic fits' rows, except the noise verdict of a
         scene with fits under the noise model, which also has one row per noise fit (model
-        ``"noise:<law>"``); then for a synthetic scene (its file holds the ``truth`` table)
+        ``"noise:<law>"``); ``notes``, the row's fit notes in plain words joined by " | "
+        (routine ones on the accuracy level and start values left out); then for a synthetic scene (its file holds the ``truth`` table)
         the true β (1/s), ω0 (rad/s), ζ and v0 (m/s) on each of its rows as ``*_truth`` and
         the pull of the row's fit against each as ``*_pull`` (NaN for fits under the noise
         model and where the fit's error is not finite and positive; see
@@ -108,8 +110,30 @@ def summary_from_records(records):
     table = summary_table({name: _scene_view(record) for name, record in records.items()})
     if table.empty:
         return _empty_table()
-    table = table.assign(status="ok", problem="", **_truth_columns(table, records))
+    table = table.assign(status="ok", problem="", notes=_notes_column(table, records),
+                         **_truth_columns(table, records))
     return table[list(SUMMARY_COLUMNS)].reset_index(drop=True)
+
+
+def _notes_column(table, records):
+    """Each row's fit notes in plain words, joined by " | " (prior conflicts, restarts, strong
+    correlations, what the data do not determine), less the routine ones on how the fit was
+    made (accuracy level, start values), as `dashpot fit` prints them."""
+    from .fit_report import ROUTINE_PREFIXES
+
+    def notes(scene, model):
+        group, name = (("noise_fits", model.split(":", 1)[1]) if model.startswith("noise:")
+                       else ("fits", model))
+        fit = records[scene].get(group, {}).get(name)
+        if fit is None:
+            return ""
+        try:
+            said = json.loads(fit["attrs"].get("notes", "[]"))
+        except (TypeError, ValueError):
+            return ""
+        return " | ".join(note for note in said if not note.startswith(ROUTINE_PREFIXES))
+
+    return [notes(scene, model) for scene, model in zip(table["scene"], table["model"])]
 
 
 def _truth_columns(table, records):
@@ -170,7 +194,7 @@ def _one_line(error):
 def _scene_row(scene, status, problem):
     row = {column: math.nan for column in SUMMARY_COLUMNS}
     row.update(scene=scene, model="", success=False, selected=False, beta_note="", k_note="",
-               verdict="", noise_verdict="", status=status, problem=problem)
+               verdict="", noise_verdict="", notes="", status=status, problem=problem)
     return row
 
 
