@@ -239,8 +239,11 @@ def test_make_run_loads_the_default_profile():
     plan = subprocess.run(["make", "-n", "run"], cwd=REPO, capture_output=True, text=True,
                           timeout=60)
     assert plan.returncode == 0, plan.stderr
+    # The workflow, then its report: both with the profile (the report must see the same
+    # configuration as the run it reports).
     command = [line for line in plan.stdout.splitlines() if "snakemake" in line]
-    assert len(command) == 1 and f"--profile {PROFILE}" in command[0]
+    assert len(command) == 2 and all(f"--profile {PROFILE}" in line for line in command)
+    assert "--report" not in command[0] and "--report results/report.html" in command[1]
     profile = yaml.safe_load((REPO / PROFILE / "config.yaml").read_text())
     assert profile["rerun-incomplete"] is True and profile["keep-going"] is True
     readme = (REPO / "README.md").read_text(encoding="utf-8")
