@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from dataclasses import replace
 
 import lmfit
 import numpy as np
@@ -335,6 +336,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
         return int(trains.impacts[0]) < data.count
 
     result = minimize(params)
+    held_at_limit = False  # ω0 held at the gravity-free limit: every freer fit captured
     if model in GRAVITY_MODELS and fixed_omega0 is None and captures(result):
         # Ended where the model captures the ball before the data end: a local minimum, as
         # every gravity model reaches the gravity-free one when ω0 grows. Start again from
@@ -343,10 +345,20 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
         restart = params.copy()  # the fast optimizer updates its start in place
         restart["v_star"].set(value=0.5 * g * np.min(np.diff(data.times)) * 1e-4, vary=False)
         limit = minimize(restart)
-        limit.params["v_star"].set(vary=True)
-        retry = minimize(limit.params)
-        if retry.chisqr < result.chisqr or captures(result):
-            result = retry
+        freed = limit.params.copy()
+        freed["v_star"].set(vary=True)
+        retry = minimize(freed)
+        if not captures(retry):
+            if retry.chisqr < result.chisqr or captures(result):
+                result = retry
+        else:
+            # Under a misfit (junk impacts at the end of a real train) a capture before the
+            # last impact can lower chi-square: no fit of this model describes every impact.
+            # Keep the limit, which does, and say that ω0 is held there (not determined).
+            result, held_at_limit = limit, True
+            notes.append("freeing omega0 from the gravity-free limit ends in capture before "
+                         "the last impact again: omega0 held at that limit, not determined "
+                         "by these data")
     if (model in GRAVITY_MODELS and fixed_omega0 is None and data.sigma_known
             and result.chisqr > _misfit_bound(result.nfree)):
         # Where the slowest impacts come near capture, a gravity model's misfit has local
@@ -507,6 +519,15 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
             spread = log_sd(("g_eff", 1.0 / value), ("friction", sign / value)) * value
             estimates[name] = _linear_estimate(value, spread, "m/s^2", "derived",
                                                f"{name} = {formula}")
+    if held_at_limit:
+        # ω0 sits at a limit the fit was held at, not at a minimum: no error and no bound,
+        # and β, k and γ, which scale with it, are not determined either.
+        for name in ("omega0", "v_star", "beta", "k", "gamma"):
+            if name in estimates:
+                estimates[name] = replace(estimates[name], stderr=math.inf, low68=math.nan,
+                                          high68=math.inf, low95=math.nan, high95=math.inf,
+                                          status="fitted" if name in ("omega0", "v_star")
+                                          else estimates[name].status)
     notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
 
     nvarys = len(varied)
