@@ -81,6 +81,22 @@ def recording_note(path, scene):
             f"file records {Path(path).name} as input_file)")
 
 
+
+def _fit_reporter(steps, progress):
+    """Called with each fit's name as it is done: logs it with the CPU time so far and passes
+    step 2 ... 1 + `steps` of 1 + `steps` to `progress` (step 1 is reading the impacts)."""
+    done = iter(range(2, 2 + steps))
+    started = time.process_time()
+
+    def report(model):
+        step = next(done, steps + 1)
+        logger.info("fitted %s (%d of %d, %.2g s of CPU so far)", model, step - 1, steps,
+                    time.process_time() - started)
+        if progress is not None:
+            progress(step, 1 + steps, f"fitted {model}")
+
+    return report
+
 def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     """Impacts and every requested model fitted, for one recording.
 
@@ -126,17 +142,9 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
     models = tuple(models or (scene or Scene()).models)
     noise = (scene or Scene()).noise if noise is None else noise
     steps = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)
-    done = iter(range(2, 2 + steps))
-    started = time.process_time()
     if progress is not None:
         progress(1, 1 + steps, f"{len(impacts)} impacts")
-
-    def report(model):
-        step = next(done, steps + 1)
-        logger.info("fitted %s (%d of %d, %.2g s of CPU so far)", model, step - 1, steps,
-                    time.process_time() - started)
-        if progress is not None:
-            progress(step, 1 + steps, f"fitted {model}")
+    report = _fit_reporter(steps, progress)
 
     logger.info("fitting %s%s", ", ".join(models),
                 " and the fits under the noise model" if noise else "")
@@ -197,18 +205,9 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
     noise = scene.noise if noise is None else noise
     per_run = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)
     steps = len(parts) * per_run + (len(models) if several else 0)
-    done = iter(range(2, 2 + steps))
     if progress is not None:
         progress(1, 1 + steps, f"{len(impacts)} impacts in {len(parts)} run(s)")
-
-    started = time.process_time()
-
-    def report(model):
-        step = next(done, steps + 1)
-        logger.info("fitted %s (%d of %d, %.2g s of CPU so far)", model, step - 1, steps,
-                    time.process_time() - started)
-        if progress is not None:
-            progress(step, 1 + steps, f"fitted {model}")
+    report = _fit_reporter(steps, progress)
 
     logger.info("fitting %s%s%s", ", ".join(models),
                 " and the fits under the noise model" if noise else "",

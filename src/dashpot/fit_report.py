@@ -129,16 +129,10 @@ def _scaled(name, estimate):
 
 def _bound(symbol, estimate):
     """The bound the data give, from the finite ends of the 95.45 % interval (text)."""
-    unit = "" if estimate.unit in ("", "1") else f" {estimate.unit}"
-    low, high = estimate.low95, estimate.high95
-    low_ok, high_ok = math.isfinite(low) and low > 0, math.isfinite(high)
-    if low_ok and high_ok:
-        return f"{_number(low)} to {_number(high)}{unit} at 95 %"
-    if low_ok:
-        return f"{symbol} > {_number(low)}{unit} at 95 %, no upper bound"
-    if high_ok:
-        return f"{symbol} < {_number(high)}{unit} at 95 %"
-    return "no bound at 95 %"
+    from .fit.observability import bound_text
+
+    unit = "" if estimate.unit in ("", "1") else estimate.unit
+    return bound_text(symbol, unit, estimate, _number)
 
 
 def undetermined(fit):

@@ -46,16 +46,18 @@ def _omega0_undetermined(omega0):
     return not math.isfinite(omega0.high95) or not relative <= WEAK_RELATIVE_ERROR
 
 
-def _bound(symbol, unit, estimate):
-    """The bound the data give, from the finite ends of the 95.45 % interval (text)."""
+def bound_text(symbol, unit, estimate, number="{:.3g}".format):
+    """The bound the data give, from the finite ends of the 95.45 % interval (text); `unit`
+    is appended after a space unless empty, numbers written by `number`."""
+    unit = f" {unit}" if unit else ""
     low, high = estimate.low95, estimate.high95
     low_ok, high_ok = math.isfinite(low) and low > 0, math.isfinite(high)
     if low_ok and high_ok:
-        return f"{low:.3g} to {high:.3g} {unit} at 95 %"
+        return f"{number(low)} to {number(high)}{unit} at 95 %"
     if low_ok:
-        return f"{symbol} > {low:.3g} {unit} at 95 %, no upper bound"
+        return f"{symbol} > {number(low)}{unit} at 95 %, no upper bound"
     if high_ok:
-        return f"{symbol} < {high:.3g} {unit} at 95 %"
+        return f"{symbol} < {number(high)}{unit} at 95 %"
     return "no bound at 95 %"
 
 
@@ -86,7 +88,7 @@ def not_determined(estimates):
         why = "omega0 unbounded above at 95 %"
     if omega0.status == "prior":
         why += " even with the scene's prior"
-    return {key: f"not determined ({_bound(symbol, unit, estimates[key])}; {why})"
+    return {key: f"not determined ({bound_text(symbol, unit, estimates[key])}; {why})"
             for key, (symbol, unit) in CONTACT_QUANTITIES.items() if key in estimates}
 
 
