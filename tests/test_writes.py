@@ -444,3 +444,21 @@ def test_a_workflow_job_on_a_full_disk_fails_with_one_line(full_disk, tmp_path, 
     assert errors[0].endswith(f"{output}: No space left on device"), errors
     assert output.read_bytes() == b"previous result"
     assert _temporaries(full_disk) == []
+
+
+def test_a_job_with_a_bad_input_says_one_line_on_stderr_and_in_its_log(tmp_path, capfd):
+    """The job's error line goes through logging (no print in the library): one line naming
+    the file on standard error, the same in the log, exit status 1, no traceback."""
+    from dashpot.errors import InputError
+    from dashpot.joblog import job_log
+
+    log = tmp_path / "logs" / "job.log"
+    with pytest.raises(SystemExit) as exit_info:
+        with job_log(log, "fit scene demo"):
+            raise InputError("scenes/demo/rec.wav", "not a readable audio file")
+    assert exit_info.value.code == 1
+    err = capfd.readouterr().err.strip().splitlines()
+    assert err == ["dashpot (fit scene demo): error: scenes/demo/rec.wav: not a readable "
+                   "audio file"]
+    text = log.read_text()
+    assert "not a readable audio file" in text and "Traceback" not in text

@@ -47,8 +47,15 @@ def job_log(path, job):
     except (InputError, OSError) as error:
         if isinstance(error, OSError):
             error = InputError(error.filename or "output", error.strerror or str(error))
-        logger.error("%s", error)
-        print(f"dashpot ({job}): error: {error}", file=sys.stderr)
+        # The one line goes to the log file and, through a handler of its own, to standard
+        # error, where Snakemake shows it beside the failed job.
+        console = logging.StreamHandler(sys.stderr)
+        console.setFormatter(logging.Formatter(f"dashpot ({job}): error: %(message)s"))
+        root.addHandler(console)
+        try:
+            logger.error("%s", error)
+        finally:
+            root.removeHandler(console)
         raise SystemExit(1) from None
     except Exception:
         logger.exception("%s failed", job)
