@@ -356,29 +356,39 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
             used[rows] = True
             used[rows[fit.data.excluded]] = False
         _attach(group, _dataset(group, "used_in_fit", used, "1"))
-        _table(out, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
-        fits = out.create_group("fits")
-        for model, fit in scene_fit.results.items():
-            _write_fit(fits.create_group(model), fit)
-        selection = _table(out, "selection", scene_fit.selection, SELECTION_UNITS)
-        selection.attrs["verdict"] = scene_fit.verdict
+        _write_fits(out, scene_fit)
         if truth is not None:
             # Only for a synthetic scene: other files have the layout they always had.
             compared = _table(out, "truth", truth, TRUTH_UNITS)
             compared.attrs["model"] = str(truth.attrs.get("model", ""))
             compared.attrs["source"] = str(truth.attrs.get("source", ""))
-        if scene_fit.noise_results:
-            # Only where asked for: a file without them has the layout it always had.
-            noise_fits = out.create_group("noise_fits")
-            for law, fit in scene_fit.noise_results.items():
-                _write_noise_fit(noise_fits.create_group(law), fit)
-            noise = _table(out, "noise_selection", scene_fit.noise_selection,
-                           NOISE_SELECTION_UNITS)
-            noise.attrs["verdict"] = scene_fit.noise_verdict
+        _write_noise_fits(out, scene_fit)
         if several:
             # Only for a multi-run recording: a single-run file has the layout it always had.
             _write_runs(out, runs)
 
+
+
+def _write_fits(group, scene_fit):
+    """A scene's (or one run's) bounce table, its fits under fits/<model> and its selection."""
+    _table(group, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
+    fits = group.create_group("fits")
+    for model, fit in scene_fit.results.items():
+        _write_fit(fits.create_group(model), fit)
+    selection = _table(group, "selection", scene_fit.selection, SELECTION_UNITS)
+    selection.attrs["verdict"] = scene_fit.verdict
+
+
+def _write_noise_fits(group, scene_fit):
+    """Its fits under the noise model and their selection, only where it has them: a file
+    without them has the layout it always had."""
+    if not scene_fit.noise_results:
+        return
+    noise_fits = group.create_group("noise_fits")
+    for law, fit in scene_fit.noise_results.items():
+        _write_noise_fit(noise_fits.create_group(law), fit)
+    noise = _table(group, "noise_selection", scene_fit.noise_selection, NOISE_SELECTION_UNITS)
+    noise.attrs["verdict"] = scene_fit.noise_verdict
 
 def _write_runs(out, runs):
     """Each run's bounces, fits and selection under runs/<run>, the joint fits under
@@ -389,18 +399,8 @@ def _write_runs(out, runs):
         run = group.create_group(str(number), track_order=True)
         run.attrs.update({"run": int(number), "verdict": fit.verdict,
                           "notes": json.dumps(list(fit.data.notes))})
-        _table(run, "bounces", fit.data.bounces, BOUNCE_UNITS)
-        fits = run.create_group("fits")
-        for model, result in fit.results.items():
-            _write_fit(fits.create_group(model), result)
-        selection = _table(run, "selection", fit.selection, SELECTION_UNITS)
-        selection.attrs["verdict"] = fit.verdict
-        if fit.noise_results:
-            noise_fits = run.create_group("noise_fits")
-            for law, result in fit.noise_results.items():
-                _write_noise_fit(noise_fits.create_group(law), result)
-            noise = _table(run, "noise_selection", fit.noise_selection, NOISE_SELECTION_UNITS)
-            noise.attrs["verdict"] = fit.noise_verdict
+        _write_fits(run, fit)
+        _write_noise_fits(run, fit)
     joint = out.create_group("joint", track_order=True)
     for model, fit in runs.joint.items():
         target = joint.create_group(model, track_order=True)

@@ -24,30 +24,8 @@ brackets, and a run label either in front (Vernier: ``Latest: Time (s)``, ``Run 
 (m)``) or behind (PASCO Capstone: ``Time (s) Run #1``). Tracker writes bare names (``t``,
 ``x``, ``y``) in its calibrated units (s and, usually, m).
 
-References
-----------
-.. [1] phyphox experiment definitions ``acoustic_stopwatch.phyphox`` and
-   ``inelastic_collision.phyphox`` (repository phyphox/phyphox-experiments): export sets
-   "Simple" (``Start (s)``, ``Stop (s)``, ``Difference (s)``), "Multiple" (``Start (s)``,
-   ``Stop 1 (s)`` … ``Stop 5 (s)``) and "Energy" (``Bounce i (s)``, ``Height i (m)``,
-   ``Energy i``); heights h_i = (g/8)·(t_i − t_{i−1})² with g = 9.81 m/s².
-.. [2] phyphox-android ``DataExport.java``: CSV with quoted headers, numbers formatted
-   ``0.000000000E0``, separators comma/tab/semicolon with decimal point or comma, one CSV per
-   set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
-   with ``NaN``.
-.. [3] Vernier Logger Pro 3 help, "Photogate timing": the time column holds the clock times of
-   all gate-status changes (blocked/unblocked).
-.. [4] P. J. Rousseeuw and C. Croux, "Alternatives to the median absolute deviation", J. Am.
-   Stat. Assoc. 88, 1273-1283 (1993): σ ≈ 1.4826·MAD for Gaussian noise.
-.. [5] D. Halliday, R. Resnick and J. Walker, "Fundamentals of Physics", ch. 2: motion with
-   constant acceleration, x = x0 + v0·t + a·t²/2, v² = v0² + 2a·Δx.
-.. [6] W. K. Newey and K. D. West, "A simple, positive semi-definite, heteroskedasticity and
-   autocorrelation consistent covariance matrix", Econometrica 55, 703-708 (1987): least-squares
-   uncertainties under serially correlated noise via the long-run variance.
-.. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
-   "Datatable view": the data export is tab-delimited text, a first line with the track name,
-   a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
-   blank at a track's first and last steps.
+
+The formats' sources are cited in the module of each reader.
 """
 
 from ._tabular import TABLE_KINDS, sniff_table
