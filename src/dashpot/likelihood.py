@@ -541,6 +541,14 @@ class StepTable:
 
 
 @numba.njit(cache=True, inline="always")
+def _combine(b00, b10, b01, b11, values, slopes, member, left, right, column):
+    """One column of the table at a point between nodes `left` and `right`: the Hermite
+    basis weights (or their derivatives) times the values and slopes there."""
+    return (b00 * values[member, left, column] + b10 * slopes[member, left, column]
+            + b01 * values[member, right, column] + b11 * slopes[member, right, column])
+
+
+@numba.njit(cache=True, inline="always")
 def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, hint=-1):
     """(found, D, L, dD/du, dL/du, timing gain, speed gain, interval) from the table at
     `speed` (m/s), looked for first in interval `hint`;
@@ -585,19 +593,12 @@ def _step_at(speed, member, log_low, log_step, nodes, values, slopes, unusable, 
     d00, d10 = (6.0 * s2 - 6.0 * s) / width, 3.0 * s2 - 4.0 * s + 1.0
     d01, d11 = -d00, 3.0 * s2 - 2.0 * s
     k = j + 1
-    v, m = values, slopes
-    duration = (h00 * v[member, j, 0] + h10 * m[member, j, 0] + h01 * v[member, k, 0]
-                + h11 * m[member, k, 0])
-    landing = (h00 * v[member, j, 1] + h10 * m[member, j, 1] + h01 * v[member, k, 1]
-               + h11 * m[member, k, 1])
-    timing_gain = (h00 * v[member, j, 2] + h10 * m[member, j, 2] + h01 * v[member, k, 2]
-                   + h11 * m[member, k, 2])
-    speed_gain = (h00 * v[member, j, 3] + h10 * m[member, j, 3] + h01 * v[member, k, 3]
-                  + h11 * m[member, k, 3])
-    duration_slope = (d00 * v[member, j, 0] + d10 * m[member, j, 0] + d01 * v[member, k, 0]
-                      + d11 * m[member, k, 0])
-    landing_slope = (d00 * v[member, j, 1] + d10 * m[member, j, 1] + d01 * v[member, k, 1]
-                     + d11 * m[member, k, 1])
+    duration = _combine(h00, h10, h01, h11, values, slopes, member, j, k, 0)
+    landing = _combine(h00, h10, h01, h11, values, slopes, member, j, k, 1)
+    timing_gain = _combine(h00, h10, h01, h11, values, slopes, member, j, k, 2)
+    speed_gain = _combine(h00, h10, h01, h11, values, slopes, member, j, k, 3)
+    duration_slope = _combine(d00, d10, d01, d11, values, slopes, member, j, k, 0)
+    landing_slope = _combine(d00, d10, d01, d11, values, slopes, member, j, k, 1)
     return True, duration, landing, duration_slope, landing_slope, timing_gain, speed_gain, j
 
 
