@@ -8,7 +8,8 @@ Every file under the two directories is compared, except anything in a directory
 
 - HDF5 (``.h5``, ``.hdf5``): same groups, datasets and links; every dataset equal in dtype,
   shape and values (NaN equals NaN); every attribute of every object equal, except the root
-  attributes named by --ignore-root-attr (default: ``created``, the creation time).
+  attributes named by --ignore-root-attr (default: ``created``, the creation time). Object
+  references (dimension scales' lists) are compared by the path they point to, not by address.
 - plots (PNG, PDF, SVG, EPS, JPEG, ...): only present on both sides (renderers write dates
   and ids into them, so their bytes may differ).
 - everything else (CSV, JSON, YAML, text, other binaries): byte for byte.
@@ -78,12 +79,48 @@ def _equal_values(x, y) -> bool:
     return bool(np.array_equal(x, y))
 
 
+def _holds_objects(dtype) -> bool:
+    """Whether values of this dtype hold Python objects (references, vlen data, strings)."""
+    if dtype.names:
+        return any(_holds_objects(dtype[name]) for name in dtype.names)
+    return dtype.kind == "O"
+
+
+def _dereferenced(value, file):
+    """Value with every object reference replaced by the path of the object it points to.
+
+    A reference is a file address, and two equal files need not place their objects at equal
+    addresses (dimension scales' DIMENSION_LIST and REFERENCE_LIST hold such references), so
+    references are compared by what they point to.
+    """
+    import h5py
+    import numpy as np
+
+    if isinstance(value, (h5py.Reference, h5py.RegionReference)):
+        return file[value].name if value else None
+    if isinstance(value, np.void) and value.dtype.names:
+        return tuple(_dereferenced(value[name], file) for name in value.dtype.names)
+    if isinstance(value, np.ndarray) and _holds_objects(value.dtype):
+        return [_dereferenced(item, file) for item in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
 def _attrs_diff(where: str, a, b, ignore: set[str]) -> str | None:
+    import numpy as np
+
     keys_a, keys_b = set(a.attrs) - ignore, set(b.attrs) - ignore
     if keys_a != keys_b:
         return f"{where}: attributes {sorted(keys_a ^ keys_b)} on one side only"
     for key in sorted(keys_a):
-        if not _equal_values(a.attrs[key], b.attrs[key]):
+        value_a, value_b = a.attrs[key], b.attrs[key]
+        if isinstance(value_a, np.ndarray) and _holds_objects(value_a.dtype):
+            equal = (isinstance(value_b, np.ndarray) and value_a.dtype == value_b.dtype
+                     and _dereferenced(value_a, a.file) == _dereferenced(value_b, b.file))
+        else:
+            equal = _equal_values(value_a, value_b)
+        if not equal:
             return f"{where}: attribute {key!r} differs"
     return None
 
