@@ -60,6 +60,17 @@ def _first_extreme(values, starts, ends, which):
     return np.minimum.reduceat(np.where(values == extreme[run_id], index, values.size), starts)
 
 
+def _bridge_gaps(state, starts, ends, values, max_gap):
+    """`state` with each run of zeros of at most `max_gap` samples between two runs of the
+    same sign given that sign: a dip of the noisy velocity into the noise band in the middle
+    of a motion is no apex or contact (the velocity would have to change sign in between)."""
+    lengths = ends - starts + 1
+    before = np.concatenate([[0], values[:-1]])
+    after = np.concatenate([values[1:], [0]])
+    fill = (values == 0) & (lengths <= max_gap) & (before != 0) & (before == after)
+    return np.where(np.repeat(fill, lengths), np.repeat(before, lengths), state)
+
+
 def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     """Where a fitted parabola meets the bumper position, with 1σ uncertainties.
 
@@ -174,8 +185,14 @@ def _motion_run(run, bumper_position, notes, legs):
     # The contact starts where the velocity toward the bumper peaks (free motion speeds it up,
     # the bumper slows it) and ends where the velocity away from it peaks: samples between,
     # plus a guard for the derivative's reach, are not free motion.
-    peaks = _first_extreme(w, starts, ends, "max")[toward_runs]
-    troughs = _first_extreme(w, starts, ends, "min")[away_runs]
+    # The peaks are looked for over the whole motion toward (away from) the bumper, through
+    # dips of the velocity into the noise band: a slow contact's velocity away may dip below
+    # the threshold before it peaks, and the flight would otherwise start inside the contact.
+    bridged_starts, bridged_ends, _ = _runs_of(
+        _bridge_gaps(state, starts, ends, values, max_gap))
+    whole = np.searchsorted(bridged_starts, starts, side="right") - 1  # original -> bridged
+    peaks = _first_extreme(w, bridged_starts, bridged_ends, "max")[whole[toward_runs]]
+    troughs = _first_extreme(w, bridged_starts, bridged_ends, "min")[whole[away_runs]]
     later_toward = np.flatnonzero((values == 1) & (i > away_runs[-1]))
     if later_toward.size:  # the flight after the last resolved impact ends at the next contact
         last_end = _first_extreme(w, starts, ends, "max")[later_toward[0]] - guard - 1
@@ -771,10 +788,13 @@ def read_motion_sensor(path, *, bumper_position=None):
        the other way and are apexes.
     4. Flights, first pass: from the peak velocity away from the bumper after a contact
        (where it ended) to the peak velocity toward it before the next (where it starts),
-       less a guard sample (the release's first moving sample too); and no later than the
-       apex mirrored about the contact end. Where that mirror falls well short of the next
-       reversal, a slow contact showed no clear reversal in between: a contact is put there
-       (flagged "inferred"), so the next impact gets its own incoming flight.
+       each peak sought over the whole motion in that direction, through dips of at most two
+       (plus guard) samples into the noise band (a slow contact's velocity away dips there
+       before it peaks), less a guard sample (the release's first moving sample too); and
+       no later than the apex mirrored about the contact end. Where that mirror falls well
+       short of the next reversal, a slow contact showed no clear reversal in between: a
+       contact is put there (flagged "inferred"), so the next impact gets its own incoming
+       flight.
     5. Fit: all flight samples by least squares, each flight s(τ) = c + b·τ + a·τ²/2 about its
        apex with one acceleration for the legs away from the bumper and another for the legs
        toward it, common to all flights of the run (on an incline rolling friction adds to the
