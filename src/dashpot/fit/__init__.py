@@ -26,9 +26,11 @@ others):
 ``accuracy``               :func:`choose_accuracy`: the accuracy levels and their train solvers
 ``start``                  start values from the data
 ``levenberg_marquardt``    the fast level's batched optimizer (the others use lmfit's leastsq)
-``covariance``             intervals from the covariance (Gaussian and seeded draws)
+``covariance``             intervals from the covariance (Gaussian and seeded draws), its
+                           scaling under a misfit, linear error propagation
 ``profile_likelihood``     intervals of β from the profile likelihood
 ``posterior``              intervals of β from emcee's posterior samples
+``uncertainty``            the registry of β's interval methods beyond the covariance
 ``identifiability``        notes where the data do not determine a parameter
 ``model_fit``              :func:`fit_model`: one model fitted to one scene
 ``scene_fit``              :func:`fit_scene`: every model fitted, and the selection table

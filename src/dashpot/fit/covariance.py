@@ -68,3 +68,58 @@ def _linear_estimate(value, sd, unit, status, note=""):
 def _interval_row(estimate):
     return {"low68": estimate.low68, "high68": estimate.high68, "low95": estimate.low95,
             "high95": estimate.high95}
+
+
+def _misfit_bound(dof):
+    """χ² above which a fit with known timing errors misses its data: 3σ beyond the mean of
+    the χ² distribution with `dof` (at least 1) degrees of freedom."""
+    dof = max(int(dof), 1)
+    return dof + 3.0 * math.sqrt(2.0 * dof)
+
+
+def _scaled_covariance(result, sigma_known, notes, misfit_meaning):
+    """The fit's covariance in its varied parameters, and the divisor of χ² where it measures
+    likelihood.
+
+    Where the Jacobian is singular the covariance is infinite (errors reported as such). Where
+    the timing errors are known but χ² is beyond :func:`_misfit_bound`, the model misses the
+    data by more than their uncertainties: the covariance is scaled by χ²/ν (the Birge ratio
+    squared) so that the errors at least reflect the actual scatter [4]_. Where the errors are
+    unknown, lmfit has scaled it already and χ²/ν is the divisor. A note says what was done;
+    `misfit_meaning` words what a misfit means for this fit.
+
+    Returns
+    -------
+    cov : ndarray, shape (len(result.var_names),) * 2
+    chisqr_scale : float
+    """
+    varied = result.var_names
+    cov = result.covar
+    if cov is None:
+        cov = np.full((len(varied), len(varied)), np.inf)
+        notes.append("covariance not available (singular Jacobian): the data do not determine "
+                     "every parameter; errors reported as infinite")
+    dof = max(int(result.nfree), 1)
+    chisqr_scale = 1.0 if sigma_known else float(result.redchi)
+    if sigma_known and result.chisqr > _misfit_bound(dof):
+        cov = cov * result.redchi
+        chisqr_scale = float(result.redchi)
+        notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
+                     f"{misfit_meaning}; errors scaled by sqrt(redchi) = "
+                     f"{math.sqrt(result.redchi):.3g}")
+    return cov, chisqr_scale
+
+
+def _propagated_sd(cov, varied, gradient):
+    """1σ of a quantity by linear propagation [4]_: √(gᵀ C g) over the varied parameters, with
+    `gradient` {parameter: ∂q/∂p} (parameters not varied add nothing); inf where the
+    covariance of the parameters it depends on is not finite."""
+    vector = np.array([gradient.get(name, 0.0) for name in varied], float)
+    if not vector.any():
+        return 0.0
+    used = vector != 0
+    block = cov[np.ix_(used, used)]
+    if not np.all(np.isfinite(block)):
+        return math.inf
+    variance = vector[used] @ block @ vector[used]
+    return float(math.sqrt(variance)) if np.isfinite(variance) and variance >= 0 else math.inf

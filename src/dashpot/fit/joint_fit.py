@@ -33,7 +33,8 @@ import numpy as np
 
 from ..scene import Scene
 from .accuracy import choose_accuracy
-from .covariance import _interval_row, _linear_estimate
+from .covariance import (_interval_row, _linear_estimate, _misfit_bound, _propagated_sd,
+                         _scaled_covariance)
 from .profile_likelihood import _profile_beta
 from .residuals import _residual_rows
 from .settings import METHOD, OPTIONS
@@ -224,8 +225,7 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
                               scale_covar=not sigma_known)
 
     result = minimize(params)
-    bound = result.nfree + 3.0 * math.sqrt(2.0 * max(result.nfree, 1))
-    if sigma_known and result.chisqr > bound and len(usable) > 1:
+    if sigma_known and result.chisqr > _misfit_bound(result.nfree) and len(usable) > 1:
         # The runs' median missed (a run whose own fit did not determine ω0 can pull it far
         # off): start again from each run's own ζ and v*, and keep the best.
         for run in usable:
@@ -242,30 +242,12 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
     if not np.all(np.isfinite(result.residual)) or np.max(np.abs(result.residual)) >= 1e11:
         return _failed(model, "joint fit failed: ended outside the physical range", runs)
     varied = tuple(result.var_names)
-    cov = result.covar
-    if cov is None:
-        cov = np.full((len(varied), len(varied)), np.inf)
-        notes.append("covariance not available (singular Jacobian): errors reported as "
-                     "infinite")
-    dof = max(int(result.nfree), 1)
-    chisqr_scale = 1.0 if sigma_known else float(result.redchi)
-    if sigma_known and result.chisqr > dof + 3.0 * math.sqrt(2.0 * dof):
-        chisqr_scale = float(result.redchi)
-        cov = cov * result.redchi
-        notes.append(f"reduced chi-square {result.redchi:.3g} for {dof} degrees of freedom: "
-                     f"the runs do not share one contact within their uncertainties; errors "
-                     f"scaled by sqrt(redchi) = {math.sqrt(result.redchi):.3g}")
+    cov, chisqr_scale = _scaled_covariance(result, sigma_known, notes,
+                                "the runs do not share one contact within their uncertainties")
 
     def sd_of(gradient):
         """1σ of a quantity from its gradient {parameter: ∂q/∂p} (linear propagation)."""
-        vector = np.array([gradient.get(name, 0.0) for name in varied])
-        if not vector.any():
-            return 0.0
-        used = vector != 0
-        block = cov[np.ix_(used, used)]
-        variance = vector[used] @ block @ vector[used]
-        return float(math.sqrt(variance)) if np.isfinite(variance) and variance >= 0 \
-            else math.inf
+        return _propagated_sd(cov, varied, gradient)
 
     zeta, v_star = values["zeta"], values["v_star"]
     omega0 = g / v_star
