@@ -17,6 +17,7 @@ import numpy as np
 from scipy import signal
 
 from ..plausibility import ratio_trend
+from . import envelope as _envelope
 from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
                        _MERGE_SECONDS, _RING_GAP_SECONDS, _RING_JUMP, _WEAK_JUMP_FACTOR,
@@ -78,17 +79,37 @@ def _best_chain(times, weights, trend=None):
     pointer = np.full((n, n), -1, dtype=np.int64)
     # Per gap (j, k), the next gap's log that the trend expects (centre of the Cauchy cost)
     # and the bounds of the allowed ones; per column k, read as contiguous rows below.
+    centre_t = spread_t = None
     if trend is not None:
         coefficients, scatter = trend
         centre_t = (log_gap + np.polyval(coefficients, log_gap)).T.copy()
         spread_t = (scatter**2 + jitter).T.copy()
-    log_gap_t = log_gap.T.copy()
-    columns = np.arange(n)
     # Every pair (j, k), j < k, starts a chain, so every state ending at k is reachable from
     # all j < k (slices, not index lists, in the loop below). States ending at k are final
     # once every j < k has been seen: sweep k in time order.
     last = np.searchsorted(times, times[1:-1] + _RATIO_BOUNDS[1] * (times[1:-1] - times[0]),
                            side="right")
+    if _envelope.COMPILED:
+        _envelope._kernels().chain_scores(
+            log_gap, jitter, np.ascontiguousarray(weights, dtype=float), last, score, pointer,
+            centre_t, spread_t, log_lo=float(log_lo), log_hi=float(log_hi),
+            log_growth=float(np.log1p(_GROWTH_ALLOWANCE)))
+    else:
+        _relax_states(log_gap, jitter, weights, last, score, pointer, centre_t, spread_t)
+    j, k = np.unravel_index(np.argmax(score), score.shape)
+    chain = [int(k), int(j)]
+    while pointer[chain[-1], chain[-2]] >= 0:
+        chain.append(int(pointer[chain[-1], chain[-2]]))
+    return np.array(chain[::-1])
+
+
+def _relax_states(log_gap, jitter, weights, last, score, pointer, centre_t, spread_t):
+    """The loop of :func:`_best_chain` over the columns k (numpy reference of
+    :func:`.audio_kernels.chain_scores`): `score` and `pointer` are updated in place."""
+    n = log_gap.shape[0]
+    log_lo, log_hi = np.log(_RATIO_BOUNDS)
+    log_gap_t = log_gap.T.copy()
+    columns = np.arange(n)
     for k in range(1, n - 1):
         stop = last[k - 1]
         if stop <= k + 1:
@@ -96,7 +117,7 @@ def _best_chain(times, weights, trend=None):
         following = log_gap[k, k + 1:stop]
         log_ratio = following - log_gap_t[k, :k, None]
         total = score[:k, k, None] + weights[k + 1:stop]
-        if trend is not None:
+        if centre_t is not None:
             deviation = following - centre_t[k, :k, None]
             deviation *= deviation
             deviation /= spread_t[k, :k, None] + jitter[k, k + 1:stop]
@@ -113,11 +134,6 @@ def _best_chain(times, weights, trend=None):
         better = value > score[k, k + 1:stop]
         score[k, k + 1:stop] = np.where(better, value, score[k, k + 1:stop])
         pointer[k, k + 1:stop] = np.where(better, best, pointer[k, k + 1:stop])
-    j, k = np.unravel_index(np.argmax(score), score.shape)
-    chain = [int(k), int(j)]
-    while pointer[chain[-1], chain[-2]] >= 0:
-        chain.append(int(pointer[chain[-1], chain[-2]]))
-    return np.array(chain[::-1])
 
 
 def _chain_weights(times, power_ratio, amplitude):

@@ -46,6 +46,19 @@ _RING_GAP_SECONDS = 0.5e-3  # a sound this long before a transient's jump is a s
 _RING_JUMP = 2.0  # ... if the power then jumps 3 dB over it
 _SPLIT_JUMP = 8.0  # a trigger 9 dB louder than a transient < 1 ms before it is a new one
 
+# The loops over the samples (high-pass, power envelope, trigger) and the AIC picker run
+# compiled (:mod:`.audio_kernels`, same operations in the same order, same results to the
+# last bit); the numpy forms below are their reference, which the tests compare them with.
+# False runs the reference (as do the chain's loops, :func:`.chain._best_chain`).
+COMPILED = True
+
+
+def _kernels():
+    """The compiled kernels, imported on first use (numba loads only when audio is read)."""
+    from . import audio_kernels
+
+    return audio_kernels
+
 
 # --------------------------------------------------------------------------------------------
 # Detection on a block
@@ -54,6 +67,15 @@ _SPLIT_JUMP = 8.0  # a trigger 9 dB louder than a transient < 1 ms before it is 
 def _windows(array, starts, length):
     """Rows array[s : s + length] for each s in `starts` (1-D array), as a (K, length) array."""
     return array[starts[:, None] + np.arange(length)[None, :]]
+
+
+def _whitened_windows(filtered, channel, rho, starts, length):
+    """Rows (y[n] − ρ·y[n−1])² of one channel y of `filtered`, n = s … s + length − 1 for
+    each s in `starts`: the channel's whitened power over the stretches of the picker."""
+    if COMPILED:
+        return _kernels().whitened_rows(filtered, channel, rho, starts, length)
+    return (_windows(filtered[:, channel], starts, length)
+            - rho * _windows(filtered[:, channel], starts - 1, length)) ** 2
 
 
 def _aic_picks(power, first):
@@ -91,6 +113,8 @@ def _onset_picks(power, first, min_gap, min_tail):
     least `min_tail` samples after it: the mean of a few samples of a loud transient
     fluctuates by a factor of 2 by itself.
     """
+    if COMPILED:
+        return _kernels().onset_picks(power, first, min_gap, min_tail, _AIC_MARGIN, _RING_JUMP)
     picks = _aic_picks(power, first)
     length = power.shape[1]
     later = picks + 2 * _AIC_MARGIN < length - _AIC_MARGIN
@@ -167,6 +191,40 @@ class _Stream:
     dc_offset: float = 0.0
 
 
+def _envelope_triggers(filtered, rho, weights, settings, lo, hi, weak):
+    """Power envelope, STA, triggers and their jumps of a block (numpy reference of
+    :func:`.audio_kernels.envelope_triggers`)."""
+    frames, channels = filtered.shape
+    # The power is summed channel by channel, on contiguous copies of the columns (strided
+    # arithmetic on (frames, channels) is slower).
+    power = np.zeros(frames)
+    for c in range(channels):
+        column = np.ascontiguousarray(filtered[:, c])
+        whitened = column[1:] - rho[c] * column[:-1]
+        whitened *= whitened
+        whitened *= weights[c]
+        power[1:] += whitened
+
+    # STA/LTA [1]_: mean power over the next `sta` samples against the `background` before.
+    # Both are differences of one running sum, taken as slices (contiguous passes; loud
+    # recordings pass the STA threshold on half their samples, where gathering by index
+    # would cost more).
+    cumulative = np.empty(frames + 1)
+    cumulative[0] = 0.0
+    np.cumsum(power, out=cumulative[1:])
+    sta = np.zeros(frames)
+    sta[: frames - settings.sta + 1] = (cumulative[settings.sta:]
+                                        - cumulative[:-settings.sta]) / settings.sta
+    level = cumulative[lo:hi] - cumulative[lo - settings.background:hi
+                                          - settings.background]
+    np.maximum(level, settings.background, out=level)  # floor of 1 (noise-normalised)
+    passing = sta[lo:hi] >= settings.min_power
+    passing &= sta[lo:hi] >= weak * level
+    triggers = np.flatnonzero(passing) + lo
+    jump = sta[triggers] * settings.background / level[triggers - lo]
+    return power, sta, triggers, jump
+
+
 def _process(stream, block, final):
     """Find the transients in the carried samples + `block` and append them to the stream."""
     settings = stream.settings
@@ -177,8 +235,12 @@ def _process(stream, block, final):
         # (A matrix product: numpy's mean along the long axis of a (frames, channels) array
         # is strided and ten times slower.)
         stream.dc_offset = float(np.abs(np.ones(block.shape[0]) @ block).max() / block.shape[0])
-    filtered_block, stream.filter_state = signal.sosfilt(stream.sos, block, axis=0,
-                                                         zi=stream.filter_state)
+    if COMPILED:
+        filtered_block, stream.filter_state = _kernels().highpass(stream.sos, block,
+                                                                  stream.filter_state)
+    else:
+        filtered_block, stream.filter_state = signal.sosfilt(stream.sos, block, axis=0,
+                                                             zi=stream.filter_state)
     if stream.raw is None:
         raw, filtered = block, filtered_block
     else:
@@ -211,40 +273,21 @@ def _process(stream, block, final):
     # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
     # frequencies it removes the slow swells of power that would otherwise look like onsets
     # in a half-millisecond window.
-    # The mean noise-normalised power over the channels is summed channel by channel, on
-    # contiguous copies of the columns (strided arithmetic on (frames, channels) is slower).
+    # The statistic is the mean noise-normalised power over the channels.
     weights = 1.0 / (stream.channels * stream.noise**2)
-    power = np.zeros(frames)
-    for c in range(stream.channels):
-        column = np.ascontiguousarray(filtered[:, c])
-        whitened = column[1:] - stream.rho[c] * column[:-1]
-        whitened *= whitened
-        whitened *= weights[c]
-        power[1:] += whitened
-
-    # STA/LTA [1]_: mean power over the next `sta` samples against the `background` before.
-    # Both are differences of one running sum, taken as slices (contiguous passes; loud
-    # recordings pass the STA threshold on half their samples, where gathering by index
-    # would cost more).
-    cumulative = np.empty(frames + 1)
-    cumulative[0] = 0.0
-    np.cumsum(power, out=cumulative[1:])
-    sta = np.zeros(frames)
-    sta[: frames - settings.sta + 1] = (cumulative[settings.sta:]
-                                        - cumulative[:-settings.sta]) / settings.sta
     limit = frames - settings.lookahead + 1  # triggers need this much recording after them
     lo, hi = settings.history, max(limit, settings.history)
-    level = cumulative[lo:hi] - cumulative[lo - settings.background:hi
-                                          - settings.background]
-    np.maximum(level, settings.background, out=level)  # floor of 1 (noise-normalised)
     # Triggers down to a lower jump are kept as weak candidates: the selection looks among
     # them only where the bounce trend predicts an impact that no strong trigger marks
     # (an impact landing on the ringing or echo of an earlier one jumps less).
     weak = settings.min_jump / _WEAK_JUMP_FACTOR / settings.background
-    passing = sta[lo:hi] >= settings.min_power
-    passing &= sta[lo:hi] >= weak * level
-    triggers = np.flatnonzero(passing) + lo
-    jump = sta[triggers] * settings.background / level[triggers - lo]
+    if COMPILED:
+        power, sta, triggers, jump = _kernels().envelope_triggers(
+            filtered, stream.rho, weights, settings.sta, settings.background, lo, hi,
+            settings.min_power, weak)
+    else:
+        power, sta, triggers, jump = _envelope_triggers(filtered, stream.rho, weights,
+                                                        settings, lo, hi, weak)
     # Runs of consecutive trigger samples; each run is one trigger, at its largest jump.
     breaks = np.flatnonzero(np.diff(triggers) > 1) + 1
     run_first = np.concatenate(([0], breaks)) if triggers.size else np.zeros(0, dtype=np.int64)
@@ -278,12 +321,12 @@ def _process(stream, block, final):
         first = np.clip(previous + settings.sta - search_start, 0,
                         length - 2 * _AIC_MARGIN - settings.sta)
         gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * settings.sample_rate)))
-        onsets = _onset_picks(_windows(power, search_start, length), first, gap,
+        onsets = _onset_picks(_kernels().power_rows(power, search_start, length) if COMPILED
+                              else _windows(power, search_start, length), first, gap,
                               settings.sta)
         # Each channel's own whitened signal, y[n] − ρ·y[n−1], over the same stretches.
         channel_onsets = np.stack([_onset_picks(
-            (_windows(filtered[:, c], search_start, length) - stream.rho[c]
-             * _windows(filtered[:, c], search_start - 1, length)) ** 2, first, gap,
+            _whitened_windows(filtered, c, stream.rho[c], search_start, length), first, gap,
             settings.sta) for c in range(stream.channels)], axis=1)
         _keep_transients(stream, raw, filtered, sta, search_start + onsets,
                          search_start[:, None] + channel_onsets, strong)

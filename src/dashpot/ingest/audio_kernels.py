@@ -1,0 +1,435 @@
+"""Compiled loops of the audio impact detector: the power envelope and its trigger, the AIC
+onset picker and the dynamic programme of the bounce chain.
+
+Each kernel does, sample by sample or step by step, what a vectorized numpy form in
+:mod:`.envelope` or :mod:`.chain` does over whole arrays (those forms stay, as the reference
+the tests compare these kernels with), with the same operations in the same order, so that the
+results are the same to the last bit:
+
+* :func:`highpass` is the direct-form II transposed recursion of ``scipy.signal.sosfilt``
+  (its Cython loop, section by section), written channel by channel into a (channels, frames)
+  array as scipy does, whose transpose is returned: later reductions over it (the noise
+  estimate's einsum) see the same memory layout and sum in the same order.
+* :func:`envelope_triggers` fuses the whitening, the noise-normalised power, its running sum
+  and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` into one pass.
+* The AIC picker and the chain's Cauchy cost need logarithms. numpy's ``log`` and ``log1p``
+  (SIMD, on machines with AVX-512) and the C library's, which compiled code calls, differ in
+  the last bit for a fraction of arguments, and a last-bit difference could move a pick or a
+  chain on a tie. So the kernels only prepare the arguments of the logarithms, numpy takes
+  them over whole arrays as the reference does, and the kernels go on from there.
+
+Why compiled: these are loops over the samples (hundreds of thousands per channel and second
+of a recording) and over the states of the chain (about n³/6 steps for n transients), where
+numpy spent most of its time on temporaries (the STA/LTA trigger, a sosfilt that first copies
+the block to channel-major order) and on per-column Python overhead (the chain). This module
+imports numba; it is imported on the first detection, so that importing dashpot does not load
+it. The compiled code is cached on disk (``cache=True``): compiling takes a few seconds once;
+loading from the cache takes a fraction of a second in each new process.
+
+References
+----------
+.. [1] R. V. Allen, "Automatic earthquake recognition and timing from single traces", Bull.
+   Seismol. Soc. Am. 68(5), 1521-1532 (1978) (STA/LTA trigger).
+.. [2] R. Sleeman and T. van Eck, "Robust automatic P-phase picking: an on-line implementation
+   in the analysis of broadband seismogram recordings", Phys. Earth Planet. Inter. 113,
+   265-275 (1999) (the AIC picker of N. Maeda, Zisin 38, 365-379, 1985).
+.. [3] A. V. Oppenheim and R. W. Schafer, "Discrete-Time Signal Processing", 3rd ed.,
+   Prentice Hall (2010), section 6.5 (transposed direct form II of a second-order section).
+.. [4] R. Bellman, "Dynamic Programming", Princeton University Press (1957) (the chain's
+   recursion over states).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["highpass", "envelope_triggers", "onset_picks", "chain_scores"]
+
+# Float division by zero gives inf/nan as in numpy instead of raising; no fastmath, so that
+# every operation is rounded as numpy rounds it (no fused multiply-add, no reassociation).
+_jit = numba.njit(cache=True, error_model="numpy")
+
+
+# --------------------------------------------------------------------------------------------
+# Envelope and trigger
+
+
+@_jit
+def _highpass(sos, block, state):
+    """Second-order sections over the columns of `block`; `state` (channels, sections, 2) is
+    updated in place. Output (channels, frames)."""
+    frames, channels = block.shape
+    sections = sos.shape[0]
+    out = np.empty((channels, frames))
+    # The channels' recursions are independent: stepped together, one sample of every channel
+    # at a time, so that the processor overlaps their latency-bound chains.
+    for n in range(frames):
+        for c in range(channels):
+            x_cur = block[n, c]
+            for s in range(sections):
+                x_new = sos[s, 0] * x_cur + state[c, s, 0]
+                state[c, s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + state[c, s, 1]
+                state[c, s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+                x_cur = x_new
+            out[c, n] = x_cur
+    return out
+
+
+def highpass(sos, block, zi):
+    """``scipy.signal.sosfilt(sos, block, axis=0, zi=zi)``, to the last bit.
+
+    Parameters
+    ----------
+    sos : ndarray, shape (sections, 6)
+        Second-order sections.
+    block : ndarray, shape (frames, channels)
+        Samples (full scale).
+    zi : ndarray, shape (sections, 2, channels)
+        Filter state before the block (as ``sosfilt`` takes it with ``axis=0``).
+
+    Returns
+    -------
+    filtered : ndarray, shape (frames, channels)
+        The filtered block, a transposed view of a (channels, frames) array as sosfilt
+        returns it.
+    zf : ndarray, shape (sections, 2, channels)
+        Filter state after the block.
+    """
+    state = np.ascontiguousarray(np.moveaxis(np.asarray(zi, dtype=float), (0, 1), (1, 2)))
+    out = _highpass(np.ascontiguousarray(sos, dtype=float),
+                    np.ascontiguousarray(block, dtype=float), state)
+    return out.T, np.moveaxis(state, (1, 2), (0, 1))
+
+
+@_jit
+def _envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power,
+                       weak):
+    # Plain passes, each of which the compiler vectorizes or streams (fusing them into one
+    # loop with a ring buffer of the running sum measured several times slower).
+    frames, channels = filtered.shape
+    power = np.zeros(frames)
+    for c in range(channels):
+        column = filtered[:, c]
+        for n in range(1, frames):
+            whitened = column[n] - rho[c] * column[n - 1]
+            whitened = whitened * whitened
+            whitened = whitened * weights[c]
+            power[n] += whitened
+    cumulative = np.empty(frames + 1)
+    cumulative[0] = 0.0
+    total = 0.0
+    for n in range(frames):
+        total += power[n]
+        cumulative[n + 1] = total
+    sta = np.zeros(frames)
+    for n in range(frames - sta_length + 1):
+        sta[n] = (cumulative[n + sta_length] - cumulative[n]) / sta_length
+    # Room for a trigger at every sample; the pages of the arrays that stay unused are never
+    # touched.
+    triggers = np.empty(max(hi - lo, 0), dtype=np.int64)
+    jump = np.empty(max(hi - lo, 0))
+    count = 0
+    for n in range(lo, hi):
+        if sta[n] < min_power:
+            continue
+        level = cumulative[n] - cumulative[n - background]
+        if level < background:  # np.maximum with a number: NaN stays NaN
+            level = float(background)
+        if sta[n] >= weak * level:
+            triggers[count] = n
+            jump[count] = sta[n] * background / level
+            count += 1
+    return power, sta, triggers[:count], jump[:count]
+
+
+def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power, weak):
+    """Power envelope, STA and triggers of a block, as :func:`.envelope._process` forms them.
+
+    Parameters
+    ----------
+    filtered : ndarray, shape (frames, channels)
+        High-passed samples (full scale).
+    rho, weights : ndarray, shape (channels,)
+        Lag-1 correlation of each channel's noise, and 1/(channels·noise²) (1/full scale²).
+    sta_length, background : int
+        Samples of the short window after a sample and of the level before it.
+    lo, hi : int
+        Samples at which triggers may lie: lo <= n < hi.
+    min_power, weak : float
+        Trigger thresholds: STA at least `min_power`, and at least `weak` × the summed
+        power of the `background` samples before.
+
+    Returns
+    -------
+    power : ndarray, shape (frames,)
+        Mean noise-normalised power of the whitened channels (power[0] = 0).
+    sta : ndarray, shape (frames,)
+        Mean power of the `sta_length` samples from each sample on (0 where they run past
+        the end).
+    triggers : ndarray of int64
+        Samples passing both thresholds, increasing.
+    jump : ndarray
+        STA over the mean power of the background before each trigger (floored at 1).
+    """
+    return _envelope_triggers(filtered, np.ascontiguousarray(rho, dtype=float),
+                              np.ascontiguousarray(weights, dtype=float), int(sta_length),
+                              int(background), int(lo), int(hi), float(min_power), float(weak))
+
+
+# --------------------------------------------------------------------------------------------
+# AIC onset picker
+
+
+@_jit
+def _power_rows(power, starts, length):
+    rows = np.empty((starts.size, length))
+    for k in range(starts.size):
+        for i in range(length):
+            rows[k, i] = power[starts[k] + i]
+    return rows
+
+
+@_jit
+def _whitened_rows(filtered, channel, rho, starts, length):
+    """(y[n] − ρ·y[n−1])² over the rows, as numpy forms it from two gathered windows."""
+    rows = np.empty((starts.size, length))
+    for k in range(starts.size):
+        for i in range(length):
+            value = filtered[starts[k] + i, channel] - rho * filtered[starts[k] - 1 + i, channel]
+            rows[k, i] = value * value
+    return rows
+
+
+@_jit
+def _aic_arguments(power, first, margin):
+    """Arguments of the two logarithms of the AIC criterion, per row and split."""
+    count, length = power.shape
+    splits = length - 2 * margin
+    head_ratio = np.empty((count, splits))
+    tail_ratio = np.empty((count, splits))
+    cumulative = np.empty(length)
+    for k in range(count):
+        total = 0.0
+        for i in range(length):
+            total += power[k, i] + 1e-300  # digital silence has zero power
+            cumulative[i] = total
+        before_first = cumulative[max(first[k] - 1, 0)] if first[k] > 0 else 0.0
+        for s in range(splits):
+            split = margin + s
+            head_count = max(split - first[k], 1)
+            head = cumulative[split - 1] - before_first
+            if head < 1e-300:  # np.maximum: NaN stays NaN
+                head = 1e-300
+            head_ratio[k, s] = head / head_count
+            tail_ratio[k, s] = (cumulative[length - 1] - cumulative[split - 1]) / (length - split)
+    return head_ratio, tail_ratio
+
+
+@_jit
+def _aic_argmin(log_head, log_tail, first, margin, length):
+    """Split of least AIC per row (numpy's argmin: the first minimum, or the first NaN)."""
+    count, splits = log_head.shape
+    picks = np.empty(count, dtype=np.int64)
+    for k in range(count):
+        best, best_value = 0, np.inf
+        for s in range(splits):
+            split = margin + s
+            head_count = split - first[k]
+            if head_count >= margin:
+                value = max(head_count, 1) * log_head[k, s] + (length - split) * log_tail[k, s]
+            else:
+                value = np.inf + (length - split) * log_tail[k, s]
+            if np.isnan(value):
+                best = s
+                break
+            if value < best_value or (s == 0):
+                best, best_value = s, value
+        picks[k] = margin + best
+    return picks
+
+
+def _aic_picks(power, first, margin):
+    """:func:`.envelope._aic_picks` (the AIC change point of each row), compiled."""
+    head_ratio, tail_ratio = _aic_arguments(power, first, margin)
+    return _aic_argmin(np.log(head_ratio), np.log(tail_ratio), first, margin, power.shape[1])
+
+
+@_jit
+def _separate_sounds(power, picks, second, later, min_gap, min_tail, ring_jump):
+    """The second pick where it starts a sound of its own, else the first."""
+    count, length = power.shape
+    out = picks.copy()
+    cumulative = np.empty(length)
+    for k in range(count):
+        if not later[k]:
+            continue
+        total = 0.0
+        for i in range(length):
+            total += power[k, i]
+            cumulative[i] = total
+        between = (cumulative[second[k] - 1] - cumulative[picks[k] - 1]) \
+            / max(second[k] - picks[k], 1)
+        after = (cumulative[length - 1] - cumulative[second[k] - 1]) / max(length - second[k], 1)
+        if second[k] - picks[k] >= min_gap and length - second[k] >= min_tail \
+                and after >= ring_jump * between:
+            out[k] = second[k]
+    return out
+
+
+def onset_picks(power, first, min_gap, min_tail, margin, ring_jump):
+    """:func:`.envelope._onset_picks` (AIC pick, moved past an earlier sound), compiled.
+
+    Parameters
+    ----------
+    power : ndarray, shape (K, L)
+        Rows of power.
+    first : ndarray of int, shape (K,)
+        First sample of each row the picker may use.
+    min_gap, min_tail, margin : int
+        Samples (see :func:`.envelope._onset_picks`); `margin` is the picker's shortest
+        segment.
+    ring_jump : float
+        Power ratio that makes a sound of its own.
+
+    Returns
+    -------
+    ndarray of int64, shape (K,)
+        The rough onset of each row (index into the row).
+    """
+    power = np.ascontiguousarray(power, dtype=float)
+    first = np.ascontiguousarray(first, dtype=np.int64)
+    length = power.shape[1]
+    picks = _aic_picks(power, first, margin)
+    later = picks + 2 * margin < length - margin
+    if not later.any():
+        return picks
+    second = picks.copy()
+    second[later] = _aic_picks(np.ascontiguousarray(power[later]), picks[later], margin)
+    return _separate_sounds(power, picks, second, later, int(min_gap), int(min_tail),
+                            float(ring_jump))
+
+
+def power_rows(power, starts, length):
+    """Rows power[s : s + length] for each s in `starts`, as a (K, length) array."""
+    return _power_rows(power, np.ascontiguousarray(starts, dtype=np.int64), int(length))
+
+
+def whitened_rows(filtered, channel, rho, starts, length):
+    """Rows (y[n] − ρ·y[n−1])² of column `channel` of `filtered`, n from s to s + length − 1,
+    for each s in `starts`."""
+    return _whitened_rows(filtered, int(channel), float(rho),
+                          np.ascontiguousarray(starts, dtype=np.int64), int(length))
+
+
+# --------------------------------------------------------------------------------------------
+# Chain of impacts
+
+
+@_jit
+def _chain_deviations(log_gap, centre_t, spread_t, jitter, last, k_from, k_to, out):
+    """Half the squared, scaled deviation from the trend of every step of columns
+    k_from <= k < k_to, in the order :func:`_chain_steps` uses them; returns their count."""
+    count = 0
+    for k in range(k_from, k_to):
+        stop = last[k - 1]
+        if stop <= k + 1:
+            continue
+        for j in range(k):
+            for l in range(k + 1, stop):
+                deviation = log_gap[k, l] - centre_t[k, j]
+                deviation = deviation * deviation
+                deviation = deviation / (spread_t[k, j] + jitter[k, l])
+                out[count] = 0.5 * deviation
+                count += 1
+    return count
+
+
+@_jit
+def _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, costs, has_trend,
+                 log_lo, log_hi, log_growth, k_from, k_to):
+    """Relax the states ending at k, k_from <= k < k_to (see :func:`.chain._best_chain`)."""
+    count = 0
+    for k in range(k_from, k_to):
+        stop = last[k - 1]
+        if stop <= k + 1:
+            continue
+        for l in range(k + 1, stop):
+            best, best_value = 0, -np.inf
+            found_nan = False
+            following = log_gap[k, l]
+            for j in range(k):
+                total = score[j, k] + weights[l]
+                if has_trend:
+                    total -= costs[count + j * (stop - k - 1) + (l - k - 1)]
+                log_ratio = following - log_gap_t[k, j]
+                growth = log_growth + 3.0 * math.sqrt(jitter[j, k] + jitter[k, l])
+                if growth > log_hi:  # np.minimum: NaN stays NaN
+                    growth = log_hi
+                if log_ratio < log_lo or log_ratio > growth:
+                    total = -np.inf
+                if not found_nan:
+                    if np.isnan(total):
+                        best, found_nan = j, True
+                    elif total > best_value or j == 0:
+                        best, best_value = j, total
+            value = np.nan if found_nan else best_value
+            if value > score[k, l]:
+                score[k, l] = value
+                pointer[k, l] = best
+        count += k * (stop - k - 1)
+    return count
+
+
+def chain_scores(log_gap, jitter, weights, last, score, pointer, trend_centre=None,
+                 trend_spread=None, *, log_lo, log_hi, log_growth, budget=1 << 20):
+    """The loop over k of :func:`.chain._best_chain`, compiled; `score` and `pointer` are
+    updated in place.
+
+    Parameters
+    ----------
+    log_gap : ndarray, shape (n, n)
+        ln(t_l − t_k) above the diagonal (0 elsewhere).
+    jitter : ndarray, shape (n, n)
+        Variance of ln(interval) from the rough onsets' jitter.
+    weights : ndarray, shape (n,)
+        Score of each event.
+    last : ndarray of int, shape (n − 2,)
+        End (exclusive) of the events a step from (j, k) may reach, for k = 1 … n − 2.
+    score, pointer : ndarray, shape (n, n)
+        Initial scores of the states (j, k) and back-pointers, updated in place.
+    trend_centre, trend_spread : ndarray, shape (n, n), optional
+        Transposed centre and variance of the trend's expected next log gap (with a trend).
+    log_lo, log_hi, log_growth : float
+        ln of the ratio bounds and ln(1 + growth allowance), as numpy computes them.
+    budget : int
+        Steps whose costs are prepared at once (memory: 8 bytes each).
+    """
+    n = log_gap.shape[0]
+    log_gap_t = np.ascontiguousarray(log_gap.T)
+    has_trend = trend_centre is not None
+    last = np.ascontiguousarray(last, dtype=np.int64)
+    if not has_trend:
+        _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer,
+                     np.zeros(0), False, log_lo, log_hi, log_growth, 1, n - 1)
+        return
+    # The Cauchy cost of a step does not depend on the scores: the costs of a run of columns
+    # are prepared together, their log1p taken by numpy (see the module's notes), then the
+    # columns are relaxed.
+    ks = np.arange(1, n - 1)
+    sizes = ks * np.maximum(last - ks - 1, 0)
+    buffer = np.empty(max(budget, int(sizes.max(initial=0))))
+    k_from = 1
+    while k_from < n - 1:
+        total, k_to = 0, k_from
+        while k_to < n - 1 and (k_to == k_from or total + sizes[k_to - 1] <= buffer.size):
+            total += sizes[k_to - 1]
+            k_to += 1
+        count = _chain_deviations(log_gap, trend_centre, trend_spread, jitter, last, k_from,
+                                  k_to, buffer)
+        costs = np.log1p(buffer[:count])
+        _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, costs, True,
+                     log_lo, log_hi, log_growth, k_from, k_to)
+        k_from = k_to
