@@ -319,3 +319,42 @@ def test_failed_save_leaves_nothing_behind(tmp_path, monkeypatch):
         plots.save_figure(fig, target / "scene")
     assert sorted(os.listdir(target)) == ["scene.png"]
     assert (target / "scene.png").read_bytes() == b"old png"
+
+
+def test_restitution_figure_with_drag_corrected_points():
+    """Corrected points beside the uncorrected ones: two labelled point sets (in the legend
+    first, as the containers ``ax.containers`` hold them), each rung's and model's curve, and
+    a y range that shows both sets with their error bars."""
+    speed = np.linspace(0.5, 2.5, 10)
+    apparent = 0.95 - 0.012 * speed  # what interval ratios show under drag
+    corrected = {"speed": 0.97 * speed, "eps": np.full(10, 0.95),
+                 "speed_uncertainty": np.full(10, 0.01), "eps_uncertainty": np.full(10, 0.004),
+                 "label": "drag-corrected ($k_d$ = 0.125 1/m, noise fit constant+drag)"}
+    grid = np.linspace(0.3, 2.6, 40)
+    fig = plots.restitution_speed_figure(
+        speed, apparent, None, np.full(10, 0.001), {"Ia": (grid, np.full(40, 0.93))},
+        {"constant+drag": (grid, np.full(40, 0.95)), "linear": (grid, 0.95 - 0.012 * grid)},
+        corrected=corrected, measured_label="interval ratios (no drag correction)")
+    ax = fig.axes[0]
+    labels = [container.get_label() for container in ax.containers]
+    assert labels == ["interval ratios (no drag correction)", corrected["label"]]
+    x, y = ax.containers[1].lines[0].get_data()
+    np.testing.assert_array_equal(x, corrected["speed"])
+    np.testing.assert_array_equal(y, corrected["eps"])
+    assert ax.containers[1].has_xerr and ax.containers[1].has_yerr
+    assert ax.containers[1].lines[0].get_marker() == "D"
+    # The uncorrected points are open markers beside the corrected ones.
+    assert ax.containers[0].lines[0].get_markerfacecolor() == "none"
+    assert {line.get_gid() for line in ax.get_lines() if line.get_gid()} == {
+        "Ia", "noise:constant+drag", "noise:linear"}
+    assert _legend_texts(fig)[:2] == labels
+    assert {"Ia (A)", "noise: constant+drag", "noise: linear"} <= set(_legend_texts(fig))
+    bottom, top = ax.get_ylim()
+    assert bottom < 0.95 - 0.012 * 2.5 - 0.001 and 0.95 + 0.004 < top < 0.97
+    _render(fig)
+    # Without corrected points the measured ones keep their old look and name.
+    plain = plots.restitution_speed_figure(speed, apparent, None, None, {})
+    assert [c.get_label() for c in plain.axes[0].containers] == ["measured"]
+    with pytest.raises(ValueError, match="same length"):
+        plots.restitution_speed_figure(speed, apparent, None, None, {},
+                                       corrected={**corrected, "eps": [0.95]})

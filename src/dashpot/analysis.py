@@ -11,16 +11,22 @@ References
 from __future__ import annotations
 
 import logging
+import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from .bounces import DRAG_CORRECTION_COLUMNS, drag_correction
 from .errors import InputError
 from .plausibility import check_bounce_train
 from .ingest import read_impacts
 from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
 
-__all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze", "analyze_runs"]
+__all__ = ["read_impact_table", "scene_impacts", "recording_note", "analyze", "analyze_runs",
+           "BounceDrag", "bounce_drag", "stored_bounces"]
 
 logger = logging.getLogger(__name__)
 
@@ -217,3 +223,135 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
     except ValueError as error:
         raise InputError(path, str(error)) from None
     return impacts, runs_fit
+
+
+@dataclass(frozen=True)
+class BounceDrag:
+    """The air drag a scene's bounce table is corrected with (:func:`bounce_drag`).
+
+    Attributes
+    ----------
+    drag_constant : float
+        k_d in 1/m.
+    uncertainty : float
+        1σ of k_d in 1/m (0 where it is taken as exact).
+    effective_gravity : float
+        g_eff in m/s² of the same fit (or the scene's).
+    source : str
+        Where k_d comes from: the name of a fit under the noise model, or "scene".
+    note : str
+        The same in plain words, with the numbers.
+    """
+
+    drag_constant: float
+    uncertainty: float
+    effective_gravity: float
+    source: str
+    note: str
+
+
+def _estimate(fit, name):
+    """(value, 1σ) of a fit's estimate, or None where it has none (or a non-finite value)."""
+    estimate = fit.estimates.get(name)
+    if estimate is None or not math.isfinite(estimate.value):
+        return None
+    error = estimate.stderr
+    return float(estimate.value), float(error) if error is not None and math.isfinite(error) \
+        else 0.0
+
+
+def bounce_drag(scene_fit):
+    """The drag constant that corrects a scene's bounce table, or None where nothing gives one.
+
+    Parameters
+    ----------
+    scene_fit : dashpot.fit.SceneFit
+
+    Returns
+    -------
+    BounceDrag or None
+        Of the fits under the noise model that fitted a drag constant ``k_d`` (the drag rung
+        ``constant+drag``; every fit where the scene gives the ball's mass and diameter): the
+        selected one if it carries k_d, else the one of lowest BIC among them (the note then
+        says the selection did not keep drag). Without such a fit, the scene's prior k_d
+        (:attr:`dashpot.scene.Scene.drag`, from mass, diameter, C_d and air density); None
+        where the scene models no drag either. g_eff is the same fit's where it fitted one,
+        else the scene's driving acceleration.
+    """
+    carrying = {name: fit for name, fit in (scene_fit.noise_results or {}).items()
+                if fit.success and _estimate(fit, "k_d") is not None}
+    if carrying:
+        table = scene_fit.noise_selection
+        selected = ([] if table is None or "selected" not in table else
+                    list(table["model"][table["selected"].to_numpy(bool)]))
+        if selected and selected[0] in carrying:
+            name, why = selected[0], "the selected fit under the noise model"
+        else:
+            name = min(carrying, key=lambda key: carrying[key].bic)
+            why = ("the fit of lowest BIC among those under the noise model with air drag; "
+                   "the selection did not keep drag")
+        fit = carrying[name]
+        value, error = _estimate(fit, "k_d")
+        gravity = _estimate(fit, "g_eff")
+        gravity = gravity[0] if gravity is not None else float(scene_fit.data.g)
+        source, origin = name, f"{name} ({why})"
+    else:
+        drag = scene_fit.scene.drag
+        if drag is None:
+            return None
+        value = drag.drag_constant.value
+        error = drag.drag_constant.uncertainty or 0.0
+        gravity = drag.effective_gravity.value
+        source, origin = "scene", "the scene's prior (ball mass, diameter, C_d, air density)"
+    note = (f"restitution_corrected: ε corrected for air drag with k_d = {value:.4g} ± "
+            f"{error:.2g} 1/m of {origin}, g_eff = {gravity:.6g} m/s², contact duration 0; "
+            f"its uncertainty from the impact times, k_d's share apart "
+            f"(restitution_corrected_drag_uncertainty)")
+    return BounceDrag(drag_constant=value, uncertainty=error, effective_gravity=gravity,
+                      source=source, note=note)
+
+
+def stored_bounces(scene_fit):
+    """The bounce table a scene file stores: the fit's, with the drag-corrected ε where the
+    scene has a drag constant (:func:`bounce_drag`).
+
+    Parameters
+    ----------
+    scene_fit : dashpot.fit.SceneFit
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``scene_fit.data.bounces`` (its columns unchanged: ``rebound_speed`` stays the
+        gravity estimate g_eff·T_n/2 that goes with the uncorrected ratio ``restitution``),
+        with the columns :data:`dashpot.bounces.DRAG_CORRECTION_COLUMNS` of
+        :func:`dashpot.bounces.drag_correction` added where a drag constant is known;
+        ``attrs`` then hold ``drag`` (the :class:`BounceDrag`) and its note appended to
+        ``notes``.
+
+    Notes
+    -----
+    The timing errors are those the fit used (the recording's or the scene's); an impact the
+    fit left out (spurious, inferred) or an unknown σ gives NaN uncertainties to the values
+    involving it. The contact duration is taken as 0, as in the uncorrected ratios and the
+    restitution laws' flights.
+    """
+    table = scene_fit.data.bounces.copy()
+    drag = bounce_drag(scene_fit)
+    if drag is None or table.empty:
+        return table
+    data = scene_fit.data
+    times = np.append(table["start_time"].to_numpy(float),
+                      table["start_time"].iloc[-1] + table["interval"].iloc[-1])
+    sigma = np.full(times.size, np.nan)
+    kept = np.ones(times.size, bool)
+    kept[np.asarray(data.excluded, dtype=int)] = False
+    if data.sigma_known and kept.sum() == np.size(data.sigma):
+        sigma[kept] = data.sigma
+    corrected = drag_correction(times, drag.effective_gravity, drag.drag_constant,
+                                time_uncertainty=sigma, drag_uncertainty=drag.uncertainty)
+    for name in DRAG_CORRECTION_COLUMNS:
+        table[name] = corrected[name]
+    table.attrs["notes"] = [*table.attrs.get("notes", []), drag.note]
+    table.attrs["drag"] = drag
+    return table

@@ -30,7 +30,8 @@ import pandas as pd
 from ._validation import check_nonnegative, check_positive
 from .physics.flight import drag_flight
 
-__all__ = ["bounce_table", "launch_speed", "BOUNCE_COLUMNS", "DRAG_COLUMNS"]
+__all__ = ["bounce_table", "drag_correction", "launch_speed", "BOUNCE_COLUMNS", "DRAG_COLUMNS",
+           "DRAG_CORRECTION_COLUMNS"]
 
 BOUNCE_COLUMNS = ("run", "bounce", "start_time", "interval", "interval_uncertainty",
                   "rebound_speed", "rebound_speed_uncertainty", "restitution",
@@ -38,6 +39,11 @@ BOUNCE_COLUMNS = ("run", "bounce", "start_time", "interval", "interval_uncertain
 # Added after BOUNCE_COLUMNS where the caller gives a drag constant.
 DRAG_COLUMNS = ("landing_speed", "landing_speed_uncertainty", "restitution_corrected",
                 "restitution_corrected_uncertainty")
+# What :func:`drag_correction` returns, one value per interval: the launch speed of the drag
+# flight (which ``bounce_table`` puts in ``rebound_speed``), DRAG_COLUMNS, and the part of the
+# corrected ε's uncertainty that comes from the drag constant's (shared by every bounce).
+DRAG_CORRECTION_COLUMNS = ("launch_speed", "launch_speed_uncertainty", *DRAG_COLUMNS,
+                           "restitution_corrected_drag_uncertainty")
 
 # A ratio of consecutive intervals this far from the local trend (relative, beyond the timing
 # noise) is not a normal bounce. Real balls change ε by a few % between bounces.
@@ -273,36 +279,133 @@ def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None, inf
         "restitution_flag": np.append(ratio_flags, "last").astype(object),
     }, columns=list(BOUNCE_COLUMNS))
     if drag_constant is not None:
-        _add_drag_columns(table, intervals - contact_duration, interval_sigma, sigma, g,
-                          drag_constant)
+        _add_drag_columns(table, intervals - contact_duration, sigma, g, drag_constant)
     return table
 
 
-def _add_drag_columns(table, flight_times, interval_sigma, sigma, g, drag):
-    """Launch speeds from the drag flight, landing speeds and the drag-corrected ε, in place.
+def _add_drag_columns(table, flight_times, sigma, g, drag):
+    """Launch speeds from the drag flight, landing speeds and the drag-corrected ε, in place
+    (:func:`drag_correction` of the flight times, `sigma` the impact times' 1σ).
 
     A too-long contact gives a negative flight time: the caller refuses it, so those rows
     are filled with NaN here rather than raising first.
     """
+    corrected = _corrected(flight_times, sigma, g, drag)
+    table["rebound_speed"] = corrected["launch_speed"]
+    table["rebound_speed_uncertainty"] = corrected["launch_speed_uncertainty"]
+    for name in DRAG_COLUMNS:
+        table[name] = corrected[name]
+
+
+def drag_correction(times, g, drag_constant, *, time_uncertainty=None, contact_duration=0.0,
+                    drag_uncertainty=0.0):
+    """Drag-corrected launch and landing speeds and restitution of a train of impact times.
+
+    Each flight time T_n − τ_c fixes the launch speed u_n of flight n under gravity and
+    quadratic drag (:func:`launch_speed`), hence its landing speed L(u_n), the speed of impact
+    n + 1; the ε of that impact is u_{n+1}/L(u_n) [3]_. Without drag it is the interval ratio.
+
+    Parameters
+    ----------
+    times : array_like, shape (..., n)
+        Impact times of one run in s, strictly increasing along the last axis (n >= 2);
+        leading axes hold independent trains of the same length.
+    g : float
+        Effective gravity g_eff in m/s² (with buoyancy and added mass,
+        :attr:`dashpot.scene.AirDrag.effective_gravity`, or a fit's ``g_eff``).
+    drag_constant : float
+        Drag constant k_d in 1/m (>= 0).
+    time_uncertainty : array_like, optional
+        1σ of each impact time in s, broadcast against `times`; NaN (or None, the default)
+        for unknown, which makes the uncertainties that involve it NaN.
+    contact_duration : float, default 0
+        Contact duration τ_c in s, subtracted from each interval.
+    drag_uncertainty : float, default 0
+        1σ of k_d in 1/m: carried to ``restitution_corrected_drag_uncertainty``.
+
+    Returns
+    -------
+    dict of str -> ndarray
+        Keys :data:`DRAG_CORRECTION_COLUMNS`, each of shape (..., n − 1), one value per
+        interval n: ``launch_speed`` u_n and ``landing_speed`` L(u_n) in m/s, with their 1σ
+        from the impact times; ``restitution_corrected`` u_{n+1}/L(u_n), the ε of impact
+        n + 1 (NaN for the last interval), with its 1σ from the impact times
+        (``restitution_corrected_uncertainty``) and the 1σ that k_d's uncertainty adds
+        (``restitution_corrected_drag_uncertainty``: the same error for every bounce, so
+        kept apart from the timing error, which differs from bounce to bounce).
+
+    Raises
+    ------
+    ValueError
+        Times not finite or not increasing, fewer than two, a negative or infinite time
+        uncertainty, or a contact duration not shorter than every interval.
+
+    Notes
+    -----
+    The timing errors are propagated to first order through the three impacts each ε
+    depends on, as in :func:`bounce_table`; the slopes dT/du and dL/du are those of
+    :func:`dashpot.physics.flight.drag_flight`. k_d's error is carried by the secant: half
+    the change of ε between k_d ± σ_k (the lower end clipped at 0), which is the first-order
+    propagation where ε is linear in k_d over ±σ_k and stays finite at k_d = 0.
+    """
+    times = np.asarray(times, dtype=float)
+    if times.ndim == 0 or times.shape[-1] < 2:
+        raise ValueError(f"drag_correction needs at least two impact times; got "
+                         f"{times.shape[-1] if times.ndim else 0}")
+    if not np.all(np.isfinite(times)):
+        raise ValueError("impact times must be finite")
+    if np.any(np.diff(times, axis=-1) <= 0):
+        raise ValueError("impact times must increase strictly")
+    g = float(check_positive("g", g))
+    drag = float(check_nonnegative("drag_constant", drag_constant))
+    drag_sigma = float(check_nonnegative("drag_uncertainty", drag_uncertainty))
+    contact_duration = float(check_nonnegative("contact_duration", contact_duration))
+    sigma = np.full(times.shape, np.nan) if time_uncertainty is None else \
+        np.broadcast_to(np.asarray(time_uncertainty, dtype=float), times.shape)
+    if np.any(np.isinf(sigma) | (np.nan_to_num(sigma) < 0)):
+        raise ValueError("time_uncertainty must be >= 0 and finite (NaN = unknown)")
+    flight_times = np.diff(times, axis=-1) - contact_duration
+    if np.any(flight_times <= 0):
+        raise ValueError(f"contact_duration {contact_duration:g} s is not shorter than every "
+                         f"interval")
+    out = _corrected(flight_times, sigma, g, drag)
+    if drag_sigma > 0:
+        # The secant over k_d ± σ_k (see the Notes).
+        low, high = max(drag - drag_sigma, 0.0), drag + drag_sigma
+        change = (_corrected(flight_times, sigma, g, high)["restitution_corrected"]
+                  - _corrected(flight_times, sigma, g, low)["restitution_corrected"])
+        out["restitution_corrected_drag_uncertainty"] = np.abs(change) * drag_sigma / (high - low)
+    else:
+        out["restitution_corrected_drag_uncertainty"] = np.where(
+            np.isnan(out["restitution_corrected"]), np.nan, 0.0)
+    return {name: out[name] for name in DRAG_CORRECTION_COLUMNS}
+
+
+def _corrected(flight_times, sigma, g, drag):
+    """Unchecked core of :func:`drag_correction` along the last axis: `flight_times` (..., m)
+    (NaN where not positive), `sigma` (..., m + 1) the impact times' 1σ."""
     valid = flight_times > 0.0
-    launch = np.full(flight_times.size, np.nan)
+    launch = np.full(flight_times.shape, np.nan)
     launch[valid] = launch_speed(flight_times[valid], g, drag)
     flight = drag_flight(np.nan_to_num(launch), g, drag)
     duration_slope = np.where(valid, flight.duration_slope, np.nan)  # dT/du
     landing = np.where(valid, flight.landing_speed, np.nan)
+    interval_sigma = np.hypot(sigma[..., :-1], sigma[..., 1:])
     launch_sigma = interval_sigma / duration_slope
-    eps = launch[1:] / landing[:-1]
+    eps = launch[..., 1:] / landing[..., :-1]
     # ε of impact n + 1 depends on T_n and T_{n+1}, i.e. on impacts n, n + 1 and n + 2.
-    by_next = 1.0 / (duration_slope[1:] * landing[:-1])
-    by_this = -eps * flight.landing_slope[:-1] / (landing[:-1] * duration_slope[:-1])
-    eps_sigma = np.sqrt((by_this * sigma[:-2]) ** 2 + ((by_this - by_next) * sigma[1:-1]) ** 2
-                        + (by_next * sigma[2:]) ** 2)
-    table["rebound_speed"] = launch
-    table["rebound_speed_uncertainty"] = launch_sigma
-    table["landing_speed"] = landing
-    table["landing_speed_uncertainty"] = flight.landing_slope * launch_sigma
-    table["restitution_corrected"] = np.append(eps, np.nan)
-    table["restitution_corrected_uncertainty"] = np.append(eps_sigma, np.nan)
+    by_next = 1.0 / (duration_slope[..., 1:] * landing[..., :-1])
+    by_this = -eps * flight.landing_slope[..., :-1] / (landing[..., :-1]
+                                                       * duration_slope[..., :-1])
+    eps_sigma = np.sqrt((by_this * sigma[..., :-2]) ** 2
+                        + ((by_this - by_next) * sigma[..., 1:-1]) ** 2
+                        + (by_next * sigma[..., 2:]) ** 2)
+    last = np.full(eps.shape[:-1] + (1,), np.nan)
+    return {"launch_speed": launch, "launch_speed_uncertainty": launch_sigma,
+            "landing_speed": landing,
+            "landing_speed_uncertainty": flight.landing_slope * launch_sigma,
+            "restitution_corrected": np.concatenate([eps, last], axis=-1),
+            "restitution_corrected_uncertainty": np.concatenate([eps_sigma, last], axis=-1)}
 
 
 def _flag_intervals(intervals, ratio, ratio_sigma):

@@ -17,6 +17,14 @@ Measured ε and impact speed (:func:`restitution_points`): where the sensor meas
 times, ε of the impact ending interval n is T_{n+1}/T_n and its impact speed the landing speed
 of flight n, g_eff·T_n/2 (the ``rebound_speed`` of row n of the bounce table, the flight being
 symmetric).
+
+Drag-corrected ε (:func:`drag_corrected_points`): where the scene file's bounce table was
+corrected for air drag (a fit under the noise model fitted k_d, or the scene gives the ball's
+mass and diameter: :func:`dashpot.analysis.stored_bounces`), the ``restitution`` figure draws
+the corrected ε of each bounce (launch over landing speed of the drag flights) against its
+impact speed, the landing speed of flight n, beside the uncorrected interval ratios; the legend
+names the k_d and the fit it comes from. Those points are the ones to compare with the laws'
+ε(v) curves, which hold ε itself, without the flight.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from . import plots
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
+           "drag_corrected_points",
            "scene_figures", "detection_figure_data", "detection_figure", "save_scene_figures"]
 
 SCENE_FIGURES = ("intervals", "restitution", "selection")
@@ -98,24 +107,80 @@ def restitution_points(record):
         Impact speeds in m/s, restitution, and their 1σ (NaN where unknown).
     """
     impacts = _fitted_impacts(record)
-    measured = impacts["impact_speed"].to_numpy(float), impacts["rebound_speed"].to_numpy(float)
-    good = np.isfinite(measured[0]) & np.isfinite(measured[1]) & (measured[0] > 0)
+    good = _measured_speeds(impacts)
     if good.sum() >= 2:
-        speed, rebound = measured[0][good], measured[1][good]
+        speed = impacts["impact_speed"].to_numpy(float)[good]
+        rebound = impacts["rebound_speed"].to_numpy(float)[good]
         sigma = impacts["speed_uncertainty"].to_numpy(float)[good]
         eps = rebound / speed
         eps_sigma = eps * np.hypot(sigma / speed, sigma / np.where(rebound > 0, rebound, np.nan))
         return speed, eps, sigma, eps_sigma
     bounces = record["bounces"]
-    keep = np.isfinite(bounces["restitution"].to_numpy(float))
-    if "flag" in bounces:
-        flags = bounces["flag"].to_numpy(str)
-        ok = flags == "ok"
-        keep &= ok & np.append(ok[1:], True)  # both intervals of the ratio are sound
+    keep = _sound_ratios(bounces)
     return (bounces["rebound_speed"].to_numpy(float)[keep],
             bounces["restitution"].to_numpy(float)[keep],
             bounces["rebound_speed_uncertainty"].to_numpy(float)[keep],
             bounces["restitution_uncertainty"].to_numpy(float)[keep])
+
+
+def _measured_speeds(impacts):
+    """Rows of an impact table with a measured impact and rebound speed."""
+    speed, rebound = (impacts[name].to_numpy(float) if name in impacts
+                      else np.full(len(impacts), np.nan)
+                      for name in ("impact_speed", "rebound_speed"))
+    return np.isfinite(speed) & np.isfinite(rebound) & (speed > 0)
+
+
+def _has_measured_speeds(record):
+    """Whether :func:`restitution_points` takes the sensor's speeds (else the flight times)."""
+    return int(_measured_speeds(_fitted_impacts(record)).sum()) >= 2
+
+
+def _sound_ratios(bounces):
+    """Rows of a bounce table whose ratio T_{n+1}/T_n is finite and whose two intervals are
+    both "ok"."""
+    keep = np.isfinite(bounces["restitution"].to_numpy(float))
+    if "flag" in bounces:
+        ok = bounces["flag"].to_numpy(str) == "ok"
+        keep &= ok & np.append(ok[1:], True)  # both intervals of the ratio are sound
+    return keep
+
+
+def drag_corrected_points(record):
+    """The drag-corrected ε of a scene file's bounce table against impact speed, or None.
+
+    Parameters
+    ----------
+    record : dict
+        Of :func:`load_record`.
+
+    Returns
+    -------
+    dict or None
+        None where the bounce table has no ``restitution_corrected`` column; else ``speed``
+        (the landing speed of flight n, which is the impact speed of the impact whose ε it is,
+        m/s), ``eps``, ``speed_uncertainty`` and ``eps_uncertainty`` (1σ from the impact
+        times; None where unknown) of the bounces whose ratio is sound (as in
+        :func:`restitution_points`), and ``label``, naming the drag constant used and its
+        source.
+    """
+    bounces = record["bounces"]
+    if "restitution_corrected" not in bounces:
+        return None
+    keep = _sound_ratios(bounces) & np.isfinite(bounces["restitution_corrected"].to_numpy(float))
+    attrs = bounces.attrs
+    source = str(attrs.get("drag_source", ""))
+    where = ("scene prior" if source == "scene" else f"noise fit {source}") if source else ""
+    constant = attrs.get("drag_constant")
+    label = "drag-corrected" + (f" ($k_d$ = {float(constant):.3g} 1/m, {where})"
+                                if constant is not None else "")
+    column = {name: bounces[name].to_numpy(float)[keep] for name in (
+        "landing_speed", "landing_speed_uncertainty", "restitution_corrected",
+        "restitution_corrected_uncertainty")}
+    return {"speed": column["landing_speed"], "eps": column["restitution_corrected"],
+            "speed_uncertainty": _finite_or_none(column["landing_speed_uncertainty"]),
+            "eps_uncertainty": _finite_or_none(column["restitution_corrected_uncertainty"]),
+            "label": label}
 
 
 def _eps_curves(record, group="fits"):
@@ -145,6 +210,11 @@ def scene_figures(record):
     """The figures :data:`SCENE_FIGURES` of one scene, as a dict of name -> Figure."""
     index, observed, uncertainty, predictions, failed = interval_series(record)
     speed, eps, speed_sigma, eps_sigma = restitution_points(record)
+    corrected = drag_corrected_points(record)
+    measured_label = None
+    if corrected is not None:
+        measured_label = ("measured speeds (no drag correction)" if _has_measured_speeds(record)
+                          else "interval ratios (no drag correction)")
     selection = record["selection"]
     return {
         "intervals": plots.intervals_figure(index, observed, uncertainty, predictions,
@@ -152,7 +222,9 @@ def scene_figures(record):
         "restitution": plots.restitution_speed_figure(speed, eps, _finite_or_none(speed_sigma),
                                                       _finite_or_none(eps_sigma),
                                                       _eps_curves(record),
-                                                      _noise_eps_curves(record)),
+                                                      _noise_eps_curves(record),
+                                                      corrected=corrected,
+                                                      measured_label=measured_label),
         "selection": _selection_figure(selection, record.get("noise_selection")),
     }
 

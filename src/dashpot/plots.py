@@ -63,6 +63,8 @@ MODEL_STYLES = {
 
 _FALLBACK_STYLE = {"color": "0.5", "marker": "x", "linestyle": ":"}
 _DATA_COLOR = "0.1"  # measured points: near black, no model uses it
+_UNCORRECTED_COLOR = "0.45"  # measured points beside their drag-corrected ones
+_CORRECTED_COLOR = "#C0392B"  # drag-corrected points: a red no model or law uses
 
 ZETA_LABEL = r"damping ratio $\zeta = \beta/\omega_0$ (dimensionless)"
 EPS_LABEL = r"restitution $\varepsilon$ (dimensionless)"
@@ -89,7 +91,8 @@ def _label(model):
 # Laws of the restitution ladder fitted under the noise model: colours no model uses.
 NOISE_LAW_COLORS = {"constant": "#000000", "linear": "#E69F00", "quadratic": "#8C564B",
                     "power": "#9467BD", "viscoelastic-hertz": "#17BECF",
-                    "hunt-crossley": "#BCBD22"}
+                    "hunt-crossley": "#BCBD22", "constant+drag": "#A6761D",
+                    "constant+friction": "#666666"}
 """Colour of each restitution law's ε(v) and bar where a scene has fits under the noise model
 (a dashpot model fitted under the noise model keeps its own colour)."""
 
@@ -677,7 +680,8 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
 
 
 def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
-                             restitution_uncertainty, curves, noise_curves=None):
+                             restitution_uncertainty, curves, noise_curves=None, *,
+                             corrected=None, measured_label=None):
     """Measured restitution against impact speed, with each fitted model's ε(v).
 
     Parameters
@@ -694,11 +698,20 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     noise_curves : dict of str to (array_like, array_like), optional
         Law or model name -> (impact speed in m/s, ε) of each fit under the noise model, drawn
         dash-dotted, labelled "noise: <name>" (the Line2D's gid is "noise:<name>").
+    corrected : dict, optional
+        Drag-corrected points drawn beside the measured ones (filled diamonds): ``speed``
+        (impact speeds in m/s), ``eps``, ``speed_uncertainty`` and ``eps_uncertainty`` (1σ,
+        or None) and ``label`` (the legend's text, saying which k_d corrected them).
+    measured_label : str, optional
+        Legend text of the measured points; default "measured", or with `corrected`
+        "uncorrected (interval ratios)", drawn as open circles.
 
     Returns
     -------
     matplotlib.figure.Figure
-        One axes: ε (dimensionless) against impact speed (m/s).
+        One axes: ε (dimensionless) against impact speed (m/s). The points are
+        :class:`~matplotlib.container.ErrorbarContainer` objects of ``ax.containers``
+        labelled as in the legend.
     """
     speed = np.asarray(impact_speed, dtype=float).ravel()
     eps = np.asarray(restitution, dtype=float).ravel()
@@ -718,17 +731,50 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
         curve_speed, shown = _sorted_curve(name, curve)
         handles.append(ax.plot(curve_speed, shown, color=_noise_color(name), linestyle="-.",
                                linewidth=1.2, label=_noise_label(name), gid=f"noise:{name}")[0])
-    handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
-                                  color=_DATA_COLOR, elinewidth=0.8, capsize=2,
-                                  label="measured", zorder=3))
-    ax.set_xlim(*_speed_limits(speed, xerr))
-    ax.set_ylim(*_restitution_limits(ax.get_xlim(), eps, yerr, handles[1:]))
+    points = [(speed, eps, xerr, yerr)]
+    if corrected is None:
+        handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o",
+                                      markersize=3.5, color=_DATA_COLOR, elinewidth=0.8,
+                                      capsize=2, label=measured_label or "measured",
+                                      zorder=3))
+    else:
+        # Beside the corrected points the uncorrected ones step back: open and grey.
+        handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o",
+                                      markersize=3.5, color=_UNCORRECTED_COLOR,
+                                      markerfacecolor="none", elinewidth=0.7, capsize=2,
+                                      label=measured_label or "uncorrected (interval ratios)",
+                                      zorder=3))
+        fixed = [np.asarray(corrected[key], dtype=float).ravel() for key in ("speed", "eps")]
+        errors = [None if corrected.get(key) is None else
+                  np.asarray(corrected[key], dtype=float).ravel()
+                  for key in ("speed_uncertainty", "eps_uncertainty")]
+        if fixed[0].shape != fixed[1].shape:
+            raise ValueError(f"corrected speed and eps must have the same length; got "
+                             f"{fixed[0].size} and {fixed[1].size}")
+        handles.insert(1, ax.errorbar(*fixed, xerr=errors[0], yerr=errors[1], fmt="D",
+                                      markersize=3.5, color=_CORRECTED_COLOR, elinewidth=0.8,
+                                      capsize=2, label=corrected.get("label", "drag-corrected"),
+                                      zorder=4))
+        points.append((*fixed, *errors))
+    drawn = [handle for handle in handles if isinstance(handle, Line2D)]
+    ax.set_xlim(*_speed_limits(np.concatenate([p[0] for p in points]), _joined(points, 2)))
+    ax.set_ylim(*_restitution_limits(ax.get_xlim(), np.concatenate([p[1] for p in points]),
+                                     _joined(points, 3), drawn))
     ax.set_xlabel("impact speed $v$ (m/s)")
     ax.set_ylabel(EPS_LABEL)
     ax.set_title("Restitution against impact speed")
     ax.grid(alpha=0.3)
     _figure_legend(fig, handles)
     return fig
+
+
+def _joined(points, index):
+    """The error bars `index` of every set of points joined (0 where a set has none), or None
+    where no set has any."""
+    if all(p[index] is None for p in points):
+        return None
+    return np.concatenate([np.zeros(p[0].size) if p[index] is None else p[index]
+                           for p in points])
 
 
 def _time_unit(values):

@@ -48,7 +48,15 @@ IMPACT_UNITS = {"time": "s", "time_uncertainty": "s", "amplitude": "1", "impact_
 BOUNCE_UNITS = {"run": "1", "bounce": "1", "start_time": "s", "interval": "s",
                 "interval_uncertainty": "s", "rebound_speed": "m/s",
                 "rebound_speed_uncertainty": "m/s", "restitution": "1",
-                "restitution_uncertainty": "1", "flag": "1", "restitution_flag": "1"}
+                "restitution_uncertainty": "1", "flag": "1", "restitution_flag": "1",
+                # Where the scene has a drag constant (dashpot.analysis.stored_bounces).
+                "launch_speed": "m/s", "launch_speed_uncertainty": "m/s",
+                "landing_speed": "m/s", "landing_speed_uncertainty": "m/s",
+                "restitution_corrected": "1", "restitution_corrected_uncertainty": "1",
+                "restitution_corrected_drag_uncertainty": "1"}
+# Attributes of a bounce table corrected for air drag: what corrected it.
+BOUNCE_DRAG_ATTRIBUTES = ("drag_constant", "drag_constant_uncertainty", "effective_gravity",
+                          "drag_source", "drag_note")
 SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "chisqr": "1",
                    "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1", "delta_qaic": "1",
                    "akaike_weight": "1", "rank": "1"}
@@ -371,12 +379,36 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
 
 def _write_fits(group, scene_fit):
     """A scene's (or one run's) bounce table, its fits under fits/<model> and its selection."""
-    _table(group, "bounces", scene_fit.data.bounces, BOUNCE_UNITS)
+    _bounces(group, scene_fit)
     fits = group.create_group("fits")
     for model, fit in scene_fit.results.items():
         _write_fit(fits.create_group(model), fit)
     selection = _table(group, "selection", scene_fit.selection, SELECTION_UNITS)
     selection.attrs["verdict"] = scene_fit.verdict
+
+
+def _bounces(group, scene_fit):
+    """The bounce table, with the drag-corrected ε and what corrected it where the scene has a
+    drag constant (:func:`dashpot.analysis.stored_bounces`; a table without it has the layout
+    it always had)."""
+    from .analysis import stored_bounces
+
+    table = stored_bounces(scene_fit)
+    written = _table(group, "bounces", table, BOUNCE_UNITS)
+    drag = table.attrs.get("drag")
+    if drag is not None:
+        written.attrs.update(dict(zip(BOUNCE_DRAG_ATTRIBUTES, (
+            drag.drag_constant, drag.uncertainty, drag.effective_gravity, drag.source,
+            drag.note))))
+
+
+def _read_bounces(group):
+    """A bounce table group as a DataFrame, with the attributes of its drag correction (where
+    it has one) in ``attrs``."""
+    table = read_table(group)
+    table.attrs.update({key: group.attrs[key] for key in BOUNCE_DRAG_ATTRIBUTES
+                        if key in group.attrs})
+    return table
 
 
 def _write_noise_fits(group, scene_fit):
@@ -462,7 +494,7 @@ def read_fit(path):
     """
     with h5py.File(path, "r") as source:
         out = {"attrs": dict(source.attrs), "impacts": read_table(source["impacts"]),
-               "bounces": read_table(source["bounces"]),
+               "bounces": _read_bounces(source["bounces"]),
                "selection": read_table(source["selection"]), "fits": {}}
         for model, group in source["fits"].items():
             out["fits"][model] = {
@@ -481,7 +513,7 @@ def read_fit(path):
             out["runs"] = {}
             for number, group in source["runs"].items():
                 out["runs"][int(number)] = {
-                    "attrs": dict(group.attrs), "bounces": read_table(group["bounces"]),
+                    "attrs": dict(group.attrs), "bounces": _read_bounces(group["bounces"]),
                     "selection": read_table(group["selection"]),
                     "fits": {model: {
                         "attrs": dict(fit.attrs),
