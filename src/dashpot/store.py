@@ -1,5 +1,7 @@
 """One HDF5 file per scene: impacts, bounces, every model's fit and the selection table, and
 where they were asked for the fits under the noise model and their own selection table.
+Where the scene has an air-drag constant the bounce table also holds the drag-corrected ε
+(:func:`dashpot.analysis.stored_bounces`).
 
 The layout (``docs/hdf5-layout.md`` lists every item, its unit and its type) uses only
 groups, numeric and UTF-8 string datasets and attributes, so plain h5py reads it; every table
@@ -479,7 +481,10 @@ def read_fit(path):
     Returns
     -------
     dict
-        ``attrs`` (root attributes), ``impacts``, ``bounces``, ``selection`` (DataFrames) and
+        ``attrs`` (root attributes), ``impacts``, ``bounces`` (with the attributes of its drag
+        correction in its ``attrs`` where it has one: ``drag_constant``,
+        ``drag_constant_uncertainty``, ``effective_gravity``, ``drag_source``,
+        ``drag_note``), ``selection`` (DataFrames) and
         ``fits``: model -> dict with ``attrs``, ``parameters`` (DataFrame indexed by name),
         ``correlation``, ``residuals``, ``predicted`` and ``eps_curve`` (dicts of arrays);
         where the file holds fits under the noise model also ``noise_selection`` (DataFrame),
