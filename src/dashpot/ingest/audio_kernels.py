@@ -58,12 +58,11 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 
 @_jit
-def _highpass(sos, block, state):
-    """Second-order sections over the columns of `block`; `state` (channels, sections, 2) is
-    updated in place. Output (channels, frames)."""
+def _highpass(sos, block, state, out):
+    """Second-order sections over the columns of `block` into `out` (channels, frames);
+    `state` (channels, sections, 2) is updated in place."""
     frames, channels = block.shape
     sections = sos.shape[0]
-    out = np.empty((channels, frames))
     # The channels' recursions are independent: stepped together, one sample of every channel
     # at a time, so that the processor overlaps their latency-bound chains.
     for n in range(frames):
@@ -75,7 +74,6 @@ def _highpass(sos, block, state):
                 state[c, s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
                 x_cur = x_new
             out[c, n] = x_cur
-    return out
 
 
 def highpass(sos, block, zi):
@@ -99,18 +97,20 @@ def highpass(sos, block, zi):
         Filter state after the block.
     """
     state = np.ascontiguousarray(np.moveaxis(np.asarray(zi, dtype=float), (0, 1), (1, 2)))
-    out = _highpass(np.ascontiguousarray(sos, dtype=float),
-                    np.ascontiguousarray(block, dtype=float), state)
+    block = np.ascontiguousarray(block, dtype=float)
+    # Outputs are allocated by numpy, which asks the kernel for huge pages for large arrays:
+    # a fresh array of a few MB otherwise costs more in page faults than filtering it.
+    out = np.empty((block.shape[1], block.shape[0]))
+    _highpass(np.ascontiguousarray(sos, dtype=float), block, state, out)
     return out.T, np.moveaxis(state, (1, 2), (0, 1))
 
 
 @_jit
 def _envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power,
-                       weak):
-    # Plain passes, each of which the compiler vectorizes or streams (fusing them into one
-    # loop with a ring buffer of the running sum measured several times slower).
+                       weak, power, sta, triggers, jump):
+    # Two passes: the power, channel by channel (vectorized), then the running sum, the STA
+    # and the trigger test together.
     frames, channels = filtered.shape
-    power = np.zeros(frames)
     for c in range(channels):
         column = filtered[:, c]
         for n in range(1, frames):
@@ -118,31 +118,35 @@ def _envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, m
             whitened = whitened * whitened
             whitened = whitened * weights[c]
             power[n] += whitened
-    cumulative = np.empty(frames + 1)
-    cumulative[0] = 0.0
-    total = 0.0
-    for n in range(frames):
-        total += power[n]
-        cumulative[n + 1] = total
-    sta = np.zeros(frames)
-    for n in range(frames - sta_length + 1):
-        sta[n] = (cumulative[n + sta_length] - cumulative[n]) / sta_length
-    # Room for a trigger at every sample; the pages of the arrays that stay unused are never
-    # touched.
-    triggers = np.empty(max(hi - lo, 0), dtype=np.int64)
-    jump = np.empty(max(hi - lo, 0))
+    # The running sum S (S[0] = 0, S[m] = power[0] + … + power[m − 1]) is kept in a ring of
+    # its last values (a power of two, at least `sta_length + background + 1`), not as a
+    # whole array: once S[m] is known, the STA of sample i = m − sta_length and its trigger
+    # test (which needs S[i − background]) follow.
+    ring_size = 1
+    while ring_size < sta_length + background + 1:
+        ring_size *= 2
+    mask = ring_size - 1
+    ring = np.zeros(ring_size)
     count = 0
-    for n in range(lo, hi):
-        if sta[n] < min_power:
+    total = 0.0
+    for m in range(1, frames + 1):
+        total += power[m - 1]
+        ring[m & mask] = total
+        i = m - sta_length
+        if i < 0:
             continue
-        level = cumulative[n] - cumulative[n - background]
+        value = (total - ring[i & mask]) / sta_length
+        sta[i] = value
+        if i < lo or i >= hi or value < min_power:
+            continue
+        level = ring[i & mask] - ring[(i - background) & mask]
         if level < background:  # np.maximum with a number: NaN stays NaN
             level = float(background)
-        if sta[n] >= weak * level:
-            triggers[count] = n
-            jump[count] = sta[n] * background / level
+        if value >= weak * level:
+            triggers[count] = i
+            jump[count] = value * background / level
             count += 1
-    return power, sta, triggers[:count], jump[:count]
+    return count
 
 
 def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power, weak):
@@ -174,9 +178,16 @@ def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, mi
     jump : ndarray
         STA over the mean power of the background before each trigger (floored at 1).
     """
-    return _envelope_triggers(filtered, np.ascontiguousarray(rho, dtype=float),
-                              np.ascontiguousarray(weights, dtype=float), int(sta_length),
-                              int(background), int(lo), int(hi), float(min_power), float(weak))
+    frames = filtered.shape[0]
+    # Outputs allocated by numpy (huge pages, see highpass), zeroed where the kernel expects
+    # it; room for a trigger at every sample, of which only the pages used are touched.
+    power, sta = np.zeros(frames), np.zeros(frames)
+    triggers, jump = np.empty(max(hi - lo, 0), dtype=np.int64), np.empty(max(hi - lo, 0))
+    count = _envelope_triggers(filtered, np.ascontiguousarray(rho, dtype=float),
+                               np.ascontiguousarray(weights, dtype=float), int(sta_length),
+                               int(background), int(lo), int(hi), float(min_power),
+                               float(weak), power, sta, triggers, jump)
+    return power, sta, triggers[:count].copy(), jump[:count].copy()
 
 
 # --------------------------------------------------------------------------------------------
