@@ -1,0 +1,223 @@
+"""The compiled loops of the audio impact detector against their numpy reference.
+
+dashpot.ingest.audio_kernels runs the high-pass, the power envelope and its trigger, the AIC
+onset picker and the chain's dynamic programme compiled; the numpy forms in
+dashpot.ingest.envelope and dashpot.ingest.chain stay as the reference (envelope.COMPILED =
+False runs them). The kernels do the same operations in the same order and take their
+logarithms from numpy, so the two must agree to the last bit: each kernel against its
+reference (and the high-pass against scipy.signal.sosfilt itself) on random input, and the
+whole detector on synthetic recordings with the disturbances of real ones (seeds 20261125 + k,
+not tuned) and on the real recordings where ../shared/data is present.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+from scipy import signal
+
+import dashpot
+from dashpot.errors import InputError
+from dashpot.ingest import chain as chaining
+from dashpot.ingest import envelope
+from dashpot.ingest.audio import detect_impacts
+from dashpot.synth.audio import impact_sound, write_audio
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+REAL = {"pingpong": DATA / "pingpong-erickson" / "pingpong.wav",
+        "bouncy": DATA / "bouncy-ball-pfe" / "drop_0.9m.wav"}
+SEED = 20261125
+
+
+def _kernels():
+    from dashpot.ingest import audio_kernels
+
+    return audio_kernels
+
+
+# ------------------------------------------------------------------------------ each kernel
+
+
+@pytest.mark.parametrize(("order", "channels"), [(2, 1), (4, 3)])
+def test_highpass_is_scipy_sosfilt_to_the_last_bit(order, channels):
+    rng = np.random.default_rng(SEED)
+    block = rng.normal(scale=0.1, size=(5000, channels)) + 0.3
+    sos = signal.butter(order, 150.0, "highpass", fs=44100, output="sos")
+    zi = rng.normal(size=(sos.shape[0], 2, channels))
+    expected, expected_state = signal.sosfilt(sos, block, axis=0, zi=zi)
+    filtered, state = _kernels().highpass(sos, block, zi)
+    np.testing.assert_array_equal(filtered, expected)
+    np.testing.assert_array_equal(state, expected_state)
+    # The same memory layout: the noise estimate's einsum sums over it in layout order.
+    assert filtered.strides == expected.strides
+
+
+def _bursty(rng, frames, channels):
+    """Noise with transients of random loudness and digitally silent stretches."""
+    samples = rng.normal(scale=1e-3, size=(frames, channels))
+    for start in rng.integers(100, frames - 400, size=40):
+        length = int(rng.integers(20, 300))
+        samples[start:start + length] *= rng.uniform(2.0, 300.0)
+    samples[frames // 3:frames // 3 + 500] = 0.0
+    return samples
+
+
+def test_envelope_and_trigger_equal_the_reference(monkeypatch):
+    rng = np.random.default_rng(SEED + 1)
+    filtered = np.asfortranarray(_bursty(rng, 20000, 2))
+    settings = envelope._Settings.make(48000, 12.0, 9.0)
+    rho, weights = np.array([0.3, 0.05]), 1.0 / (2 * np.array([1e-3, 2e-3]) ** 2)
+    lo, hi = settings.history, filtered.shape[0] - settings.lookahead + 1
+    weak = settings.min_jump / envelope._WEAK_JUMP_FACTOR / settings.background
+    expected = envelope._envelope_triggers(filtered, rho, weights, settings, lo, hi, weak)
+    found = _kernels().envelope_triggers(filtered, rho, weights, settings.sta,
+                                         settings.background, lo, hi, settings.min_power, weak)
+    assert expected[2].size > 10  # the test has triggers to compare
+    for got, want in zip(found, expected):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_onset_picks_equal_the_reference(monkeypatch):
+    rng = np.random.default_rng(SEED + 2)
+    rows, length = 300, 168
+    power = rng.exponential(size=(rows, length))
+    # A rise at a random split, sometimes a faint sound before it, some silent rows.
+    rise = rng.integers(10, length - 10, size=rows)
+    before = rng.integers(0, length, size=rows)
+    columns = np.arange(length)
+    power *= np.where(columns >= rise[:, None], rng.uniform(1, 1000, size=(rows, 1)), 1.0)
+    power *= np.where(columns >= before[:, None], rng.uniform(1, 5, size=(rows, 1)), 1.0)
+    power[:10, :40] = 0.0
+    first = rng.integers(0, length - 2 * envelope._AIC_MARGIN - 24, size=rows)
+    monkeypatch.setattr(envelope, "COMPILED", False)
+    expected = envelope._onset_picks(power, first, 24, 24)
+    monkeypatch.setattr(envelope, "COMPILED", True)
+    found = envelope._onset_picks(power, first, 24, 24)
+    assert np.unique(expected).size > 20
+    np.testing.assert_array_equal(found, expected)
+
+
+def _chain_inputs(rng, trend):
+    """Inputs of the chain's loop as chain._best_chain forms them, for a train with clutter."""
+    sequence = dashpot.bounce_sequence("hybrid", beta=80.0, omega0=3000.0, g=9.81, v0=1.5,
+                                       n_max=40)
+    times = np.sort(np.concatenate([sequence.impact_times,
+                                    rng.uniform(0, sequence.impact_times[-1], size=60)]))
+    weights = rng.uniform(0.1, 3.0, size=times.size)
+    n = times.size
+    gaps = times[None, :] - times[:, None]
+    upper = gaps > 0
+    log_gap = np.log(np.where(upper, gaps, 1.0))
+    jitter = 2 * chaining._ONSET_JITTER**2 / np.where(upper, gaps, 1.0) ** 2
+    score = np.where(upper, weights[:, None] + weights[None, :], -np.inf)
+    pointer = np.full((n, n), -1, dtype=np.int64)
+    centre_t = spread_t = None
+    if trend:
+        coefficients, scatter = chaining._trend(sequence.impact_times)
+        centre_t = (log_gap + np.polyval(coefficients, log_gap)).T.copy()
+        spread_t = (scatter**2 + jitter).T.copy()
+    last = np.searchsorted(times, times[1:-1] + chaining._RATIO_BOUNDS[1]
+                           * (times[1:-1] - times[0]), side="right")
+    return times, weights, (log_gap, jitter, weights, last, score, pointer, centre_t, spread_t)
+
+
+@pytest.mark.parametrize("trend", [False, True])
+@pytest.mark.parametrize("budget", [1 << 20, 64])  # one batch of costs, or many
+def test_chain_scores_equal_the_reference(trend, budget):
+    times, weights, inputs = _chain_inputs(np.random.default_rng(SEED + 3), trend)
+    log_gap, jitter, weights, last, score, pointer, centre_t, spread_t = inputs
+    expected_score, expected_pointer = score.copy(), pointer.copy()
+    chaining._relax_states(log_gap, jitter, weights, last, expected_score, expected_pointer,
+                           centre_t, spread_t)
+    log_lo, log_hi = np.log(chaining._RATIO_BOUNDS)
+    _kernels().chain_scores(log_gap, jitter, weights, last, score, pointer, centre_t, spread_t,
+                            log_lo=float(log_lo), log_hi=float(log_hi),
+                            log_growth=float(np.log1p(chaining._GROWTH_ALLOWANCE)),
+                            budget=budget)
+    assert np.isfinite(expected_score).sum() > times.size  # chains longer than pairs exist
+    np.testing.assert_array_equal(score, expected_score)
+    np.testing.assert_array_equal(pointer, expected_pointer)
+
+
+# ----------------------------------------------------------------------- the whole detector
+
+
+def _detect(path, compiled, monkeypatch, **options):
+    """Impact table (or the one-line error) of one detector path."""
+    monkeypatch.setattr(envelope, "COMPILED", compiled)
+    try:
+        return detect_impacts(path, **options)
+    except InputError as error:
+        return str(error)
+
+
+def _assert_same_impacts(path, monkeypatch, **options):
+    reference = _detect(path, False, monkeypatch, **options)
+    compiled = _detect(path, True, monkeypatch, **options)
+    if isinstance(reference, str):
+        assert compiled == reference
+        return 0
+    assert len(compiled) == len(reference)
+    for column in ("time", "time_uncertainty", "amplitude"):
+        np.testing.assert_array_equal(compiled[column].to_numpy(), reference[column].to_numpy(),
+                                      err_msg=column)
+    assert compiled.attrs["notes"] == reference.attrs["notes"]
+    return len(reference)
+
+
+def _disturbed(seed, rate):
+    """Samples of a train with the disturbances of tests/test_audio_disturbances.py (apex
+    clicks, a rest tail, a ring, an echo at 5-200 ms, in half the trains ring bursts)."""
+    rng = np.random.default_rng(seed)
+    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                       omega0=rng.uniform(2000, 4000), g=9.81,
+                                       v0=rng.uniform(0.5, 0.9), n_max=400)
+    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
+    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+    weakest_db = rng.uniform(20.0, 45.0)
+    options = dict(apex_click_db=-40.0, rest_click_period=rng.uniform(0.08, 0.1),
+                   rest_click_duration=0.6, echo_delay=rng.uniform(5e-3, 0.2),
+                   echo_level=rng.uniform(0.1, 0.5), ring_level=rng.uniform(0.0, 0.4),
+                   ring_delay=rng.uniform(0.01, 0.03))
+    if rng.uniform() < 0.5:
+        options.update(burst_delays=[rng.uniform(5e-3, 8e-3)],
+                       burst_levels=[rng.uniform(0.3, 1.5)])
+    samples, _ = impact_sound(times, speeds, sample_rate=rate, seed=seed,
+                              snr_db=weakest_db + 20 * np.log10(speeds.max() / speeds.min()),
+                              **options)
+    return samples
+
+
+@pytest.mark.parametrize(("k", "rate", "channels", "block_seconds", "extra"), [
+    (0, 22050, 1, 30.0, {}),
+    (1, 48000, 2, 30.0, {}),
+    (2, 44100, 2, 0.6, {}),  # many blocks: the carried samples and the later noise estimates
+    (3, 44100, 1, 30.0, {"noise_color": "pink", "dc_offset": 0.05, "clip_level": 0.3}),
+])
+def test_compiled_detector_gives_the_reference_impacts(tmp_path, monkeypatch, k, rate, channels,
+                                                       block_seconds, extra):
+    seed = SEED + k
+    if extra:
+        rng = np.random.default_rng(seed)
+        sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                           omega0=rng.uniform(2000, 4000), g=9.81,
+                                           v0=rng.uniform(1.0, 2.0), n_max=400)
+        samples, _ = impact_sound(sequence.impact_times[:40], sequence.impact_speeds[:40],
+                                  sample_rate=rate, seed=seed, snr_db=50.0, echo_delay=0.09,
+                                  echo_level=0.4, **extra)
+    else:
+        samples = _disturbed(seed, rate)
+    path = write_audio(tmp_path / f"train{k}.wav", samples, rate, channels=channels,
+                       subtype="FLOAT")
+    assert sf.info(str(path)).channels == channels
+    impacts = _assert_same_impacts(path, monkeypatch, block_seconds=block_seconds)
+    assert impacts >= 10  # a real comparison, not two identical refusals
+
+
+@pytest.mark.parametrize("name", sorted(REAL))
+def test_compiled_detector_gives_the_reference_impacts_on_real_sound(monkeypatch, name):
+    path = REAL[name]
+    if not path.exists():
+        pytest.skip(f"{path} not found: the real recordings (../shared/data) are not available")
+    assert _assert_same_impacts(path, monkeypatch) >= 30
