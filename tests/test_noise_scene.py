@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import dashpot
 from cli_run import run_cli
 from dashpot.errors import InputError
 from dashpot.fit import fit_model, fit_scene, prepare_data
@@ -50,7 +51,7 @@ def constant_train():
     """A constant-ε train fitted with and without the noise model (full ladder, model Ia)."""
     impacts = impact_table("constant", (0.95,), seed=81123)
     with np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
-        plain = fit_scene(impacts, Scene(), ("Ia",))
+        plain = fit_scene(impacts, Scene(), ("Ia",), noise=False)
         noisy = fit_scene(impacts, Scene(), ("Ia",), noise=True)
     return impacts, plain, noisy
 
@@ -271,7 +272,7 @@ def test_fit_and_analyze_take_the_noise_flag(tmp_path):
         assert json.loads(source.attrs["config"])["noise"] == list(source["noise_selection"][
             "model"].asstr()[()])
     status, out, err = run_cli(["fit", str(table), "-o", str(tmp_path / "plain.h5"),
-                                "--models", "Ia"])
+                                "--models", "Ia", "--no-noise"])
     assert status == 0, err
     assert "noise" not in out
     with h5py.File(tmp_path / "plain.h5", "r") as source:
@@ -333,3 +334,31 @@ def test_pingpong_recording_under_the_noise_model():
                          fit.noise_verdict), (effect, fit.noise_verdict)
     drag = fit.noise_results["constant+drag"].estimates["k_d"]
     assert drag.unit == "1/m" and 0.0 <= drag.low95 <= drag.value <= drag.high95
+
+
+def test_auto_fits_the_noise_model_only_where_the_deterministic_fits_miss():
+    """noise: auto (the default) lets the deterministic fits decide: a train with 0.3 %
+    rebound scatter misses every deterministic fit by far more than its stated 10 µs (the
+    noise fits are made, and a note says why), a train without scatter or jitter does not
+    (none are made, and a note says so); an explicit False never fits them."""
+    scattered = impact_table("constant", (0.95,), seed=20261125 + 41, count=30)
+    fit = fit_scene(scattered, Scene(), ("Ia",), noise_laws=("constant",))
+    assert Scene().noise == "auto"
+    assert "constant" in fit.noise_results and "Ia" in fit.noise_results
+    assert any(note.startswith("noise model fitted (noise: auto): every deterministic fit "
+                               "misses") for note in fit.data.notes), fit.data.notes
+    assert fit.results["Ia"].chisqr > 30 * fit.results["Ia"].ndata  # the size of that misfit
+    sequence = dashpot.bounce_sequence("Ia", beta=5.0, omega0=500.0, g=G, v0=2.0, n_max=25)
+    clean = pd.DataFrame({"time": 0.4 + sequence.impact_times
+                          + np.random.default_rng(20261125 + 42).normal(0.0, DETECTOR, 25),
+                          "time_uncertainty": DETECTOR})
+    plain = fit_scene(clean, Scene(), ("Ia",), noise_laws=("constant",))
+    assert not plain.noise_results and plain.noise_selection is None
+    assert any(note.startswith("noise model not fitted (noise: auto): the deterministic "
+                               "train describes") for note in plain.data.notes)
+    assert not fit_scene(scattered, Scene(), ("Ia",), noise=False).noise_results
+    # Without stated uncertainties χ² cannot show a misfit: kept deterministic, and said so.
+    unstated = fit_scene(scattered.drop(columns="time_uncertainty"), Scene(), ("Ia",),
+                         noise_laws=("constant",))
+    assert not unstated.noise_results
+    assert any("state no uncertainties" in note for note in unstated.data.notes)

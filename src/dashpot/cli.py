@@ -18,17 +18,22 @@ import warnings
 from pathlib import Path
 
 from .errors import InputError
-from .physics.models import MODELS
-from .scene import STANDARD_GRAVITY
+
+# The parser's choices and defaults, written out so that `dashpot --help` and a subcommand's
+# argument errors import no scientific module (physics.models alone pulls in scipy.optimize);
+# tests/test_batch.py checks them against dashpot.physics.MODELS and dashpot.scene.
+MODELS = ("Ia", "Ib", "IIa", "IIb", "hybrid")  # as dashpot.physics.models.MODELS
+STANDARD_GRAVITY = 9.80665  # m/s², as dashpot.scene.STANDARD_GRAVITY (CGPM 1901)
 
 STDOUT = "-"  # the output name that means standard output
 UNCERTAINTY_METHODS = ("covariance", "profile", "posterior")  # as dashpot.fit.settings
 UNCERTAINTY_HELP = ("intervals of beta by these methods besides the covariance: profile "
                     "(profile likelihood) and posterior (emcee sampling; slow); as the scene "
                     "key uncertainty, which they replace")
-NOISE_HELP = ("also fit the restitution-law ladder and the models under bounce-to-bounce "
-              "scatter and timing jitter, with their own selection (as the scene key "
-              "noise: true; slower)")
+NOISE_HELP = ("--noise also fits the restitution-law ladder and the models under "
+              "bounce-to-bounce scatter and timing jitter, with their own selection (slower); "
+              "--no-noise never does; default the scene key noise (auto: only where every "
+              "deterministic fit misses the stated timing uncertainties)")
 
 
 class _Console:
@@ -159,7 +164,7 @@ def _fit(args, console):
         raise InputError(args.output, "is a folder; give the HDF5 file to write")
     scene = _with_uncertainty(scene, args)
     impacts, runs_fit = analyze_runs(args.impacts, scene, models=args.models,
-                                     noise=args.noise or None)
+                                     noise=args.noise)
     scene_fit = runs_fit.first
     try:
         write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
@@ -205,7 +210,7 @@ def _analyze(args, console):
 
         bar.set_postfix_str("finding impacts")
         impacts, runs_fit = analyze_runs(recording, scene, models=models, progress=progress,
-                                         noise=args.noise or None)
+                                         noise=args.noise)
         scene_fit = runs_fit.first
         bar.set_postfix_str("writing")
         created = not out.exists()
@@ -537,7 +542,7 @@ def build_parser():
     fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
-    fit.add_argument("--noise", action="store_true", help=NOISE_HELP)
+    fit.add_argument("--noise", action=argparse.BooleanOptionalAction, help=NOISE_HELP)
     fit.add_argument("--uncertainty", nargs="+", choices=list(UNCERTAINTY_METHODS),
                      help=UNCERTAINTY_HELP)
     fit.set_defaults(run=_fit)
@@ -550,7 +555,7 @@ def build_parser():
                                          "(its name names the outputs)")
     analyze.add_argument("--models", nargs="+", choices=list(MODELS),
                          help="models to fit (default: the scene's, else all five)")
-    analyze.add_argument("--noise", action="store_true", help=NOISE_HELP)
+    analyze.add_argument("--noise", action=argparse.BooleanOptionalAction, help=NOISE_HELP)
     analyze.add_argument("--uncertainty", nargs="+", choices=list(UNCERTAINTY_METHODS),
                          help=UNCERTAINTY_HELP)
     analyze.set_defaults(run=_analyze)

@@ -69,7 +69,8 @@ UPPER_LIMITS = frozenset({*NOISE_NAMES, "v_star"})
 # Never on a line of their own: the start time, v0, and what β, k carry (ω0, v*, γ).
 HIDDEN = frozenset({"t0", "v0", "omega0", "v_star", "gamma"})
 # Notes on how a fit was made rather than on what the data say: shown with verbose=True.
-ROUTINE_PREFIXES = ("accuracy ", "start: ", "noise model: rebound scatter")
+ROUTINE_PREFIXES = ("accuracy ", "start: ", "noise model: rebound scatter",
+                    "noise model not fitted (noise: auto)")
 
 
 def _exponent(match):

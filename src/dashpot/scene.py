@@ -165,9 +165,11 @@ class Scene:
         Options for the reader (flag_length, gate_distance, bumper_position, unit).
     accuracy : str
         Numerical accuracy level of the fits ("auto", "fast", "standard", "exact").
-    noise : bool
+    noise : bool or "auto"
         Also fit under the noise model (bounce-to-bounce scatter and timing jitter): the
-        restitution-law ladder and the models, with their own selection (default False).
+        restitution-law ladder and the models, with their own selection. "auto" (default):
+        only where every deterministic fit misses the impact times' stated uncertainties
+        (:func:`dashpot.fit.fit_scene`); True: always; False: never.
     diameter : Known or None
         Diameter of the ball in m; with ``mass`` it turns on air drag (:attr:`drag`).
     air_density : Known or None
@@ -200,7 +202,7 @@ class Scene:
     timing_resolution: float | None = None
     reader: dict = field(default_factory=dict)
     accuracy: str = "auto"
-    noise: bool = False
+    noise: bool | str = "auto"
     diameter: Known | None = None
     air_density: Known | None = None
     drag_coefficient: Known | None = None
@@ -314,7 +316,7 @@ class Scene:
         out = {}
         for item in fields(self):
             value = getattr(self, item.name)
-            if (item.name == "noise" and not value) or (item.name == "friction"
+            if (item.name == "noise" and value == "auto") or (item.name == "friction"
                                                         and value is None) or (
                     item.name == "uncertainty" and tuple(value) == ("covariance",)):
                 continue  # recorded only where asked for: the default scene's record unchanged
@@ -427,7 +429,7 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
                   timing_resolution=mapping.get("timing_resolution"),
                   reader=dict(mapping.get("reader", {})),
                   accuracy=mapping.get("accuracy", "auto"),
-                  noise=bool(mapping.get("noise", False)), friction=mapping.get("friction"),
+                  noise=mapping.get("noise", "auto"), friction=mapping.get("friction"),
                   uncertainty=_uncertainty_methods(mapping.get("uncertainty")), **kwargs)
     _check_drag(scene, source)
     if scene.incline_angle is not None and scene.g_eff is None and \

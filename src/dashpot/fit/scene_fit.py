@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from ..scene import Scene
+from .covariance import _misfit_bound
 from .data import prepare_data
 from .model_fit import fit_model
 from .noise_scene import fit_noise_scene
@@ -25,11 +26,13 @@ def fit_scene(impacts, scene=None, models=None, *, progress=None, noise=None,
         Default: the scene's models (all five unless it says otherwise).
     progress : callable, optional
         Called with each model's name once it is fitted (and with each noise fit's).
-    noise : bool, optional
+    noise : bool or "auto", optional
         Also fit the restitution-law ladder and every requested model under the noise model
         (:func:`dashpot.fit.noise_scene.fit_noise_scene`), with their own selection table;
-        default: the scene's ``noise`` key (off). The deterministic fits and their selection
-        are the same either way.
+        default: the scene's ``noise`` key. "auto" fits them where the deterministic fits
+        cannot describe the data (:func:`noise_model_needed`), and a note in the data's
+        notes says which way it went and why. The deterministic fits and their selection are
+        the same either way.
     noise_laws : sequence of str, default :data:`dashpot.fit.settings.NOISE_LAWS`
         The ladder's laws fitted under the noise model.
 
@@ -60,8 +63,46 @@ def fit_scene(impacts, scene=None, models=None, *, progress=None, noise=None,
     selection, verdict = selection_table(results, sigma_known=data.sigma_known)
     scene_fit = SceneFit(scene=scene, data=data, results=results, selection=selection,
                          verdict=verdict)
-    if scene.noise if noise is None else noise:
+    setting = scene.noise if noise is None else noise
+    if setting == "auto":
+        setting, why = noise_model_needed(data, results)
+        data.notes.append(why)
+    if setting:
         (scene_fit.noise_results, scene_fit.noise_selection,
          scene_fit.noise_verdict) = fit_noise_scene(data, scene, models, noise_laws,
                                                     progress=progress)
     return scene_fit
+
+
+def noise_model_needed(data, results):
+    """Whether a scene's impacts need the noise model, judged on its deterministic fits.
+
+    They do where the timing uncertainties are stated and every fitted model misses them: the
+    best fit's χ² lies beyond 3σ of its χ² distribution (ν + 3√(2ν)), the size of misfit that
+    bounce-to-bounce scatter accumulating along a train produces (Durbin and Koopman, *Time
+    Series Analysis by State Space Methods*, 2nd ed., Oxford (2012), ch. 2: a random walk
+    fitted as a deterministic trend). Where the uncertainties are not stated the fits scale
+    them to the scatter, and χ² cannot tell: the deterministic fits are kept.
+
+    Returns
+    -------
+    needed : bool
+    why : str
+        A note saying which way it went, with the best fit's χ²/ν.
+    """
+    fitted = [fit for fit in results.values() if fit.success]
+    if not data.sigma_known:
+        return False, ("noise model not fitted (noise: auto): the impact times state no "
+                       "uncertainties, so the deterministic fits cannot show a misfit; "
+                       "noise: true fits it anyway")
+    if not fitted:
+        return True, "noise model fitted (noise: auto): no deterministic fit succeeded"
+    best = min(fitted, key=lambda fit: fit.chisqr)
+    dof = max(best.ndata - best.nvarys, 1)
+    if best.chisqr > _misfit_bound(dof):
+        return True, (f"noise model fitted (noise: auto): every deterministic fit misses the "
+                      f"impact times' stated uncertainties (best chi2/nu = {best.redchi:.3g} "
+                      f"for {dof} degrees of freedom)")
+    return False, (f"noise model not fitted (noise: auto): the deterministic train describes "
+                   f"the impact times within their stated uncertainties (best chi2/nu = "
+                   f"{best.redchi:.3g}); noise: true fits it anyway")
