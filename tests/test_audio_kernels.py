@@ -89,6 +89,7 @@ def test_onset_picks_equal_the_reference(monkeypatch):
     power *= np.where(columns >= rise[:, None], rng.uniform(1, 1000, size=(rows, 1)), 1.0)
     power *= np.where(columns >= before[:, None], rng.uniform(1, 5, size=(rows, 1)), 1.0)
     power[:10, :40] = 0.0
+    power[10:20] = 1.0  # constant rows: every split ties, the first one must win
     first = rng.integers(0, length - 2 * envelope._AIC_MARGIN - 24, size=rows)
     monkeypatch.setattr(envelope, "COMPILED", False)
     expected = envelope._onset_picks(power, first, 24, 24)
@@ -98,13 +99,18 @@ def test_onset_picks_equal_the_reference(monkeypatch):
     np.testing.assert_array_equal(found, expected)
 
 
-def _chain_inputs(rng, trend):
-    """Inputs of the chain's loop as chain._best_chain forms them, for a train with clutter."""
+def _chain_inputs(rng, trend, ties=False):
+    """Inputs of the chain's loop as chain._best_chain forms them, for a train with clutter
+    (or, with `ties`, with clicks on a grid of equal weights, where steps tie exactly)."""
     sequence = dashpot.bounce_sequence("hybrid", beta=80.0, omega0=3000.0, g=9.81, v0=1.5,
                                        n_max=40)
-    times = np.sort(np.concatenate([sequence.impact_times,
-                                    rng.uniform(0, sequence.impact_times[-1], size=60)]))
-    weights = rng.uniform(0.1, 3.0, size=times.size)
+    if ties:
+        times = np.sort(np.concatenate([sequence.impact_times, np.arange(1.0, 60.0) / 8]))
+        weights = np.ones(times.size)
+    else:
+        times = np.sort(np.concatenate([sequence.impact_times,
+                                        rng.uniform(0, sequence.impact_times[-1], size=60)]))
+        weights = rng.uniform(0.1, 3.0, size=times.size)
     n = times.size
     gaps = times[None, :] - times[:, None]
     upper = gaps > 0
@@ -123,9 +129,10 @@ def _chain_inputs(rng, trend):
 
 
 @pytest.mark.parametrize("trend", [False, True])
-@pytest.mark.parametrize("budget", [1 << 20, 64])  # one batch of costs, or many
-def test_chain_scores_equal_the_reference(trend, budget):
-    times, weights, inputs = _chain_inputs(np.random.default_rng(SEED + 3), trend)
+@pytest.mark.parametrize(("budget", "ties"), [(1 << 20, False), (64, False), (1 << 20, True)])
+def test_chain_scores_equal_the_reference(trend, budget, ties):
+    # budget: the costs prepared in one batch, or in many.
+    times, weights, inputs = _chain_inputs(np.random.default_rng(SEED + 3), trend, ties)
     log_gap, jitter, weights, last, score, pointer, centre_t, spread_t = inputs
     expected_score, expected_pointer = score.copy(), pointer.copy()
     chaining._relax_states(log_gap, jitter, weights, last, expected_score, expected_pointer,
