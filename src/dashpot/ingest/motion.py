@@ -555,39 +555,26 @@ def _motion_run(run, bumper_position, notes, legs):
     # A fitted flight whose parabola never reaches the bumper position cannot time its
     # contact (a bumper position given where the cart never is): such contacts are dropped.
     timed = has_in | ((samples_in < 2) & (has_out | (samples_out < 2)))
-    # The train ends at its last well-sampled reversal (none: no train). Flagged contacts
-    # after it are the cart's last, smallest bounces, timed mostly by the noise (a 2 mm error
-    # is 20 ms at 0.1 m/s), and would end the train on intervals that are no bounce train.
-    good = np.flatnonzero(real_reversal & ~short & timed)
-    reported = (k <= (good[-1] if good.size else -1)) & timed
     if np.any(~timed):
         notes.append(f"run '{label}': {int(np.sum(~timed))} contact(s) whose fitted flight "
                      f"never reaches the bumper position dropped")
-    if np.any(~reported & timed):
-        notes.append(f"run '{label}': {int(np.sum(~reported & timed))} last contact(s) after the "
-                     f"last reversal with two free-flight samples on each side left out (the "
-                     f"cart's smallest bounces, timed by the noise)")
-    flags = np.where(~real_reversal, "inferred", np.where(short, "few_samples", "ok"))[reported]
-    few = int(np.sum(short & real_reversal & reported))
-    if np.any(~real_reversal & reported):
-        notes.append(f"run '{label}': {int(np.sum(~real_reversal & reported))} contact(s) "
-                     f"without a visible reversal (a flight ending well before the next "
-                     f"reversal, its apex mirrored) flagged 'inferred'")
-    if few:
-        notes.append(f"run '{label}': {few} reversal(s) with fewer than two free-flight samples "
-                     f"on a side flagged 'few_samples' ({int(np.sum(~has_in & reported))} timed "
-                     f"by the outgoing flight or the turning samples, the incoming flight being "
-                     f"too short)")
+    flags = np.where(~real_reversal, "inferred", np.where(short, "few_samples", "ok"))
     speed_sd = np.fmax(cross["sd_v_in"], cross["sd_v_out"])
     speed_sd = np.where(np.isfinite(speed_sd), speed_sd, np.fmin(cross["sd_v_in"],
                                                                  cross["sd_v_out"]))
-    found = (impact_time[reported], time_sd[reported], cross["v_in"][reported],
-             cross["v_out"][reported], speed_sd[reported], flags)
-    if "position" in run.columns and reported.any() and result["split"]:
+    contacts = (impact_time[timed], time_sd[timed], cross["v_in"][timed], cross["v_out"][timed],
+                speed_sd[timed], flags[timed])
+    # The train is built up to its last well-sampled reversal; after it the cart's smallest
+    # bounces are timed better as excursions from the bumper (below), each flight fitted
+    # whole, than by a reversal's one or two samples (a 2 mm error is 20 ms at 0.1 m/s).
+    good = np.flatnonzero(real_reversal & ~short & timed)
+    in_train = (k <= (good[-1] if good.size else -1))[timed]
+    found = tuple(column[in_train] for column in contacts)
+    if "position" in run.columns and found[0].size and result["split"]:
         # The last bounces: too slow for a velocity reversal beyond the noise, but each still
         # an excursion from the bumper of two samples or more.
         tail = _tail_excursions(time, s, bumper, var_bumper, sigma_x, result,
-                                float(impact_time[reported][-1]))
+                                float(found[0][-1]))
         if tail[0].size:
             notes.append(f"run '{label}': {tail[0].size} later contact(s) between excursions "
                          f"from the bumper of two or more samples, too slow for a velocity "
@@ -599,7 +586,7 @@ def _motion_run(run, bumper_position, notes, legs):
     # (1 − r)·interval/4 with r the median interval ratio so far, beyond which intervals
     # would no longer shrink bounce by bounce (a ratio above 1 would be a 3σ event before).
     times, sigmas = found[0], found[1]
-    resolved_times = impact_time[reported & real_reversal & is_impact]
+    resolved_times = impact_time[timed & real_reversal & is_impact]
     trailing = times > (resolved_times[-1] if resolved_times.size else np.inf)
     if times.size >= 4 and trailing.any():
         intervals = np.diff(times)
@@ -609,10 +596,39 @@ def _motion_run(run, bumper_position, notes, legs):
             noisy = trailing[1:] & (sigmas[1:] > (1.0 - ratio) * intervals / 4.0)
             if noisy.any():
                 cut = int(np.flatnonzero(noisy)[0]) + 1
-                notes.append(f"run '{label}': {times.size - cut} last contact(s) left out: their "
-                             f"timing noise exceeds a quarter of the change between successive "
-                             f"intervals (median interval ratio {ratio:.3f})")
+                notes.append(f"run '{label}': {times.size - cut} last contact(s) found as "
+                             f"excursions left out: their timing noise exceeds a quarter of "
+                             f"the change between successive intervals (median interval ratio "
+                             f"{ratio:.3f})")
                 found = tuple(a[:cut] for a in found)
+    # Every reversal is reported all the same, flagged where short: one that the train left
+    # out or cut is put back unless a contact of the train lies within 3σ of the samples where
+    # its velocity turned, which bracket the contact (the same contact, timed by its
+    # excursions; a reversal timed by its outgoing flight alone is late by the contact).
+    times, sigmas = found[0], found[1]
+    sigma = np.hypot(contacts[1], np.max(sigmas) if sigmas.size else 0.0)
+    window_lo = np.minimum(turn_lo[timed], contacts[0]) - 3.0 * sigma
+    window_hi = np.maximum(turn_hi[timed], contacts[0]) + 3.0 * sigma
+    represented = (np.searchsorted(times, window_hi, side="right")
+                   > np.searchsorted(times, window_lo, side="left"))
+    if np.any(~represented):
+        notes.append(f"run '{label}': {int(np.sum(~represented))} reversal(s) after the train's "
+                     f"last well-timed contact kept, flagged as the others")
+        found = tuple(np.concatenate([a, b[~represented]]) for a, b in zip(found, contacts))
+        order = np.argsort(found[0], kind="stable")
+        found = tuple(a[order] for a in found)
+    final_flags = found[5]
+    inferred = int(np.sum(final_flags == "inferred"))
+    if inferred:
+        notes.append(f"run '{label}': {inferred} contact(s) without a visible reversal (a "
+                     f"flight ending well before the next reversal, its apex mirrored) flagged "
+                     f"'inferred'")
+    few = int(np.sum(final_flags == "few_samples"))
+    if few:
+        notes.append(f"run '{label}': {few} reversal(s) with fewer than two free-flight samples "
+                     f"on a side flagged 'few_samples' (timed by what there is: the incoming "
+                     f"flight, else the outgoing one, else the samples where the velocity "
+                     f"turned)")
     return found
 
 
@@ -823,10 +839,12 @@ def read_motion_sensor(path, *, bumper_position=None):
     Every reversal is reported. One whose incoming or outgoing flight has fewer than two free
     samples in the fit is flagged "few_samples" and timed by what it has: the incoming
     parabola, else the outgoing one (the contact end), else the midpoint of the samples where
-    the velocity turned (1σ: their spacing/√12); the speed it cannot measure is NaN. The
-    train ends at its last reversal with two free samples on each side: flagged contacts
-    after it (the smallest bounces, timed by the noise) are left out, noted; so is a contact
-    whose fitted flight never reaches the bumper position.
+    the velocity turned (1σ: their spacing/√12); the speed it cannot measure is NaN. After the
+    last reversal with two free samples on each side the excursions below time the smallest
+    bounces better (each flight fitted whole); a flagged reversal there is replaced by the
+    contact they find within 3σ of it, and kept, flagged, where they find none (velocity-only
+    records, which have no excursions, keep them all). Only a contact whose fitted flight
+    never reaches the bumper position is left out, noted.
 
     After the last reversal, bounces too slow to pass the velocity threshold are still found
     as excursions of the position from the bumper: runs of two or more samples more than 4σ
@@ -834,7 +852,8 @@ def read_motion_sensor(path, *, bumper_position=None):
     accelerations; a contact lies between consecutive excursions. The train ends where an
     impact's timing noise exceeds a quarter of the change between successive intervals,
     (1 − r)·interval/4 with r the median interval ratio: beyond it the intervals no longer
-    shrink bounce by bounce within the noise.
+    shrink bounce by bounce within the noise. That cut leaves out excursions only; a reversal
+    it reaches is put back.
     """
     if bumper_position is not None:
         bumper_position = check_range("bumper_position", bumper_position,
