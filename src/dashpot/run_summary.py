@@ -15,7 +15,7 @@ import pandas as pd
 __all__ = ["summary_by_run"]
 
 
-def summary_by_run(table, paths):
+def summary_by_run(table, paths, records=None):
     """The summary `table` with a column ``run`` after ``scene``, one row per run and model.
 
     Parameters
@@ -25,6 +25,9 @@ def summary_by_run(table, paths):
         :data:`dashpot.summary.SUMMARY_COLUMNS`).
     paths : sequence of str or os.PathLike
         The scene files it was built from, each named by its stem as in the table.
+    records : dict of str -> dict, optional
+        Scene -> the file already read (:func:`dashpot.summary.read_summary_record` or
+        :func:`dashpot.store.read_fit`); else each file of a scene in the table is read.
 
     Returns
     -------
@@ -33,42 +36,51 @@ def summary_by_run(table, paths):
         selection and verdict; status and problem as the scene's); for a single-run scene
         the run number of its impacts (0 where the recording has no runs, and for scenes
         without a usable file). Row order: scenes as in `table`, runs in increasing number.
+        Linear in the rows: a multi-run scene's rows are the only ones rebuilt.
     """
-    from .store import read_fit
-    from .summary import summary_from_records
+    from .summary import read_summary_record, summary_from_records
 
-    runs_of = {}
-    for path in paths:
-        scene = Path(path).stem
-        if scene not in set(table["scene"]):
+    scenes = list(pd.unique(table["scene"]))
+    if records is None:
+        wanted, records = set(scenes), {}
+        for path in paths:
+            scene = Path(path).stem
+            if scene not in wanted:
+                continue
+            try:
+                records[scene] = read_summary_record(path)
+            except (OSError, RuntimeError, KeyError, ValueError, TypeError):
+                continue  # already an "unreadable" row of the table
+    status = table.groupby("scene", sort=False)["status"].first()
+    number, per_run = {}, {}
+    for scene in scenes:
+        record = records.get(scene)
+        if record is not None and "runs" in record and status[scene] in ("ok", "stale"):
+            per_run[scene] = record
             continue
-        try:
-            record = read_fit(path)
-        except (OSError, RuntimeError, KeyError, ValueError, TypeError):
-            continue  # already an "unreadable" row of the table
-        runs_of[scene] = record
-    parts = []
-    for scene, rows in table.groupby("scene", sort=False):
-        record = runs_of.get(scene)
-        if record is None or "runs" not in record or rows["status"].iloc[0] not in (
-                "ok", "stale"):
-            impacts = None if record is None else record["impacts"]
-            number = (int(impacts["run"].iloc[0]) if impacts is not None and len(impacts)
-                      and "run" in impacts else 0)
-            parts.append(rows.assign(run=number))
-            continue
-        for number, run in sorted(record["runs"].items()):
-            view = {"attrs": {"verdict": run["attrs"].get("verdict", "")},
-                    "fits": run["fits"], "selection": run["selection"],
-                    **{key: run[key] for key in ("noise_fits", "noise_selection",
-                                                 "noise_verdict") if key in run}}
-            per_run = summary_from_records({scene: view})
-            per_run["status"] = rows["status"].iloc[0]
-            per_run["problem"] = rows["problem"].iloc[0]
-            parts.append(per_run.assign(run=number))
-    if not parts:
-        return table.assign(run=np.zeros(len(table), dtype=np.int64))[_order(table)]
-    out = pd.concat(parts, ignore_index=True)
+        impacts = None if record is None else record["impacts"]
+        number[scene] = (int(impacts["run"].iloc[0]) if impacts is not None and len(impacts)
+                         and "run" in impacts else 0)
+    out = table[~table["scene"].isin(list(per_run))]
+    out = out.assign(run=out["scene"].map(number).fillna(0).astype(np.int64))
+    if per_run:
+        parts = [out]
+        for scene, record in per_run.items():
+            rows = table[table["scene"] == scene]
+            for run_number, run in sorted(record["runs"].items()):
+                view = {"attrs": {"verdict": run["attrs"].get("verdict", "")},
+                        "fits": run["fits"], "selection": run["selection"],
+                        **{key: run[key] for key in ("noise_fits", "noise_selection",
+                                                     "noise_verdict") if key in run}}
+                rows_of_run = summary_from_records({scene: view})
+                rows_of_run["status"] = rows["status"].iloc[0]
+                rows_of_run["problem"] = rows["problem"].iloc[0]
+                parts.append(rows_of_run.assign(run=run_number))
+        out = pd.concat(parts, ignore_index=True)
+        # Back into the table's scene order (stable: runs stay in increasing order).
+        order = {scene: position for position, scene in enumerate(scenes)}
+        out = out.iloc[np.argsort(out["scene"].map(order).to_numpy(), kind="stable")]
+    out = out.reset_index(drop=True)
     out["run"] = out["run"].astype(np.int64)
     return out[_order(table)]
 

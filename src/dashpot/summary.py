@@ -27,8 +27,8 @@ from .select import summary_table
 from .store import FORMAT, read_fit
 from .truth import TRUTH_PARAMETERS, pulls
 
-__all__ = ["SUMMARY_COLUMNS", "TRUTH_SUMMARY_COLUMNS", "STATUSES", "summary_from_records", "summary_from_files",
-           "scene_file_problem"]
+__all__ = ["SUMMARY_COLUMNS", "TRUTH_SUMMARY_COLUMNS", "STATUSES", "summary_from_records",
+           "summary_from_files", "scene_file_problem", "read_summary_record"]
 
 TRUTH_SUMMARY_COLUMNS = tuple(f"{name}_{kind}" for name in TRUTH_PARAMETERS
                               for kind in ("truth", "pull"))
@@ -137,29 +137,99 @@ def _notes_column(table, records):
 
 
 def _truth_columns(table, records):
-    """The ``*_truth`` and ``*_pull`` columns of the summary rows `table` (NaN where none)."""
+    """The ``*_truth`` and ``*_pull`` columns of the summary rows `table` (NaN where none).
+
+    Each scene's truth and each fit's estimates are looked up once (a summary of thousands
+    of scenes stays linear in its rows).
+    """
     columns = {name: np.full(len(table), np.nan) for name in TRUTH_SUMMARY_COLUMNS}
+    truths, estimates_of = {}, {}
     for row, (scene, model) in enumerate(zip(table["scene"], table["model"])):
-        truth = records[scene].get("truth")
-        if truth is None:
+        if scene not in truths:
+            truth = records[scene].get("truth")
+            truths[scene] = (None if truth is None else
+                             dict(zip(truth["parameter"], truth["truth"].astype(float))))
+        true_values = truths[scene]
+        if true_values is None:
             continue
-        true_values = truth.set_index("parameter")["truth"]
-        fit = records[scene]["fits"].get(model)
-        estimates = fit["parameters"] if fit is not None else None
+        if (scene, model) not in estimates_of:
+            fit = records[scene]["fits"].get(model)
+            estimates_of[scene, model] = (
+                None if fit is None else
+                {name: (float(values["value"]), float(values["stderr"]))
+                 for name, values in fit["parameters"][["value", "stderr"]].iterrows()})
+        estimates = estimates_of[scene, model]
         for name in TRUTH_PARAMETERS:
             if name not in true_values:
                 continue
             columns[f"{name}_truth"][row] = true_values[name]
-            if estimates is not None and name in estimates.index:
-                columns[f"{name}_pull"][row] = pulls(estimates.loc[name, "value"],
-                                                     estimates.loc[name, "stderr"],
-                                                     true_values[name])
+            if estimates is not None and name in estimates:
+                value, stderr = estimates[name]
+                columns[f"{name}_pull"][row] = pulls(value, stderr, true_values[name])
     return columns
 
 
 def _empty_table():
     return pd.DataFrame({column: pd.Series(dtype=object if column in _TEXT_COLUMNS else float)
                          for column in SUMMARY_COLUMNS})
+
+
+def _fits_record(group):
+    """Each fit of a ``fits`` or ``noise_fits`` group: its attributes and parameter table."""
+    from .store import read_table
+
+    return {name: {"attrs": dict(fit.attrs),
+                   "parameters": read_table(fit["parameters"]).set_index("name")}
+            for name, fit in group.items()}
+
+
+def _noise_part(group):
+    from .store import read_table
+
+    if "noise_fits" not in group:
+        return {}
+    return {"noise_selection": read_table(group["noise_selection"]),
+            "noise_verdict": str(group["noise_selection"].attrs.get("verdict", "")),
+            "noise_fits": _fits_record(group["noise_fits"])}
+
+
+def read_summary_record(path):
+    """What the summary reads of a scene file, in the layout of :func:`dashpot.store.read_fit`.
+
+    Only the parts the summary uses: the root attributes, the impacts' ``run`` column,
+    ``selection``, each fit's attributes and parameter table (``fits``, and ``noise_fits``
+    with ``noise_selection`` and ``noise_verdict``), ``truth``, and the same of each run
+    under ``runs``. A small part of the file (no residuals, curves, bounces or intervals),
+    so that a summary of thousands of scenes reads each file quickly, and once.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A scene file written by :func:`dashpot.store.write_scene_fit`.
+    """
+    from .store import read_table
+
+    with h5py.File(path, "r") as source:
+        impacts = source["impacts"]
+        columns = list(impacts.attrs["columns"])
+        runs = impacts["run"][()] if "run" in columns else None
+        length = impacts[columns[0]].shape[0] if columns else 0
+        out = {"attrs": dict(source.attrs),
+               "impacts": (pd.DataFrame({"run": runs}) if runs is not None
+                           else pd.DataFrame(index=range(length))),
+               "selection": read_table(source["selection"]),
+               "fits": _fits_record(source["fits"]), **_noise_part(source)}
+        if "truth" in source:
+            out["truth"] = read_table(source["truth"])
+            out["truth"].attrs.update({key: str(source["truth"].attrs.get(key, ""))
+                                       for key in ("model", "source")})
+        if "runs" in source:
+            out["runs"] = {int(number): {"attrs": dict(group.attrs),
+                                         "selection": read_table(group["selection"]),
+                                         "fits": _fits_record(group["fits"]),
+                                         **_noise_part(group)}
+                           for number, group in source["runs"].items()}
+    return out
 
 
 def scene_file_problem(path):
@@ -198,11 +268,11 @@ def _scene_row(scene, status, problem):
     return row
 
 
-def summary_from_files(paths, problems=None):
+def summary_from_files(paths, problems=None, *, by_run=False):
     """:func:`summary_from_records` of scene files, each named by its file stem, with a status.
 
-    Every file is read whole first; one that cannot be read gives one ``unreadable`` row
-    naming it (and its problem) instead of stopping the summary.
+    Every file is read once (:func:`read_summary_record`); one that cannot be read gives one
+    ``unreadable`` row naming it (and its problem) instead of stopping the summary.
 
     Parameters
     ----------
@@ -212,13 +282,17 @@ def summary_from_files(paths, problems=None):
         Scene name -> why it cannot run now (one line). Such a scene's rows, from its file in
         `paths` (an earlier run), are marked ``stale``; one without a file gets one ``failed``
         row.
+    by_run : bool, optional
+        One row per run and model (:func:`dashpot.run_summary.summary_by_run`, from the
+        records already read).
 
     Returns
     -------
     pandas.DataFrame
-        Columns :data:`SUMMARY_COLUMNS`: the fit columns of :func:`summary_from_records`, then
-        ``status`` (see :data:`STATUSES`) and ``problem`` (empty when ``ok``). Rows of fitted
-        scenes first, in the order of `paths`, then one row per scene without a usable file.
+        Columns :data:`SUMMARY_COLUMNS` (with ``run`` after ``scene`` if `by_run`): the fit
+        columns of :func:`summary_from_records`, then ``status`` (see :data:`STATUSES`) and
+        ``problem`` (empty when ``ok``). Rows of fitted scenes first, in the order of
+        `paths`, then one row per scene without a usable file.
     """
     problems = dict(problems or {})
     records, unusable = {}, []
@@ -227,7 +301,7 @@ def summary_from_files(paths, problems=None):
         problem = scene_file_problem(path)
         if problem is None:
             try:
-                records[scene] = read_fit(path)
+                records[scene] = read_summary_record(path)
             except _READ_ERRORS as error:
                 problem = f"{path}: damaged scene file ({_one_line(error)})"
         if problem is not None:
@@ -239,7 +313,11 @@ def summary_from_files(paths, problems=None):
     seen = set(records) | {row["scene"] for row in unusable}
     unusable += [_scene_row(scene, "failed", problem) for scene, problem in problems.items()
                  if scene not in seen]
-    if not unusable:
-        return table
-    rows = pd.DataFrame(unusable, columns=list(SUMMARY_COLUMNS))
-    return pd.concat([table, rows], ignore_index=True) if len(table) else rows
+    if unusable:
+        rows = pd.DataFrame(unusable, columns=list(SUMMARY_COLUMNS))
+        table = pd.concat([table, rows], ignore_index=True) if len(table) else rows
+    if by_run:
+        from .run_summary import summary_by_run
+
+        return summary_by_run(table, paths, records=records)
+    return table

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from dashpot.batch import auto_chunk_size, chunks, plots_wanted
 from dashpot.errors import InputError
 from dashpot.pipeline import is_audio, workflow_scene
 from dashpot.summary import scene_file_problem
@@ -155,6 +156,15 @@ for _name in FAILED_FITS:
 AUDIO_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["audio"]]
 SYNTHETIC_SCENES = [name for name in RUNNABLE_SCENES if SCENES[name]["source"] == "synthetic"]
 SCENE_FIGURES = ["intervals", "restitution", "selection"]
+# Scenes are fitted in chunks, one process per chunk (dashpot.batch): `chunk_size` scenes,
+# "auto" 1 for a handful of scenes and up to 50 for hundreds. Membership is a hash of the
+# name, so adding a scene reruns one chunk, in which the up-to-date scenes are skipped.
+CHUNK_SIZE = config.get("chunk_size", "auto")
+CHUNK_SIZE = auto_chunk_size(len(RUNNABLE_SCENES)) if CHUNK_SIZE == "auto" else int(CHUNK_SIZE)
+CHUNKS = chunks(RUNNABLE_SCENES, CHUNK_SIZE)
+CHUNK_OF = {name: chunk for chunk, names in CHUNKS.items() for name in names}
+# Per-scene figures: on by default up to dashpot.batch.PLOTS_LIMIT scenes.
+SCENE_PLOTS = plots_wanted(config.get("scene_plots", "auto"), len(RUNNABLE_SCENES))
 THEORY_FIGURES = ["contact_time", "restitution", "critical_speed", "restitution_vs_speed"]
 
 
@@ -168,40 +178,86 @@ wildcard_constraints:
     scene=_names_pattern(RUNNABLE_SCENES),
 
 
-def fit_input(wildcards):
-    """The scene's definition (scene.yaml or synthetic folder) and its recording.
+def scene_inputs(name):
+    """A scene's input files: its scene.yaml and its recording (none for a synthetic scene,
+    which its chunk writes from its config entry, a parameter of the chunk).
 
     The recording exists (a scene whose recording is missing is broken, see above), so it
-    is demanded: a changed recording reruns the fit.
+    is demanded: a changed recording reruns the scene's chunk.
     """
-    scene = SCENES[wildcards.scene]
+    scene = SCENES[name]
     if scene["source"] == "synthetic":
-        return {"scene": f"results/synthetic/{wildcards.scene}"}
-    inputs = {"recording": scene["recording"]}
-    if scene["scene_file"]:
-        inputs["scene"] = scene["scene_file"]
-    return inputs
+        return []
+    return [path for path in (scene["scene_file"], scene["recording"]) if path]
 
 
-def truth_file(wildcards):
-    """The truth.json of a synthetic scene (written by rule simulate into the folder that is
-    the fit's input), else "" (a real scene has no truth)."""
-    if SCENES[wildcards.scene]["source"] != "synthetic":
-        return ""
-    return f"results/synthetic/{wildcards.scene}/truth.json"
+def chunk_input(wildcards):
+    """The input files of every scene of a chunk."""
+    return [path for name in CHUNKS[wildcards.chunk] for path in scene_inputs(name)]
 
 
-def config_scene(wildcards):
-    """The config entry of a scene given in config.yaml, else None."""
-    return config.get("scenes", {}).get(wildcards.scene)
+def figure_paths(name):
+    """A scene's figure files (PNG and PDF; an audio scene's detection figure too)."""
+    figures = SCENE_FIGURES + (["detection"] if SCENES[name]["audio"] else [])
+    return [f"results/plots/{name}/{figure}.{ext}" for figure in figures for ext in ("png", "pdf")]
 
 
-def recording_input(wildcards):
-    """The recording of an audio scene (for its detection figure)."""
-    scene = SCENES[wildcards.scene]
-    if scene["source"] == "synthetic":
-        return f"results/synthetic/{wildcards.scene}"
-    return scene["recording"]
+def scene_task(name):
+    """What a chunk's process needs of one scene (dashpot.batch.process_chunk)."""
+    scene = SCENES[name]
+    synthetic = scene["source"] == "synthetic"
+    folder = f"results/synthetic/{name}"
+    return {
+        "name": name, "source": scene["source"], "scene_file": scene["scene_file"],
+        "scene_input": folder if synthetic else scene["scene_file"],
+        "recording": scene["recording"], "audio": scene["audio"],
+        "mapping": config.get("scenes", {}).get(name),
+        "spec": config["synthetic"][name] if synthetic else None,
+        "folder": folder if synthetic else None,
+        "truth": f"{folder}/truth.json" if synthetic else None,
+        "uncertainty": config.get("uncertainty", ["covariance"]),
+        "noise": config.get("noise", False),
+        "result": f"results/{name}.h5", "done": f"results/chunks/done/{name}.json",
+        "truth_csv": f"results/truth/{name}.csv" if synthetic else None,
+        "figures": figure_paths(name), "log": f"results/logs/fit/{name}.log",
+        "truth_log": f"results/logs/truth_table/{name}.log",
+        "plots_log": f"results/logs/scene_plots/{name}.log",
+    }
+
+
+def chunk_tasks(wildcards):
+    return [scene_task(name) for name in CHUNKS[wildcards.chunk]]
+
+
+def chunk_folder(wildcards):
+    """The staging folder of a scene's chunk (the output of its fit_chunk job)."""
+    return f"results/chunks/fit/{CHUNK_OF[wildcards.scene]}"
+
+
+def staged(wildcards):
+    """Where the chunk put the scene's new files."""
+    return f"{chunk_folder(wildcards)}/{wildcards.scene}"
+
+
+def publish(step, what):
+    """The shell command of a per-scene step: move the scene's files of this `step` (fit,
+    truth, plots) from its chunk's staging folder into place (rename: atomic), or fail with
+    the scene's error. A file the chunk did not redo (up to date) is kept as it is."""
+    return (
+        "s={params.staged:q}; "
+        f'if [ -e "$s/{step}.error" ]; then '
+        f'echo "dashpot: scene {{wildcards.scene}}: {what} failed: $(cat "$s/{step}.error")" >&2; '
+        "exit 1; fi; "
+        "for f in {output:q}; do b=$(basename \"$f\"); "
+        'if [ -e "$s/$b" ]; then mkdir -p "$(dirname "$f")" && mv -f "$s/$b" "$f"; '
+        'elif [ ! -e "$f" ]; then echo "dashpot: scene {wildcards.scene}: $f was not made '
+        '(see its log in results/logs)" >&2; exit 1; fi; done'
+        # The fit's fingerprint, after its file: what the file was made from (the chunk
+        # skips the scene while it matches; a stale or missing one refits it).
+        + ('; if [ -e "$s/fingerprint.json" ]; then mkdir -p results/chunks/done && '
+           'mv -f "$s/fingerprint.json" results/chunks/done/{wildcards.scene}.json; fi'
+           if step == "fit" else "")
+    )
 
 
 def summary_input(wildcards):
@@ -243,11 +299,8 @@ def all_outputs():
     outputs += expand("results/logs/fit/{scene}.broken", scene=BROKEN_SCENES)
     outputs += ["results/summary.h5", "results/summary.csv"]
     outputs += expand("results/truth/{scene}.csv", scene=SYNTHETIC_SCENES)
-    if config.get("scene_plots", True):
-        outputs += expand("results/plots/{scene}/{figure}.{ext}", scene=RUNNABLE_SCENES,
-                          figure=SCENE_FIGURES, ext=["png", "pdf"])
-        outputs += expand("results/plots/{scene}/detection.{ext}", scene=AUDIO_SCENES,
-                          ext=["png", "pdf"])
+    if SCENE_PLOTS:
+        outputs += [path for name in RUNNABLE_SCENES for path in figure_paths(name)]
     outputs += expand("results/theory/{figure}.{ext}", figure=THEORY_FIGURES,
                       ext=["png", "pdf"])
     outputs += ["results/theory/critical_velocity.csv", "results/theory/restitution_vs_zeta.csv"]

@@ -1,27 +1,47 @@
-rule fit:
-    """Impacts of one scene's recording and every contact model fitted, to one HDF5 file.
-
-    The output is flagged update(): Snakemake keeps a copy of the earlier file while the job
-    runs and puts it back if the job fails, so a fit that fails on a rerun (an unreadable new
-    recording, a crash) never deletes the scene's earlier results.
+rule fit_chunk:
+    """A chunk of scenes fitted by one process (dashpot.batch.process_chunk), each into the
+    chunk's staging folder with its own log (results/logs/fit/<scene>.log): a synthetic
+    scene's recording simulated first, then impacts and every contact model, the truth table
+    of a synthetic scene and, where figures are drawn, its figures. A scene whose result is
+    up to date is skipped; one that fails leaves its error line for its `fit` step, and the
+    chunk goes on. The folder is temporary: deleted once every scene's files are in place.
     """
     input:
-        unpack(fit_input),
+        chunk_input,
     output:
-        update("results/{scene}.h5"),
+        temp(directory("results/chunks/fit/{chunk}")),
     params:
-        mapping=config_scene,
-        truth=truth_file,
-        uncertainty=config.get("uncertainty", ["covariance"]),
-        noise=config.get("noise", False),
+        scenes=chunk_tasks,
+        plots=SCENE_PLOTS,
     log:
-        "results/logs/fit/{scene}.log",
+        "results/logs/fit_chunk/{chunk}.log",
     benchmark:
-        "results/benchmarks/fit/{scene}.tsv"
+        "results/benchmarks/fit_chunk/{chunk}.tsv"
+    wildcard_constraints:
+        chunk=_names_pattern(CHUNKS),
     conda:
         "../envs/dashpot.yaml"
     script:
-        "../scripts/fit.py"
+        "../scripts/fit_chunk.py"
+
+
+rule fit:
+    """One scene's HDF5 file moved into place from its chunk, or the scene's error.
+
+    The output is flagged update(): Snakemake keeps a copy of the earlier file while the step
+    runs and puts it back if it fails, so a fit that fails on a rerun (an unreadable new
+    recording, a crash) never deletes the scene's earlier results; the chunk itself never
+    writes results/<scene>.h5.
+    """
+    input:
+        chunk_folder,
+    output:
+        update("results/{scene}.h5"),
+    params:
+        staged=staged,
+    localrule: True
+    shell:
+        publish("fit", "its fit")
 
 
 rule broken_scene:
@@ -47,21 +67,23 @@ rule broken_scene:
 
 rule truth_table:
     """A synthetic scene's truth against the generating model's fit, as a table for the report
-    (the same rows as the scene file's `truth` group, units in the headers)."""
+    (the same rows as the scene file's `truth` group, units in the headers), from its chunk."""
     input:
+        chunk_folder,
         "results/{scene}.h5",
     output:
-        report(
-            "results/truth/{scene}.csv",
-            caption="../report/truth.rst",
-            category="Summary",
-            labels={"table": "truth against fit: {scene}"},
+        update(
+            report(
+                "results/truth/{scene}.csv",
+                caption="../report/truth.rst",
+                category="Summary",
+                labels={"table": "truth against fit: {scene}"},
+            )
         ),
-    log:
-        "results/logs/truth_table/{scene}.log",
+    params:
+        staged=staged,
     wildcard_constraints:
         scene=_names_pattern(SYNTHETIC_SCENES),
-    conda:
-        "../envs/dashpot.yaml"
-    script:
-        "../scripts/truth_table.py"
+    localrule: True
+    shell:
+        publish("truth", "its truth table")

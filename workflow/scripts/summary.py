@@ -7,7 +7,6 @@ workflow could not run (params.problems) are marked stale (earlier results) or f
 """
 
 from dashpot.joblog import job_log
-from dashpot.run_summary import summary_by_run
 from dashpot.store import write_summary
 from dashpot.summary import summary_from_files
 
@@ -16,7 +15,7 @@ snakemake = globals()["snakemake"]  # injected by Snakemake's script directive
 with job_log(snakemake.log[0], "cross-scene summary") as log:
     files = [*snakemake.input, *snakemake.params.stale]
     # One row per run and model: a multi-run scene's runs each with its own fits.
-    table = summary_by_run(summary_from_files(files, snakemake.params.problems), files)
+    table = summary_from_files(files, snakemake.params.problems, by_run=True)
     marked = table[table["status"] != "ok"].drop_duplicates("scene")
     for row in marked.itertuples():
         log.warning("scene %s (%s): %s", row.scene, row.status, row.problem)
