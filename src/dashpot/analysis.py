@@ -225,7 +225,7 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
     return impacts, runs_fit
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BounceDrag:
     """The air drag a scene's bounce table is corrected with (:func:`bounce_drag`).
 
@@ -241,6 +241,9 @@ class BounceDrag:
         Where k_d comes from: the name of a fit under the noise model, or "scene".
     note : str
         The same in plain words, with the numbers.
+    timing_sigma : ndarray or None
+        Total 1σ timing noise in s of each impact the fit used (``FitData.times``): the
+        detector's σ with the jitter σ_j the same noise fit found; None for the scene's prior.
     """
 
     drag_constant: float
@@ -248,6 +251,7 @@ class BounceDrag:
     effective_gravity: float
     source: str
     note: str
+    timing_sigma: np.ndarray | None = None
 
 
 def _estimate(fit, name):
@@ -273,10 +277,10 @@ def bounce_drag(scene_fit):
         Of the fits under the noise model that fitted a drag constant ``k_d`` (the drag rung
         ``constant+drag``; every fit where the scene gives the ball's mass and diameter): the
         selected one if it carries k_d, else the one of lowest BIC among them (the note then
-        says the selection did not keep drag). Without such a fit, the scene's prior k_d
+        says so). Without such a fit, the scene's prior k_d
         (:attr:`dashpot.scene.Scene.drag`, from mass, diameter, C_d and air density); None
         where the scene models no drag either. g_eff is the same fit's where it fitted one,
-        else the scene's driving acceleration.
+        else the scene's driving acceleration; the timing noise is the same fit's.
     """
     carrying = {name: fit for name, fit in (scene_fit.noise_results or {}).items()
                 if fit.success and _estimate(fit, "k_d") is not None}
@@ -289,12 +293,15 @@ def bounce_drag(scene_fit):
         else:
             name = min(carrying, key=lambda key: carrying[key].bic)
             why = ("the fit of lowest BIC among those under the noise model with air drag; "
-                   "the selection did not keep drag")
+                   + (f"the selected fit, {selected[0]}, has none" if selected else
+                      "no fit was selected"))
         fit = carrying[name]
         value, error = _estimate(fit, "k_d")
         gravity = _estimate(fit, "g_eff")
         gravity = gravity[0] if gravity is not None else float(scene_fit.data.g)
         source, origin = name, f"{name} ({why})"
+        timing_sigma = np.asarray(fit.timing_sigma, dtype=float)
+        timing = f"the timing noise {name} fitted (the detector's σ with its jitter σ_j)"
     else:
         drag = scene_fit.scene.drag
         if drag is None:
@@ -303,12 +310,13 @@ def bounce_drag(scene_fit):
         error = drag.drag_constant.uncertainty or 0.0
         gravity = drag.effective_gravity.value
         source, origin = "scene", "the scene's prior (ball mass, diameter, C_d, air density)"
+        timing_sigma, timing = None, "the timing uncertainties the fits used"
     note = (f"restitution_corrected: ε corrected for air drag with k_d = {value:.4g} ± "
             f"{error:.2g} 1/m of {origin}, g_eff = {gravity:.6g} m/s², contact duration 0; "
-            f"its uncertainty from the impact times, k_d's share apart "
+            f"its uncertainty from {timing}, k_d's share apart "
             f"(restitution_corrected_drag_uncertainty)")
     return BounceDrag(drag_constant=value, uncertainty=error, effective_gravity=gravity,
-                      source=source, note=note)
+                      source=source, note=note, timing_sigma=timing_sigma)
 
 
 def stored_bounces(scene_fit):
@@ -331,9 +339,10 @@ def stored_bounces(scene_fit):
 
     Notes
     -----
-    The timing errors are those the fit used (the recording's or the scene's); an impact the
-    fit left out (spurious, inferred) or an unknown σ gives NaN uncertainties to the values
-    involving it. The contact duration is taken as 0, as in the uncorrected ratios and the
+    The timing errors are those of the noise fit k_d comes from (the detector's σ with the
+    jitter σ_j it fitted: a one-sample σ alone is several times too small on real audio), else
+    those the deterministic fits used; an impact the fit left out (spurious, inferred) or an
+    unknown σ gives NaN uncertainties to the values involving it. The contact duration is taken as 0, as in the uncorrected ratios and the
     restitution laws' flights.
     """
     table = scene_fit.data.bounces.copy()
@@ -346,7 +355,9 @@ def stored_bounces(scene_fit):
     sigma = np.full(times.size, np.nan)
     kept = np.ones(times.size, bool)
     kept[np.asarray(data.excluded, dtype=int)] = False
-    if data.sigma_known and kept.sum() == np.size(data.sigma):
+    if drag.timing_sigma is not None and drag.timing_sigma.size == kept.sum():
+        sigma[kept] = drag.timing_sigma
+    elif data.sigma_known and kept.sum() == np.size(data.sigma):
         sigma[kept] = data.sigma
     corrected = drag_correction(times, drag.effective_gravity, drag.drag_constant,
                                 time_uncertainty=sigma, drag_uncertainty=drag.uncertainty)
