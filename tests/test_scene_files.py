@@ -186,6 +186,15 @@ def test_noise_tables_open_in_xarray_too(scene_files, tmp_path):
     selection = _open(path, "noise_selection")
     assert dict(selection.sizes) == {"model": len(laws)}
     assert selection["sigma_j"].attrs["units"] == "s" and selection["kept"].dtype == bool
+    # The drag rung's k_d corrects the bounce table: its added columns are documented above
+    # and open on the table's dimension like the others.
+    assert "constant+drag" in laws
+    bounces = _open(path, "bounces")
+    for column in ("landing_speed", "restitution_corrected",
+                   "restitution_corrected_uncertainty", "restitution_corrected_drag_uncertainty"):
+        assert bounces[column].dims == ("bounce",) and bounces[column].dtype == np.float64
+    assert bounces["landing_speed"].attrs["units"] == "m/s"
+    assert bounces.attrs["drag_source"] in laws
     for law in laws:
         parameters = _open(path, f"noise_fits/{law}/parameters")
         assert list(parameters.sizes) == ["name"] and "sigma_j" in parameters["name"].values
