@@ -342,8 +342,8 @@ def stored_bounces(scene_fit):
     The timing errors are those of the noise fit k_d comes from (the detector's σ with the
     jitter σ_j it fitted: a one-sample σ alone is several times too small on real audio), else
     those the deterministic fits used; an impact the fit left out (spurious, inferred) or an
-    unknown σ gives NaN uncertainties to the values involving it. The contact duration is taken as 0, as in the uncorrected ratios and the
-    restitution laws' flights.
+    unknown σ gives NaN uncertainties to the values involving it. The contact duration is
+    taken as 0, as in the uncorrected ratios and the restitution laws' flights.
     """
     table = scene_fit.data.bounces.copy()
     drag = bounce_drag(scene_fit)
