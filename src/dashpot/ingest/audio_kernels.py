@@ -190,6 +190,76 @@ def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, mi
     return power, sta, triggers[:count].copy(), jump[:count].copy()
 
 
+@_jit
+def _transient_measures(raw, filtered, onsets, window_starts, level, amplitude_length,
+                        window_length, clip_factor, clip_run, amplitudes, flat, windows):
+    count, channels = window_starts.shape
+    for k in range(count):
+        largest, extreme = 0.0, 0.0
+        for i in range(amplitude_length):
+            for c in range(channels):
+                sample = raw[onsets[k] + i, c]
+                deviation = abs(sample - level[k, c])
+                if deviation > largest:
+                    largest = deviation
+                if abs(sample) > extreme:
+                    extreme = abs(sample)
+        at_extreme = 0
+        for i in range(amplitude_length):
+            for c in range(channels):
+                if abs(raw[onsets[k] + i, c]) >= extreme * clip_factor:
+                    at_extreme += 1
+        amplitudes[k] = largest
+        flat[k] = at_extreme >= clip_run and extreme > 0
+        for c in range(channels):
+            for i in range(window_length):
+                windows[k, c, i] = filtered[window_starts[k, c] + i, c]
+
+
+def transient_measures(raw, filtered, onsets, window_starts, level, amplitude_length,
+                       window_length, clip_factor, clip_run):
+    """Amplitude, clipping flag and fit windows of each transient, as
+    :func:`.envelope._keep_transients` forms them.
+
+    Parameters
+    ----------
+    raw, filtered : ndarray, shape (frames, channels)
+        Samples (full scale) and high-passed samples.
+    onsets : ndarray of int, shape (K,)
+        Rough onsets (samples).
+    window_starts : ndarray of int, shape (K, channels)
+        First sample of each channel's fit window.
+    level : ndarray, shape (K, channels)
+        Mean raw level before each onset (full scale).
+    amplitude_length, window_length : int
+        Samples of the amplitude window (from the onset) and of the fit windows.
+    clip_factor : float
+        A sample at or above this fraction of the largest magnitude counts towards a flat top.
+    clip_run : int
+        Samples at the extreme that make a flat (clipped) top.
+
+    Returns
+    -------
+    amplitudes : ndarray, shape (K,)
+        Largest |raw − level| within the amplitude window, over the channels.
+    flat : ndarray of bool, shape (K,)
+        Clipped (flat top) transients.
+    windows : ndarray, shape (K, channels, window_length)
+        Each channel's high-passed samples from its window start.
+    """
+    count, channels = window_starts.shape
+    amplitudes = np.empty(count)
+    flat = np.empty(count, dtype=np.bool_)
+    windows = np.empty((count, channels, int(window_length)))
+    # Maxima and counts are exact: no order of operations to follow.
+    _transient_measures(raw, filtered, np.ascontiguousarray(onsets, dtype=np.int64),
+                        np.ascontiguousarray(window_starts, dtype=np.int64),
+                        np.ascontiguousarray(level, dtype=float), int(amplitude_length),
+                        int(window_length), float(clip_factor), int(clip_run), amplitudes,
+                        flat, windows)
+    return amplitudes, flat, windows
+
+
 # --------------------------------------------------------------------------------------------
 # AIC onset picker
 

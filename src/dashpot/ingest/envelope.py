@@ -344,42 +344,52 @@ def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong)
     # Peak deviation of the raw samples (all channels) within `amplitude` samples after each
     # onset from their mean level over the `pre` samples before it: DC offset excluded.
     before = raw[(onsets[:, None] + np.arange(-settings.pre, 0))[:, :, None], channel]
-    after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None], channel]
-    amplitudes = np.abs(after - before.mean(axis=1, keepdims=True)).max(axis=(1, 2))
-    # A flat top, several samples at the largest magnitude, is what clipping leaves; a free
-    # transient does not produce it.
-    magnitude = np.abs(after).reshape(onsets.size, -1)
-    extreme = magnitude.max(axis=1, keepdims=True)
-    flat = ((magnitude >= extreme * (1 - _CLIP_TOLERANCE)).sum(axis=1) >= _CLIP_RUN) \
-        & (extreme[:, 0] > 0)
     # Each channel's high-passed waveform around its own rough onset, for the onset fit.
     window_starts = channel_onsets - settings.pre
-    windows = filtered[window_starts[:, :, None] + np.arange(settings.pre + settings.span),
-                       channel[None, :, None]]
+    if COMPILED:
+        # The mean level stays numpy's (its summation order), the rest is gathered compiled.
+        amplitudes, flat, windows = _kernels().transient_measures(
+            raw, filtered, onsets, window_starts, before.mean(axis=1), settings.amplitude,
+            settings.pre + settings.span, 1 - _CLIP_TOLERANCE, _CLIP_RUN)
+    else:
+        after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None], channel]
+        amplitudes = np.abs(after - before.mean(axis=1, keepdims=True)).max(axis=(1, 2))
+        # A flat top, several samples at the largest magnitude, is what clipping leaves; a
+        # free transient does not produce it.
+        magnitude = np.abs(after).reshape(onsets.size, -1)
+        extreme = magnitude.max(axis=1, keepdims=True)
+        flat = ((magnitude >= extreme * (1 - _CLIP_TOLERANCE)).sum(axis=1) >= _CLIP_RUN) \
+            & (extreme[:, 0] > 0)
+        windows = filtered[window_starts[:, :, None] + np.arange(settings.pre + settings.span),
+                           channel[None, :, None]]
+    # Python scalars for the loop (indexing numpy arrays one element at a time costs more).
+    strengths, amplitude_list = sta[onsets].tolist(), amplitudes.tolist()
+    flat_list, strong_list = flat.tolist(), strong.tolist()
+    absolute_starts = stream.start + window_starts
     for i, onset in enumerate(onsets.tolist()):
         absolute = stream.start + onset
         if stream.last_onset is not None and absolute <= stream.last_onset:
             continue  # the picker went back into a transient already kept
         if (stream.last_onset is not None and absolute - stream.last_onset < settings.merge
-                and sta[onset] < _SPLIT_JUMP * stream.candidates[-1]["strength"]):
+                and strengths[i] < _SPLIT_JUMP * stream.candidates[-1]["strength"]):
             # A second trigger within 1 ms of the onset of the transient just kept: its power
             # jumped again while rising. The same transient (impacts are further apart),
             # unless it is 9 dB louder: then the one kept was a faint sound (the ring or echo
             # of an earlier impact) just before this one, and both stay candidates.
             kept = stream.candidates[-1]
-            kept["strength"] = max(kept["strength"], float(sta[onset]))
-            kept["amplitude"] = max(kept["amplitude"], float(amplitudes[i]))
-            kept["clipped"] = kept["clipped"] or bool(flat[i])
-            kept["strong"] = kept["strong"] or bool(strong[i])
+            kept["strength"] = max(kept["strength"], strengths[i])
+            kept["amplitude"] = max(kept["amplitude"], amplitude_list[i])
+            kept["clipped"] = kept["clipped"] or flat_list[i]
+            kept["strong"] = kept["strong"] or strong_list[i]
             continue
         stream.candidates.append({
             "onset": absolute,
-            "window_starts": stream.start + window_starts[i],
+            "window_starts": absolute_starts[i],
             "windows": windows[i],
-            "strength": float(sta[onset]),
-            "amplitude": float(amplitudes[i]),
-            "clipped": bool(flat[i]),
-            "strong": bool(strong[i]),
+            "strength": strengths[i],
+            "amplitude": amplitude_list[i],
+            "clipped": flat_list[i],
+            "strong": strong_list[i],
         })
         stream.last_onset = absolute
 
