@@ -161,31 +161,7 @@ CASES = {
 # within 1e-6; the fast level's tabulated filter is within about 1e-3 of the direct one).
 OPTIMUM_SLACK = 0.05
 # Measured with seed SEED + index, on the code as it stands: what fails and by how much.
-KNOWN_FAILURES = {
-    "Ib": ("measured over 40 trains (seed SEED + 2): 95 % intervals hold the truth in 30/40 (v0) "
-           "and 31/40 (beta), below the binomial range 33-40; 68 %: v0 19/40, beta 18/40; "
-           "half-width/spread 0.58-0.77 and stderr/spread 0.58-0.77 for zeta, v_star, omega0, "
-           "beta and v0. In 8-9 of the 40 trains the fit puts sigma_eps at exactly 0 (the "
-           "deterministic branch), and the intervals are then those of the deterministic "
-           "train: v0's 68 % interval holds the truth in 0/9 (half-width 0.5 mm/s against a "
-           "spread of 3 mm/s), beta's in 2/9. In the other 31, v0's 95 % interval holds it in "
-           "26/31 and beta's half-width is 0.77 of its spread: short trains under-cover too"),
-    "constant, no scatter": (
-        "measured over 60 trains without scatter (seed SEED + 3): sigma_eps's 68 % interval "
-        "holds the truth 0 in 60/60 trains, above the 99.9 % binomial range 40-58 of the "
-        "boundary rate 1/2 + 1/2 * 0.6827; its fitted value is exactly 0 in 60/60, where a "
-        "point on the bound is expected in about half. -2 ln L at the sigma_eps = 0 fit's "
-        "other values rises by 1.1-1.3 already at sigma_eps = 1e-6 in every train: the choice "
-        "between the sigma_eps = 0 fit and the fitted one is made on the plain likelihood, "
-        "whose slope in sigma_eps^2 at 0 is biased upward by the fitted e and v0 (the "
-        "scatter's random walk lies along what they absorb; the bias the adjusted profile "
-        "removes from the intervals but not from the estimate)"),
-    "Ib, 25 impacts": (
-        "measured over 40 trains (seed SEED + 6): zeta, v_star, omega0, beta and v0 cover at "
-        "their rates (beta 25/40 and 39/40, half-width/spread 0.93), but sigma_eps's standard "
-        "error is 0.67 of the spread of its estimates (its 68 % half-width 0.78; estimates "
-        "biased low by about 0.9 of their spread)"),
-}
+KNOWN_FAILURES = {}
 
 
 def _truth(law, params, speed, scatter, scene=None):

@@ -798,11 +798,91 @@ class _Problem:
                            self.step_upper, NEWTON_ITERATIONS, reference=best.value,
                            soft=self.soft)
             zero = _pick(zero, trains, np.zeros(trains.size, int))
+        self.eps_points = None
         profiles = self.profiles(best, zero, trains) if profile else {}
+        chosen, spent = self.adjusted_choice(best, zero, trains)
         # Likelihood evaluations per train (each batch row is one).
         evaluations = (fits.evaluations + (zero.evaluations if zero is not None else 0)
-                       + sum(p[2] for p in profiles.values())) // trains.size
-        return [self.result(t, best, zero, profiles, evaluations) for t in trains]
+                       + spent + sum(p[2] for p in profiles.values())) // trains.size
+        return [self.result(t, best, zero, chosen, profiles, evaluations) for t in trains]
+
+    def adjusted_choice(self, best, zero, trains):
+        """σ_ε of each train where the adjusted profile −2 ln L + ln det H_mm is least (module
+        notes, *Noise estimates*), and the law's parameters, v0 and σ_j fitted there.
+
+        The candidates are σ_ε = 0 (the deterministic train), the best fit and the points of
+        σ_ε's profile (where it was computed); the least of these with its neighbours on the
+        profile is refined by a parabola in ln σ_ε, and the others are fitted again with σ_ε
+        held there. A σ_ε at its floor (SIGMA_EPS_FLOOR) is σ_ε = 0. Without profiles the
+        choice is between σ_ε = 0 and the best fit.
+
+        Returns
+        -------
+        chosen : list of dict
+            Per train: ``params`` (the reported row), ``at_zero`` (σ_ε = 0 chosen) and, where
+            fitted again, ``refit``: (−2 ln L, its Hessian in the free columns but σ_ε).
+        evaluations : int
+            Likelihood evaluations of the refits.
+        """
+        count = trains.size
+        free = self.free()
+        i_eps = self.index("sigma_eps")
+        chosen = [dict(params=best.params[t].copy(), at_zero=False) for t in range(count)]
+        if zero is None:
+            return chosen, 0
+        zero_free = [f for f in free if f != i_eps]
+        with np.errstate(invalid="ignore"):
+            a_best = best.value + self._mean_log_det(best.hessian, free)
+            a_zero = zero.value + self._mean_log_det(zero.hessian, zero_free)
+        a_best = np.where(np.isfinite(a_best), a_best, np.inf)
+        a_zero = np.where(np.isfinite(a_zero), a_zero, np.inf)
+        # Where no adjusted value is finite (no positive-definite Hessian block), the plain
+        # likelihood decides.
+        plain_zero = zero.value <= best.value + 10 * CONVERGED
+        points = self.eps_points
+        refit_rows, refit_starts = [], []
+        for t in range(count):
+            xs = np.array([best.params[t, i_eps]])
+            values, rows = np.array([a_best[t]]), best.params[t][None]
+            if points is not None:
+                xs = np.concatenate([points["grid"][t], xs])
+                values = np.concatenate([points["adjusted"][t], values])
+                rows = np.concatenate([points["fitted"].params[t], rows])
+            usable = np.isfinite(values) & np.isfinite(xs)
+            order = np.argsort(xs[usable])
+            xs, values, rows = xs[usable][order], values[usable][order], rows[usable][order]
+            lowest, where = math.inf, None
+            if xs.size:
+                k = int(np.argmin(values))
+                lowest, where, row = values[k], xs[k], rows[k]
+                if 0 < k < xs.size - 1:
+                    # The vertex of the parabola through the least point and its neighbours,
+                    # kept between them.
+                    a, b, _ = np.polyfit(xs[k - 1:k + 2] - xs[k], values[k - 1:k + 2], 2)
+                    if a > 0:
+                        where = float(np.clip(xs[k] - b / (2.0 * a), xs[k - 1], xs[k + 1]))
+            at_zero = (a_zero[t] <= lowest + 10 * CONVERGED
+                       if math.isfinite(a_zero[t]) or math.isfinite(lowest)
+                       else bool(plain_zero[t]))
+            at_zero = at_zero or (where is not None and where <= math.log(SIGMA_EPS_FLOOR) + 1.0)
+            if at_zero:
+                chosen[t].update(params=zero.params[t].copy(), at_zero=True)
+            elif points is not None and where is not None:
+                start = row.copy()
+                start[i_eps] = where
+                refit_rows.append(t)
+                refit_starts.append(start)
+        if not refit_rows:
+            return chosen, 0
+        index = np.array(refit_rows)
+        columns = [free.index(f) for f in zero_free]
+        refit = _newton(self.objective, np.array(refit_starts)[:, None, :], zero_free,
+                        best.units[index][:, None, columns], trains[index], self.step_lower,
+                        self.step_upper, NEWTON_ITERATIONS, soft=self.soft)
+        for k, t in enumerate(refit_rows):
+            chosen[t]["params"] = refit.params[k, 0].copy()
+            chosen[t]["refit"] = (float(refit.value[k, 0]), refit.hessian[k, 0])
+        return chosen, refit.evaluations
 
     def profiled_names(self):
         return [n for n in self.law.parameter_names + tuple(self.flight_start)
@@ -887,6 +967,8 @@ class _Problem:
             rise, centre, zero_rise = values - reference[:, None], best.params[:, i], None
             if name == "sigma_eps":
                 rise, centre, zero_rise = self._adjusted(best, zero, fitted, grid, others)
+                self.eps_points = dict(grid=grid, fitted=fitted, adjusted=(
+                    fitted.value + self._mean_log_det(fitted.hessian, others)))
             out[name] = (grid, rise, evaluations, centre, zero_rise)
         return out
 
@@ -939,21 +1021,24 @@ class _Problem:
                        self.step_lower, self.step_upper, PROFILE_ITERATIONS,
                        reference=reference, soft=self.soft)
 
-    def result(self, t, best, zero, profiles, evaluations):
+    def result(self, t, best, zero, chosen, profiles, evaluations):
         data = self.datasets[t]
         notes = list(data.notes) + list(self.notes)
         notes.append("noise model: rebound scatter sigma_eps and timing jitter sigma_j added in "
                      "quadrature to the detector's uncertainty; start time integrated out")
-        params_row, value = best.params[t].copy(), float(best.value[t])
         free = self.free()
         i_eps = self.index("sigma_eps")
-        # −2 ln L of the deterministic train above the best fit (inf where not fitted).
-        zero_rise = math.inf if zero is None else float(zero.value[t]) - value
-        at_zero = zero_rise <= 10 * CONVERGED
+        choice = chosen[t]
+        params_row = choice["params"].copy()
+        at_zero = choice["at_zero"]
+        # The criteria's −2 ln L: the likelihood's maximum (with σ_ε = 0 as a candidate).
+        value = float(best.value[t]) if zero is None else float(min(best.value[t],
+                                                                     zero.value[t]))
+        # The covariance: the best fit's (σ_ε fitted; its rows of the law's parameters and v0
+        # rescaled below), or the deterministic train's where σ_ε = 0 is chosen.
         fit, fit_free = best, free
         if at_zero:
             notes.append("sigma_eps at 0: the deterministic train suffices")
-            params_row, value = zero.params[t].copy(), float(zero.value[t])
             fit, fit_free = zero, [f for f in free if f != i_eps]
         if not np.isfinite(value):
             return self.failed(t, "fit failed: no finite likelihood from any start", notes)
@@ -983,13 +1068,41 @@ class _Problem:
         if outliers.size:
             notes.append(f"{outliers.size} innovation(s) with |z| > {OUTLIER_Z:g} at impact(s) "
                          f"{', '.join(map(str, outliers))} (kept in the fit)")
-        full, keep, dropped = self.covariance(fit.hessian[t], params_row, fit_free)
+        full, keep, dropped = self.covariance(fit.hessian[t], fit.params[t], fit_free)
         cov = full[np.ix_(keep, keep)]
         hessian_ok = bool(keep) or not fit_free
         for f in dropped:
             notes.append(f"{self.names[f]}: no curvature of the likelihood at the best fit (or "
                          f"at a bound), not determined by these data (its interval from the "
                          f"profile alone)")
+        # The law's parameters and v0 at the adjusted σ_ε (module notes, *Intervals*): the
+        # covariance's rows of those rescaled to their spread fitted with σ_ε held there, and
+        # the law's profile intervals (whose curvature is the best fit's) widened by the
+        # ratio of that spread to the best fit's.
+        widen = {}
+        scale = np.ones(len(keep))
+        kept_columns = [fit_free[k] for k in keep]
+        if "refit" in choice:
+            zero_free = [f for f in free if f != i_eps]
+            held, held_keep, _ = self.covariance(choice["refit"][1], params_row, zero_free)
+            best_full, best_keep, _ = self.covariance(best.hessian[t], best.params[t], free)
+            best_variance = {free[k]: best_full[k, k] for k in best_keep}
+            for k in held_keep:
+                f = zero_free[k]
+                if f > self.index("v0"):
+                    continue
+                if f in kept_columns:
+                    scale[kept_columns.index(f)] = math.sqrt(
+                        held[k, k] / cov[kept_columns.index(f), kept_columns.index(f)])
+                if best_variance.get(f, 0.0) > 0.0:
+                    widen[f] = math.sqrt(held[k, k] / best_variance[f])
+        eps_interval = None
+        if "sigma_eps" in profiles:
+            grid, rise, spent, _, zero_rise = profiles["sigma_eps"]
+            centre = np.full(len(self.datasets), -math.inf if at_zero else params_row[i_eps])
+            eps_interval = self.profile_interval("sigma_eps", t, (grid, rise, spent, centre,
+                                                                  zero_rise), at_zero)
+        cov = cov * np.outer(scale, scale)
         sd = np.sqrt(np.abs(np.diag(cov)))
         sd_of = {self.names[fit_free[k]]: float(s) for k, s in zip(keep, sd)}
         estimates = {}
@@ -1022,15 +1135,28 @@ class _Problem:
                     low95, high95 = value_i - Z95 * s, value_i + Z95 * s
                     stderr, note = s, "Gaussian (Hessian)"
                 if name in profiles:
-                    low68, high68, low95, high95 = self.profile_interval(
-                        name, t, profiles[name], at_zero)
+                    low68, high68, low95, high95 = (
+                        eps_interval if name == "sigma_eps" else self.profile_interval(
+                            name, t, profiles[name], at_zero))
                     note = ("profile likelihood adjusted for the fitted law and v0 (Cox-Reid)"
                             if name == "sigma_eps" else "profile likelihood")
+                    if i in widen:
+                        # About the reported value: the plain profile's shape, the spread
+                        # at the adjusted σ_ε.
+                        centre, ratio = best.params[t, i], widen[i]
+                        low68, high68, low95, high95 = (
+                            float(np.clip(value_i + ratio * (b - centre), self.lower[i],
+                                          self.upper[i]))
+                            for b in (low68, high68, low95, high95))
+                        note += " rescaled to the spread at the adjusted sigma_eps"
                 if name == "sigma_eps" and at_zero:
                     value_i = 0.0
                 if is_noise and (name not in sd_of or (name == "sigma_eps" and at_zero)):
                     # At 0: no curvature; the 68 % upper bound stands for the error.
                     stderr = high68
+                elif name == "sigma_eps" and eps_interval is not None:
+                    # The adjusted profile's, as its interval.
+                    stderr = 0.5 * (high68 - low68) / Z68
                 estimates[name] = Estimate(value_i, stderr, low68, high68, low95, high95, unit,
                                            status, note)
             lower = 0.0 if name in ("sigma_eps", "sigma_j") else self.lower[i]
@@ -1166,12 +1292,22 @@ class _Problem:
                 0.0 if b < 0 else math.inf) for b in (low68, high68, low95, high95))
             if name == "sigma_j":
                 return low68, high68, low95, high95
-            # σ_ε = 0 is inside an interval where the deterministic train is within its level.
-            if zero_rise < 1.0:
-                low68 = 0.0
-            if zero_rise < 4.0:
-                low95 = 0.0
-            return low68, high68, low95, high95
+            # σ_ε = 0 is inside an interval where the deterministic train is within its level;
+            # where it is not and the grid's points below the centre never reach the level,
+            # the bound lies between σ_ε = 0 and the lowest of them (or the centre): the
+            # signed root interpolated linearly in σ_ε there.
+            lowest = grid[below]
+            x_low, r_low = ((math.exp(lowest[0]), root[below][0]) if lowest.size
+                            else (math.exp(centre), 0.0))
+            out = []
+            for bound, level in ((low68, 1.0), (low95, 2.0)):
+                if zero_rise < level ** 2:
+                    bound = 0.0
+                elif bound == 0.0 and math.isfinite(zero_rise):
+                    zero_root = -math.sqrt(zero_rise)
+                    bound = x_low * (-level - zero_root) / (r_low - zero_root)
+                out.append(bound)
+            return out[0], high68, out[1], high95
         lower, upper = self.lower[self.index(name)], self.upper[self.index(name)]
         return tuple(float(np.clip(b, lower, upper)) for b in (low68, high68, low95, high95))
 
