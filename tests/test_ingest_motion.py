@@ -453,9 +453,10 @@ def test_motion_without_a_bounce_is_one_line_exit_2(tmp_path):
 
 # --------------------------------------------------------------------------------- Tracker
 
-def java_scientific(value):
-    """A number as Tracker's data export writes it (Java DecimalFormat "0.000000000E0")."""
-    mantissa, exponent = f"{value:.9E}".split("E")
+def java_scientific(value, digits=9):
+    """A number as Tracker's data export writes it (Java DecimalFormat "0.000000000E0", or
+    with `digits` decimals)."""
+    mantissa, exponent = f"{value:.{digits}E}".split("E")
     return f"{mantissa}E{int(exponent)}"
 
 
@@ -499,6 +500,81 @@ def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
     if layout.startswith("tracker-txt"):
         assert "track 'mass_A'" in notes and "Tracker column layout" in notes
         assert "from column 'y'" in notes
+
+
+def tracker6_export(path, time, tracks, *, columns=("x", "y"), delimiter="\t", mark="."):
+    """A data export as Tracker 6 writes it (ExportDataDialog): ``#multi:`` when it holds
+    several tracks; a row of track names starting with the delimiter, each name followed by
+    one delimiter per column; the header, ``t`` and each track's columns, each followed by the
+    delimiter; one row per frame, blanks where a track has no point; numbers in the system's
+    decimal style ("0.000000E0", the time to full precision).
+
+    `tracks` maps a name to (which frames have a point, {column: values})."""
+    lines = ["#multi:"] if len(tracks) > 1 else []
+    lines.append(delimiter + "".join(name + delimiter * len(columns) for name in tracks))
+    lines.append("t" + delimiter + "".join(c + delimiter for _ in tracks for c in columns))
+    for i, t in enumerate(time):  # writing the fixture, a hundred rows
+        cells = [java_scientific(t).replace(".", mark)]
+        for marked, values in tracks.values():
+            cells += [java_scientific(values[c][i], 6).replace(".", mark) if marked[i] else ""
+                      for c in columns]
+        lines.append(delimiter.join(cells))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("layout", ["one-track", "one-track-decimal-comma", "two-tracks",
+                                    "two-tracks-decimal-comma"])
+def test_tracker_6_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layout):
+    """Tracker 6's data export: the ball's track 'mass A' (no point on its first three and
+    last two frames nor on frame 40) and, in the two-track files, a marker 'mass B' tracked
+    on the first 20 frames only. One track is read as it is; of several, the one asked for
+    (every bounce, timed within 4σ), and without a choice the error names the tracks."""
+    time, x, height, truth = tracked_ball
+    ball = np.ones(time.size, dtype=bool)
+    ball[:3] = ball[-2:] = False
+    ball[40] = False
+    tracks = {"mass A": (ball, {"x": x, "y": height})}
+    if layout.startswith("two-tracks"):
+        marker = np.arange(time.size) < 20
+        tracks["mass B"] = (marker, {"x": x + 0.5, "y": np.full(time.size, 0.2)})
+    comma = layout.endswith("comma")
+    path = tmp_path / "tracks.txt"
+    tracker6_export(path, time, tracks, delimiter=";" if comma else "\t",
+                    mark="," if comma else ".")
+    assert sniff_table(path) == "motion_sensor"
+    if len(tracks) > 1:
+        with pytest.raises(InputError, match=r"tracks\.txt: Tracker export of 2 tracks \('mass "
+                                             r"A', 'mass B'\): choose one"):
+            read_impacts(path)
+        with pytest.raises(InputError, match=r"no track 'ball' to read \(the file's tracks: "
+                                             r"'mass A', 'mass B'\)"):
+            read_motion_sensor(path, track="ball")
+        found = read_motion_sensor(path, track="mass A")
+    else:
+        found = read_impacts(path)
+    rebounded = truth["rebound_speeds"] > 0
+    assert len(found) == rebounded.sum()
+    scores = z_scores(found, truth)
+    assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
+    notes = " ".join(found.attrs["notes"])
+    assert "Tracker column layout" in notes and "run 0 = 'mass A'" in notes
+    assert "1 frame(s) without a point inside the track left out" in notes
+
+
+def test_tracker_several_tracks_on_the_command_line(tmp_path, tracked_ball):
+    """`dashpot impacts` on a two-track Tracker export: one line naming the file and the
+    tracks, exit status 2, nothing written."""
+    time, x, height, _ = tracked_ball
+    everywhere = np.ones(time.size, dtype=bool)
+    path = tmp_path / "two.txt"
+    tracker6_export(path, time, {"mass A": (everywhere, {"x": x, "y": height}),
+                                 "mass B": (everywhere, {"x": x, "y": height + 0.1})})
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(path), "-o", str(output)])
+    assert status == 2 and not output.exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and str(path) in lines[0], err
+    assert "'mass A', 'mass B'" in lines[0] and "Traceback" not in err
 
 
 def test_stated_time_and_speed_uncertainties_cover_at_their_rates(tmp_path):

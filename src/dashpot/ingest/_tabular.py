@@ -126,6 +126,7 @@ class _Table:
     cells: np.ndarray  # 2-D array of str, '' for an empty cell
     decimal: str
     variant: str  # the sniffed layout in plain words
+    tracks: tuple = ()  # Tracker's track names, in the order of their columns
 
     @property
     def where(self):
@@ -222,9 +223,15 @@ def _text_table(path, raw, member):
     head = [line for line in lines[comments:comments + 60] if line.strip()][:20]
     if not head:
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
-    separator = _sniff_separator(head)
+    tracker = _tracker_layout(lines[comments:])
+    if tracker is not None:
+        separator, text, owner, tracks = tracker
+        head = text.splitlines()[:20]
+    else:
+        separator = _sniff_separator(head)
     title = None
-    if separator is None and len(head) > 2 and not _is_number([head[0].strip()], ".")[0]:
+    if (tracker is None and separator is None and len(head) > 2
+            and not _is_number([head[0].strip()], ".")[0]):
         # Tracker's data export: a first line naming the track ('mass_A'), then the header.
         below = _sniff_separator(head[1:])
         header_below = below is not None and not np.any(
@@ -254,7 +261,59 @@ def _text_table(path, raw, member):
                + (f", {comments} comment line(s) skipped" if comments else "")
                + (f", first line names the track '{title}' (Tracker data export)" if title
                   else ""))
-    return _finish_table(path, cells, decimal, variant, member)
+    if tracker is None:
+        table = _finish_table(path, cells, decimal, variant, member)
+        table.tracks = (title,) if title else ()
+        return table
+    names_list = ", ".join(f"'{t}'" for t in tracks)
+    variant += f", Tracker data export of {len(tracks)} track(s) ({names_list})"
+    table = _finish_table(path, cells, decimal, variant, member)
+    several = len(tracks) > 1
+    # Each track's columns carry its name as their run label (the time column is shared); with
+    # several tracks the name goes in front of the header too, so an error says which.
+    table.columns = [_Column(f"{label}: {column.header}" if several and label else column.header,
+                             column.name, column.unit, label)
+                     for column, label in zip(table.columns, owner)]
+    table.tracks = tracks
+    return table
+
+
+def _tracker_layout(lines):
+    """Tracker 6's data export layout of `lines`, or None if they are not one.
+
+    Tracker writes ``#multi:`` when the export holds several tracks (skipped with the
+    comments), then a row of track names that starts with the delimiter, each name above the
+    first of its columns, then the header (``t`` and each track's columns, with a delimiter
+    after each), then one row per frame with blanks where a track has no point [7]_.
+
+    Returns (separator, the text from the header on, each column's track name ('' for the
+    time column), the track names in order).
+    """
+    rows = [line for line in lines if line.strip()]
+    if len(rows) < 3:
+        return None
+    for separator in ("\t", ";", ","):
+        names = next(csv.reader([rows[0]], delimiter=separator))
+        header = next(csv.reader([rows[1]], delimiter=separator))
+        if len(names) < 2 or names[0].strip() or len(header) < 2:
+            continue
+        named = [n.strip() for n in names if n.strip()]
+        words = [h.strip() for h in header[1:] if h.strip()]
+        if (not named or header[0].strip().lower() not in _TIME_NAMES or not words
+                or np.any(_is_number(named + words, "."))):
+            continue
+        width = len(header)
+        while width > 1 and not header[width - 1].strip():
+            width -= 1  # the delimiter Tracker writes after the last column name
+        # Each column's track: the name written above it or above a column to its left.
+        written = np.array([n.strip() for n in names[:width]] + [""] * (width - len(names)),
+                           dtype=object)
+        named_at = np.where(written != "", np.arange(width), 0)
+        owner = written[np.maximum.accumulate(named_at)].astype(str)
+        tracks = tuple(dict.fromkeys(owner[1:][owner[1:] != ""]))
+        text = "\n".join([separator.join(header[:width])] + rows[2:])
+        return separator, text, list(owner), tracks
+    return None
 
 
 def _finish_table(path, cells, decimal, variant, member):
@@ -604,7 +663,7 @@ def _span(present):
     return (int(where[0]), int(where[-1])) if where.size else None
 
 
-def _runs(path, table, quantities):
+def _runs(path, table, quantities, *, skip_blanks=False):
     """Group columns into runs and read each run's time and `quantities` in SI units.
 
     `quantities` maps a quantity ('position', 'velocity', 'state') to (names, unit kind), in
@@ -612,7 +671,9 @@ def _runs(path, table, quantities):
     later one (velocity beside a position) is not used, so its blanks cannot reject the file.
     Blanks at the start or end of a column are normal (a derivative starts a sample or two
     after the position; shorter runs are padded at the end); a blank between values of the
-    column read, or of the time beside them, is an error naming the row.
+    column read, or of the time beside them, is an error naming the row, unless
+    `skip_blanks` (a Tracker track has no point on a frame nobody marked): those rows are
+    then left out of the run.
     """
     where = table.where
     columns = table.columns
@@ -657,6 +718,8 @@ def _runs(path, table, quantities):
         if span is None:
             continue
         rows = np.arange(span[0], span[1] + 1)
+        if skip_blanks:
+            rows = rows[filled[rows]]
         gap = ~filled[rows]
         if gap.any():
             k = int(rows[np.flatnonzero(gap)[0]])

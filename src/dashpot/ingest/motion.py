@@ -742,7 +742,31 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
             np.full(int(ok.sum()), "ok", dtype=object))
 
 
-def read_motion_sensor(path, *, bumper_position=None):
+def _chosen_track(path, table, runs, track):
+    """The runs of the `track` asked for in a Tracker export (all runs when it has one track).
+
+    A Tracker export of several tracks without `track`, or a `track` it does not hold, is an
+    InputError naming the tracks there are.
+    """
+    tracks = table.tracks
+    available = ", ".join(f"'{name}'" for name in tracks)
+    if track is None:
+        if len(tracks) > 1:
+            raise InputError(path, f"{table.where}Tracker export of {len(tracks)} tracks "
+                                   f"({available}): choose one (read_motion_sensor(..., "
+                                   f"track='{tracks[0]}')), or export that track alone")
+        return runs
+    if len(tracks) == 1 and track == tracks[0]:
+        return runs
+    chosen = [run for run in runs if run.label == track]
+    if not chosen:
+        held = (f"the file's tracks: {available}" if tracks else
+                "the file is not a Tracker export of several tracks")
+        raise InputError(path, f"{table.where}no track '{track}' to read ({held})")
+    return chosen
+
+
+def read_motion_sensor(path, *, bumper_position=None, track=None):
     """Impacts of a cart (or ball) from a motion-sensor or video-tracker position export.
 
     Parameters
@@ -761,6 +785,11 @@ def read_motion_sensor(path, *, bumper_position=None):
     bumper_position : float, optional
         Position reading (m, the file's axis) at which the cart touches the bumper, if known
         from the scene, in [-20, 20] m. Otherwise estimated (see Notes).
+    track : str, optional
+        Name of the track to read from a Tracker export of several tracks (Tracker 6 writes
+        ``#multi:``, a row with each track's name above its columns, the header ``t``, ``x``,
+        ``y``, ``x``, ``y``, ... and blanks where a track has no point). Without it such a file
+        is refused, the error naming its tracks; a single-track export needs none.
 
     Returns
     -------
@@ -780,7 +809,8 @@ def read_motion_sensor(path, *, bumper_position=None):
         Empty file, not a table, no time column or no position/velocity column, bad cells,
         missing/negative/non-increasing times (row named), a value missing between the values
         of the column read, duplicated rows, unknown units; motion without a bounce (no run
-        with more than one reversal at the bumper).
+        with more than one reversal at the bumper); a Tracker export of several tracks without
+        `track`, or a `track` the file does not hold (the error names the tracks there are).
     ValueError
         If `bumper_position` is not a finite number in [-20, 20] m.
 
@@ -862,16 +892,24 @@ def read_motion_sensor(path, *, bumper_position=None):
                            "a motion sensor (expected e.g. 'Time (s) Run #1' and "
                            "'Position (m) Run #1'")
     _check_duplicates(path, table)
+    # A Tracker track has no point on a frame nobody marked: such rows are left out of it.
     runs = _runs(path, table, {"position": (_POSITION_NAMES, "length"),
-                               "velocity": (_VELOCITY_NAMES, "speed")})
+                               "velocity": (_VELOCITY_NAMES, "speed")},
+                 skip_blanks=bool(table.tracks))
     if not runs:
         raise InputError(path, f"{table.where}no run has both a time column and a position or "
                                f"velocity column")
-    vendor = ("Vernier" if any(":" in c.header for c in table.columns) else
+    runs = _chosen_track(path, table, runs, track)
+    vendor = ("Tracker" if "Tracker" in table.variant else
+              "Vernier" if any(":" in c.header for c in table.columns) else
               "PASCO" if any(re.search(r"run\s*#", c.header, re.I) for c in table.columns)
-              else "Tracker" if "Tracker" in table.variant else "unlabelled")
+              else "unlabelled")
     notes = [f"file variant: {table.variant}; {vendor} column layout, {len(runs)} run(s): "
              + ", ".join(f"run {k} = '{r.label or '(unlabelled)'}'" for k, r in enumerate(runs))]
+    skipped = sum(int(np.sum(np.diff(r.rows) - 1)) for r in runs)
+    if skipped:
+        notes.append(f"{skipped} frame(s) without a point inside the track left out (Tracker "
+                     f"leaves a frame nobody marked blank)")
     if any(c.unit is None and c.name in _POSITION_NAMES for c in table.columns):
         notes.append("position column without a unit: read in m (Tracker writes its calibrated "
                      "world units, usually m, without naming them)")
