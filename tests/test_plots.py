@@ -358,3 +358,18 @@ def test_restitution_figure_with_drag_corrected_points():
     with pytest.raises(ValueError, match="same length"):
         plots.restitution_speed_figure(speed, apparent, None, None, {},
                                        corrected={**corrected, "eps": [0.95]})
+
+
+def test_restitution_figure_names_failed_fits_in_its_legend():
+    """Every fitted model and rung is accounted for: a failed one has no curve, and says so."""
+    grid = np.linspace(0.3, 2.6, 40)
+    fig = plots.restitution_speed_figure(
+        [1.0, 2.0], [0.9, 0.89], None, None, {"Ia": (grid, np.full(40, 0.9))},
+        {"constant": (grid, np.full(40, 0.9))}, failed=("Ib",),
+        failed_noise=("hunt-crossley",))
+    ax = fig.axes[0]
+    assert {line.get_gid() for line in ax.get_lines() if line.get_gid()} == {
+        "Ia", "noise:constant"}
+    texts = _legend_texts(fig)
+    assert "Ib (B): fit failed, not drawn" in texts
+    assert "noise: hunt-crossley: fit failed, not drawn" in texts

@@ -192,6 +192,16 @@ def _eps_curves(record, group="fits"):
     return curves
 
 
+def _failed(record, group="fits"):
+    """Names of the fits of `group` that failed (no ε(v) curve to draw), in the file's order
+    (the noise selection table's for the noise fits)."""
+    fits = record.get(group, {})
+    order = (list(record["noise_selection"]["model"]) if group == "noise_fits"
+             and "noise_selection" in record else list(fits))
+    return [name for name in order
+            if name in fits and not fits[name]["attrs"].get("success", False)]
+
+
 def _noise_eps_curves(record):
     """ε(v) of the fits under the noise model, in their selection table's order (the file's
     groups list them alphabetically)."""
@@ -224,7 +234,10 @@ def scene_figures(record):
                                                       _eps_curves(record),
                                                       _noise_eps_curves(record),
                                                       corrected=corrected,
-                                                      measured_label=measured_label),
+                                                      measured_label=measured_label,
+                                                      failed=_failed(record),
+                                                      failed_noise=_failed(record,
+                                                                           "noise_fits")),
         "selection": _selection_figure(selection, record.get("noise_selection")),
     }
 

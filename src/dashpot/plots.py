@@ -681,7 +681,8 @@ def intervals_figure(bounce_index, observed, observed_uncertainty, predictions, 
 
 def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
                              restitution_uncertainty, curves, noise_curves=None, *,
-                             corrected=None, measured_label=None):
+                             corrected=None, measured_label=None, failed=(),
+                             failed_noise=()):
     """Measured restitution against impact speed, with each fitted model's ε(v).
 
     Parameters
@@ -705,6 +706,9 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     measured_label : str, optional
         Legend text of the measured points; default "measured", or with `corrected`
         "uncorrected (interval ratios)", drawn as open circles.
+    failed, failed_noise : collection of str, default ()
+        Models, and laws or models under the noise model, whose fit failed: listed in the
+        legend as failed, without a curve.
 
     Returns
     -------
@@ -731,6 +735,11 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
         curve_speed, shown = _sorted_curve(name, curve)
         handles.append(ax.plot(curve_speed, shown, color=_noise_color(name), linestyle="-.",
                                linewidth=1.2, label=_noise_label(name), gid=f"noise:{name}")[0])
+    # Fits without a curve are named in the legend, so that every fitted one is accounted for.
+    absent = [(_style(model)["color"], _label(model)) for model in _ordered(failed)]
+    absent += [(_noise_color(name), _noise_label(name)) for name in failed_noise]
+    handles += [Line2D([], [], color=color, linestyle="none", marker="x", alpha=0.6,
+                       label=f"{label}: fit failed, not drawn") for color, label in absent]
     points = [(speed, eps, xerr, yerr)]
     if corrected is None:
         handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o",
@@ -756,7 +765,7 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
                                       capsize=2, label=corrected.get("label", "drag-corrected"),
                                       zorder=4))
         points.append((*fixed, *errors))
-    drawn = [handle for handle in handles if isinstance(handle, Line2D)]
+    drawn = [handle for handle in handles if isinstance(handle, Line2D) and handle.axes is ax]
     ax.set_xlim(*_speed_limits(np.concatenate([p[0] for p in points]), _joined(points, 2)))
     ax.set_ylim(*_restitution_limits(ax.get_xlim(), np.concatenate([p[1] for p in points]),
                                      _joined(points, 3), drawn))
