@@ -522,34 +522,55 @@ def tracker6_export(path, time, tracks, *, columns=("x", "y"), delimiter="\t", m
     path.write_text("\n".join(lines) + "\n")
 
 
+def stacked_tracks_export(path, time, tracks, *, columns=("x", "y"), mark="."):
+    """Tracks one below the other, each as a single-track data export writes it: its name
+    (spaces as underscores) on a line of its own, a tab-separated ``t`` header, a row per
+    frame in "0.000000000E0" (blank where the track has no point)."""
+    lines = []
+    for name, (marked, values) in tracks.items():
+        lines += [name.replace(" ", "_"), "\t".join(("t",) + columns)]
+        lines += ["\t".join([java_scientific(t).replace(".", mark)]
+                            + [java_scientific(values[c][i]).replace(".", mark) if marked[i]
+                               else "" for c in columns])
+                  for i, t in enumerate(time) if marked[i] or 0 < i < np.flatnonzero(marked)[-1]]
+    path.write_text("\n".join(lines) + "\n")
+
+
 @pytest.mark.parametrize("layout", ["one-track", "one-track-decimal-comma", "two-tracks",
-                                    "two-tracks-decimal-comma"])
-def test_tracker_6_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layout):
-    """Tracker 6's data export: the ball's track 'mass A' (no point on its first three and
-    last two frames nor on frame 40) and, in the two-track files, a marker 'mass B' tracked
-    on the first 20 frames only. One track is read as it is; of several, the one asked for
+                                    "two-tracks-decimal-comma", "stacked-tracks",
+                                    "stacked-tracks-decimal-comma"])
+def test_tracker_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layout):
+    """Tracker's data export: the ball's track 'mass A' (no point on its first three and last
+    two frames nor on frame 40) and, in the two-track files, a marker 'mass B' tracked on the
+    first 20 frames only; Tracker 6's layout (one header, the names above their columns) or
+    the tracks one below the other. One track is read as it is; of several, the one asked for
     (every bounce, timed within 4σ), and without a choice the error names the tracks."""
     time, x, height, truth = tracked_ball
     ball = np.ones(time.size, dtype=bool)
     ball[:3] = ball[-2:] = False
     ball[40] = False
     tracks = {"mass A": (ball, {"x": x, "y": height})}
-    if layout.startswith("two-tracks"):
+    if not layout.startswith("one-track"):
         marker = np.arange(time.size) < 20
         tracks["mass B"] = (marker, {"x": x + 0.5, "y": np.full(time.size, 0.2)})
     comma = layout.endswith("comma")
     path = tmp_path / "tracks.txt"
-    tracker6_export(path, time, tracks, delimiter=";" if comma else "\t",
-                    mark="," if comma else ".")
+    if layout.startswith("stacked"):
+        stacked_tracks_export(path, time, tracks, mark="," if comma else ".")
+        names = ("mass_A", "mass_B")  # as the stacked export spells them
+    else:
+        tracker6_export(path, time, tracks, delimiter=";" if comma else "\t",
+                        mark="," if comma else ".")
+        names = ("mass A", "mass B")
     assert sniff_table(path) == "motion_sensor"
     if len(tracks) > 1:
-        with pytest.raises(InputError, match=r"tracks\.txt: Tracker export of 2 tracks \('mass "
-                                             r"A', 'mass B'\): choose one"):
+        with pytest.raises(InputError, match=rf"tracks\.txt: Tracker export of 2 tracks "
+                                             rf"\('{names[0]}', '{names[1]}'\): choose one"):
             read_impacts(path)
-        with pytest.raises(InputError, match=r"no track 'ball' to read \(the file's tracks: "
-                                             r"'mass A', 'mass B'\)"):
+        with pytest.raises(InputError, match=rf"no track 'ball' to read \(the file's tracks: "
+                                             rf"'{names[0]}', '{names[1]}'\)"):
             read_motion_sensor(path, track="ball")
-        found = read_motion_sensor(path, track="mass A")
+        found = read_motion_sensor(path, track=names[0])
     else:
         found = read_impacts(path)
     rebounded = truth["rebound_speeds"] > 0
@@ -557,7 +578,7 @@ def test_tracker_6_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layo
     scores = z_scores(found, truth)
     assert np.all(np.abs(scores["time"]) <= 4.0), scores["time"]
     notes = " ".join(found.attrs["notes"])
-    assert "Tracker column layout" in notes and "run 0 = 'mass A'" in notes
+    assert "Tracker column layout" in notes and f"run 0 = '{names[0]}'" in notes
     assert "1 frame(s) without a point inside the track left out" in notes
 
 

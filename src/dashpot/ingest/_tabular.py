@@ -2,8 +2,11 @@
 
 A file is loaded as one or more tables of string cells: a text table (the separator sniffed
 among tab, semicolon and comma; the decimal mark a comma when the separator is not and numbers
-like ``1,25`` occur; leading ``#`` comment lines skipped; a first line that is a single word
-above a separated header names a Tracker track and is skipped [7]_), every CSV member of a zip
+like ``1,25`` occur; leading ``#`` comment lines skipped; Tracker's data export [7]_: a first
+line that is a single word above a separated header names the track, as does each such line
+above the header of a further track listed below it, and Tracker 6's row of track names
+starting with the delimiter (after ``#multi:``) names the track of each column below it; each
+track's columns then carry its name as their run label), every CSV member of a zip
 archive (phyphox's export [2]_), or every sheet of a workbook — Excel ``.xlsx``, legacy Excel
 97-2003 ``.xls`` (BIFF8) or OpenDocument ``.ods`` — read through pandas' calamine engine.
 Headers are read in the exporting program's words (name, unit in brackets, run label in front
@@ -21,7 +24,9 @@ References
 .. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
    "Datatable view": the data export is tab-delimited text, a first line with the track name,
    a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
-   blank at a track's first and last steps.
+   blank at a track's first and last steps. Tracker 6 ``ExportDataDialog``: with several
+   tracks a ``#multi:`` line, a row of track names starting with the delimiter, the header
+   with a delimiter after each column, blanks where a track has no point.
 """
 
 from __future__ import annotations
@@ -207,6 +212,39 @@ def _rows_by_csv_module(path, text, separator, decimal, member):
     return np.array([row[:width] + [""] * (width - len(row)) for row in rows], dtype=str)
 
 
+def _parse_cells(path, text, separator, decimal, member):
+    """String cells of a text table (pandas' C parser; the csv module where rows differ)."""
+    try:
+        frame = pd.read_csv(io.StringIO(text), sep=separator or "\x1f", header=None, dtype=str,
+                            keep_default_na=False, skip_blank_lines=True, quotechar='"',
+                            engine="c")
+        cells = frame.fillna("").to_numpy(dtype=str)
+    except pd.errors.ParserError:
+        cells = _rows_by_csv_module(path, text, separator, decimal, member)
+    except (pd.errors.EmptyDataError, ValueError) as error:
+        raise InputError(path, f"not a table: {str(error).strip()}") from error
+    return np.char.strip(cells)
+
+
+def _stacked_tracks(text, separator):
+    """Tracks below the first in a Tracker export that lists them one below the other.
+
+    Each starts with a line naming it (no separator in it, a letter in it) right above a
+    header whose first column is a time. Returns [(name, where its name line starts, the
+    text of its header and rows)] in order; [] for a single track.
+    """
+    if separator is None:
+        return []
+    sep = re.escape(separator)
+    times = "|".join(re.escape(name) for name in sorted(_TIME_NAMES, key=len, reverse=True))
+    marker = re.compile(rf"^[ ]*(?P<name>[^\r\n{sep}]*[^\W\d][^\r\n{sep}]*?)[ ]*\r?\n"
+                        rf"(?=[ ]*(?:{times})[ ]*(?:\([^)\r\n]*\))?[ ]*{sep})",
+                        re.MULTILINE | re.IGNORECASE)
+    found = list(marker.finditer(text))
+    ends = [m.start() for m in found[1:]] + [len(text)]
+    return [(m["name"].strip(), m.start(), text[m.end():end]) for m, end in zip(found, ends)]
+
+
 def _text_table(path, raw, member):
     """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark).
 
@@ -244,27 +282,32 @@ def _text_table(path, raw, member):
             head = head[1:]
     body = "\n".join(head[1:])
     decimal = "," if separator != "," and re.search(r"\d,\d", body) else "."
-    try:
-        frame = pd.read_csv(io.StringIO(text), sep=separator or "\x1f", header=None, dtype=str,
-                            keep_default_na=False, skip_blank_lines=True, quotechar='"',
-                            engine="c")
-        cells = frame.fillna("").to_numpy(dtype=str)
-    except pd.errors.ParserError:
-        cells = _rows_by_csv_module(path, text, separator, decimal, member)
-    except (pd.errors.EmptyDataError, ValueError) as error:
-        raise InputError(path, f"not a table: {str(error).strip()}") from error
-    cells = np.char.strip(cells)
-    names = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
-    variant = (f"CSV, {names[separator]}{' separated' if separator else ''}, decimal "
+    blocks = _stacked_tracks(text, separator) if title else []
+    if blocks:
+        # Several tracks one below the other, each under its name: side by side here, each
+        # track with its own time column.
+        parts = [_parse_cells(path, block, separator, decimal, member)
+                 for block in [text[:blocks[0][1]]] + [block for _, _, block in blocks]]
+        length = max(part.shape[0] for part in parts)
+        cells = np.hstack([np.vstack([part, np.full((length - part.shape[0], part.shape[1]), "")])
+                           for part in parts])
+        tracks = (title,) + tuple(name for name, _, _ in blocks)
+        owner = list(np.repeat(tracks, [part.shape[1] for part in parts]))
+    else:
+        cells = _parse_cells(path, text, separator, decimal, member)
+    spelled = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
+    variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
-               + (f", {comments} comment line(s) skipped" if comments else "")
-               + (f", first line names the track '{title}' (Tracker data export)" if title
-                  else ""))
-    if tracker is None:
+               + (f", {comments} comment line(s) skipped" if comments else ""))
+    if tracker is None and not blocks:
+        if title:
+            variant += f", first line names the track '{title}' (Tracker data export)"
         table = _finish_table(path, cells, decimal, variant, member)
         table.tracks = (title,) if title else ()
         return table
+    if blocks:
+        variant += ", tracks one below the other, each under its name"
     names_list = ", ".join(f"'{t}'" for t in tracks)
     variant += f", Tracker data export of {len(tracks)} track(s) ({names_list})"
     table = _finish_table(path, cells, decimal, variant, member)

@@ -777,7 +777,8 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         ``Position (m) Run #1``, ``Velocity (m/s) Run #1`` (and ``Acceleration`` columns, not
         used); Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``, ``Latest: Velocity
         (m/s)``; Tracker's data export (a first line naming the track, ``t``, ``x``, ``y``
-        without units [7]_) or any ``t,y`` table. Several runs side by side. Blanks at a
+        without units [7]_; several tracks in Tracker 6's layout or one below the other: see
+        `track`) or any ``t,y`` table. Several runs side by side. Blanks at a
         column's start or end are normal (a derivative starts a sample or two after the
         position; shorter runs end early); a blank between a column's values is an error. The
         position is read when there is one, and the velocity beside it is then not used. Units
