@@ -235,8 +235,16 @@ def test_restitution_figure_shows_corrected_points_and_every_fitted_rung(drag_sc
     np.testing.assert_array_equal(x, expected["speed"])
     bounces = record["bounces"]
     ok = (bounces["restitution_flag"] == "ok").to_numpy()
+    np.testing.assert_array_equal(x, bounces["landing_speed"][ok])
     np.testing.assert_array_equal(np.sort(y), np.sort(bounces["restitution_corrected"][ok]))
     assert points[corrected].has_yerr and points[uncorrected].has_yerr
+    # Each corrected point's error bar is its whole 1σ: timing and k_d's share in quadrature.
+    segments = points[corrected].lines[2][-1].get_segments()
+    half = np.array([abs(segment[1][1] - segment[0][1]) / 2 for segment in segments])
+    rows = bounces.set_index("landing_speed").loc[x]
+    np.testing.assert_allclose(half, np.hypot(rows["restitution_corrected_uncertainty"],
+                                              rows["restitution_corrected_drag_uncertainty"]),
+                               rtol=1e-9)
     # One curve per fitted rung of the ladder and per model, each named in the legend.
     fitted = [name for name, fit in record["noise_fits"].items() if fit["attrs"]["success"]]
     assert {"constant", "constant+drag", "linear", "Ia"} <= set(fitted)

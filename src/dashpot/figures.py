@@ -159,10 +159,11 @@ def drag_corrected_points(record):
     dict or None
         None where the bounce table has no ``restitution_corrected`` column; else ``speed``
         (the landing speed of flight n, which is the impact speed of the impact whose ε it is,
-        m/s), ``eps``, ``speed_uncertainty`` and ``eps_uncertainty`` (1σ from the impact
-        times; None where unknown) of the bounces whose ratio is sound (as in
-        :func:`restitution_points`), and ``label``, naming the drag constant used and its
-        source.
+        m/s), ``eps``, ``speed_uncertainty`` (1σ from the impact times) and
+        ``eps_uncertainty`` (1σ: that from the impact times and that from k_d's uncertainty in
+        quadrature, the whole error of one bounce's ε; None where unknown) of the bounces
+        whose ratio is sound (as in :func:`restitution_points`), and ``label``, naming the
+        drag constant used and its source.
     """
     bounces = record["bounces"]
     if "restitution_corrected" not in bounces:
@@ -177,9 +178,13 @@ def drag_corrected_points(record):
     column = {name: bounces[name].to_numpy(float)[keep] for name in (
         "landing_speed", "landing_speed_uncertainty", "restitution_corrected",
         "restitution_corrected_uncertainty")}
+    # k_d's share is common to every bounce, but it is part of each one's error.
+    shared = (bounces["restitution_corrected_drag_uncertainty"].to_numpy(float)[keep]
+              if "restitution_corrected_drag_uncertainty" in bounces else 0.0)
     return {"speed": column["landing_speed"], "eps": column["restitution_corrected"],
             "speed_uncertainty": _finite_or_none(column["landing_speed_uncertainty"]),
-            "eps_uncertainty": _finite_or_none(column["restitution_corrected_uncertainty"]),
+            "eps_uncertainty": _finite_or_none(np.hypot(
+                column["restitution_corrected_uncertainty"], shared)),
             "label": label}
 
 
