@@ -45,7 +45,7 @@ def scene_files(tmp_path_factory):
                             "amplitude": np.nan, "impact_speed": np.nan,
                             "rebound_speed": np.nan, "speed_uncertainty": np.nan, "run": 0})
     folder = tmp_path_factory.mktemp("noise-outputs")
-    plain_fit = fit_scene(impacts, Scene(), ("Ia",))
+    plain_fit = fit_scene(impacts, Scene(), ("Ia",), noise=False)
     noisy_fit = fit_scene(impacts, Scene(), ("Ia",), noise=True, noise_laws=("constant",))
     write_scene_fit(folder / "plain.h5", plain_fit, impacts)
     write_scene_fit(folder / "noisy.h5", noisy_fit, impacts)
