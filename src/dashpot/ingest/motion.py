@@ -518,7 +518,11 @@ def _motion_run(run, bumper_position, notes, legs):
     second = fit_legs(np.where(keep, refined, -1))
     result = second if second is not None else first
     if source == "meet":
-        bumper, var_bumper = meeting_bumper(result)
+        # The refit's meeting point, unless its cuts left no impact with free motion on both
+        # sides: then the first pass's.
+        refit_bumper, refit_var = meeting_bumper(result)
+        if refit_bumper is not None:
+            bumper, var_bumper = refit_bumper, refit_var
         notes.append(f"run '{label}': no resting tail; bumper position "
                      f"{orientation * bumper:.5g} m where the fitted trajectories meet (biased "
                      f"past the bumper by a long contact)")
