@@ -63,7 +63,7 @@ def _bursty(rng, frames, channels):
     return samples
 
 
-def test_envelope_and_trigger_equal_the_reference(monkeypatch):
+def test_envelope_and_trigger_equal_the_reference():
     rng = np.random.default_rng(SEED + 1)
     filtered = np.asfortranarray(_bursty(rng, 20000, 2))
     settings = envelope._Settings.make(48000, 12.0, 9.0)

@@ -1,5 +1,6 @@
-"""Compiled loops of the audio impact detector: the power envelope and its trigger, the AIC
-onset picker and the dynamic programme of the bounce chain.
+"""Compiled loops of the audio impact detector: the high-pass, the power envelope and its
+trigger, the measures of each transient, the AIC onset picker and the dynamic programme of the
+bounce chain.
 
 Each kernel does, sample by sample or step by step, what a vectorized numpy form in
 :mod:`.envelope` or :mod:`.chain` does over whole arrays (those forms stay, as the reference
@@ -10,18 +11,25 @@ results are the same to the last bit:
   (its Cython loop, section by section), written channel by channel into a (channels, frames)
   array as scipy does, whose transpose is returned: later reductions over it (the noise
   estimate's einsum) see the same memory layout and sum in the same order.
-* :func:`envelope_triggers` fuses the whitening, the noise-normalised power, its running sum
-  and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` into one pass.
+  Being a recursion, it is bound by the latency of its arithmetic; the channels are stepped
+  together so that their chains overlap.
+* :func:`envelope_triggers` does the whitening and the noise-normalised power in one pass and
+  the running sum and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` in a
+  second (the sum kept in a short ring instead of a whole array).
+* :func:`transient_measures` gathers each transient's amplitude, clipping flag and fit windows
+  (maxima and counts: exact in any order); the mean level before the onset stays numpy's.
 * The AIC picker and the chain's Cauchy cost need logarithms. numpy's ``log`` and ``log1p``
   (SIMD, on machines with AVX-512) and the C library's, which compiled code calls, differ in
   the last bit for a fraction of arguments, and a last-bit difference could move a pick or a
   chain on a tie. So the kernels only prepare the arguments of the logarithms, numpy takes
   them over whole arrays as the reference does, and the kernels go on from there.
 
-Why compiled: these are loops over the samples (hundreds of thousands per channel and second
-of a recording) and over the states of the chain (about n³/6 steps for n transients), where
+Why compiled: these are loops over the samples (tens of thousands per channel and second of
+a recording) and over the states of the chain (about n³/6 steps for n transients), where
 numpy spent most of its time on temporaries (the STA/LTA trigger, a sosfilt that first copies
-the block to channel-major order) and on per-column Python overhead (the chain). This module
+the block to channel-major order) and on per-column Python overhead (the chain). Large
+outputs are allocated by numpy, which asks the kernel for huge pages: the page faults of a
+fresh array of a few MB cost about as much as filtering it. This module
 imports numba; it is imported on the first detection, so that importing dashpot does not load
 it. The compiled code is cached on disk (``cache=True``): compiling takes a few seconds once;
 loading from the cache takes a fraction of a second in each new process.
@@ -46,7 +54,8 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["highpass", "envelope_triggers", "onset_picks", "chain_scores"]
+__all__ = ["highpass", "envelope_triggers", "transient_measures", "power_rows", "whitened_rows",
+           "onset_picks", "chain_scores"]
 
 # Float division by zero gives inf/nan as in numpy instead of raising; no fastmath, so that
 # every operation is rounded as numpy rounds it (no fused multiply-add, no reassociation).
