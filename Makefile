@@ -35,7 +35,9 @@ cluster-test: $(STAMP)
 clean:
 	rm -rf $(VENV) results .snakemake
 
-# The whole workflow on 200 small synthetic scenes at 1 and 2 cores (about 35 minutes).
+# The whole workflow on 20 and 200 small synthetic scenes at 2 cores, each run and then
+# rerun (nothing to do), against the workflow before chunking (a few minutes); the 1,000
+# scene row: .venv/bin/python benchmarks/bench_batch.py --scenes 1000.
 .PHONY: bench-batch
 bench-batch: $(STAMP)
 	$(BIN)/python benchmarks/bench_batch.py

@@ -1,18 +1,24 @@
-"""Wall time of the whole workflow on a batch of small synthetic scenes, at 1 and 2 cores.
+"""Wall time of the whole workflow on batches of small synthetic scenes (issue 16's table).
 
 Writes a config with N small synthetic scenes (timestamp tables of 8 impacts, parameters
 spread over a range of damping and stiffness, all five models fitted) into a temporary copy
-of the workflow, runs it once per core count in a fresh copy (Snakemake's progress lines are
-shown), and prints a table of wall times and the speed-up. Per-scene figures are off by
-default (``--plots`` draws them too); real data are off.
+of the workflow, runs it per scene count and core count in a fresh copy (Snakemake's progress
+lines are shown), then runs it again (a no-op rerun: nothing to do), and prints a table: wall
+time, per scene, the no-op rerun, the fit chunks (jobs) and the peak memory of any job (max
+RSS from Snakemake's benchmark files), against the baseline: the workflow before chunking
+(one job per scene, commit 2ec3d7b), measured with this script on this machine (issue 16:
+20 scenes 57 s and 200 scenes 859 s at 2 cores; 1,000 extrapolated, 45 min). Per-scene
+figures are off by default (``--plots`` draws them too); real data are off.
 
-Run with ``make bench`` (200 scenes; several minutes) or
-``python benchmarks/bench_batch.py --scenes 20 --cores 1 2`` for a quick look.
+``make bench-batch`` runs 20 and 200 scenes at 2 cores (a few minutes);
+``python benchmarks/bench_batch.py --scenes 1000`` the 1,000-scene row (minutes),
+``--scenes 20 --cores 1 2`` a quick look at both core counts.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import math
 import os
 import shutil
@@ -29,7 +35,14 @@ SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 WORKFLOW_FILES = ("Snakefile", "config", "workflow")
 
 
-def batch_config(count, *, plots=False):
+# Issue 16's baseline: (scenes, cores) -> wall seconds before chunking, and the targets.
+BASELINE = {(20, 2): 57.0, (200, 2): 859.0, (1000, 2): 45 * 60.0}
+TARGETS = {20: "<= 10 s", 1000: "<= 180 s"}
+NO_OP_TARGET = 10.0  # s, for 1,000 scenes
+MEMORY_TARGET = 1024.0  # MB, any job
+
+
+def batch_config(count, *, plots=False, chunk_size="auto"):
     """The workflow config of `count` small synthetic scenes (deterministic)."""
     config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))
     models = ("Ib", "IIb", "hybrid")
@@ -46,7 +59,8 @@ def batch_config(count, *, plots=False):
             "scene": {"apparatus": {"gravity": 9.80665}},
         }
     config.update({"synthetic": scenes, "real_data": False, "scenes": {},
-                   "scene_plots": bool(plots), "scenes_dir": "no-scene-folders"})
+                   "scene_plots": bool(plots), "scenes_dir": "no-scene-folders",
+                   "chunk_size": chunk_size})
     return config
 
 
@@ -100,31 +114,60 @@ def run(folder, cores, environment=None):
     return elapsed
 
 
+def peak_memory(folder):
+    """Largest max RSS (MB) of any job, from the benchmark files Snakemake wrote."""
+    peak = 0.0
+    for path in (folder / "results" / "benchmarks").rglob("*.tsv"):
+        with open(path, newline="", encoding="utf-8") as handle:
+            for row in csv.DictReader(handle, delimiter="\t"):
+                try:
+                    peak = max(peak, float(row["max_rss"]))
+                except (KeyError, ValueError):
+                    continue
+    return peak
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", type=int, default=200, help="synthetic scenes (200)")
-    parser.add_argument("--cores", type=int, nargs="+", default=[1, 2],
-                        help="core counts to time (1 2)")
+    parser.add_argument("--scenes", type=int, nargs="+", default=[20, 200],
+                        help="synthetic scene counts (20 200)")
+    parser.add_argument("--cores", type=int, nargs="+", default=[2],
+                        help="core counts to time (2)")
+    parser.add_argument("--chunk-size", default="auto", help="config chunk_size (auto)")
     parser.add_argument("--plots", action="store_true", help="also draw per-scene figures")
     args = parser.parse_args(argv)
-    config = batch_config(args.scenes, plots=args.plots)
-    times = {}
+    chunk_size = args.chunk_size if args.chunk_size == "auto" else int(args.chunk_size)
+    rows = []
     with tempfile.TemporaryDirectory(prefix="dashpot-bench-batch-") as temporary:
         environment = snapshot_package(Path(temporary) / "src")
-        for cores in args.cores:
-            folder = prepare(Path(temporary) / f"cores{cores}", config)
-            print(f"bench_batch: {args.scenes} scenes, {cores} core(s) in {folder}", flush=True)
-            times[cores] = run(folder, cores, environment)
-            print(f"bench_batch: {cores} core(s): {times[cores]:.1f} s", flush=True)
-    base = times.get(1, times[args.cores[0]])
-    print(f"\nWorkflow on {args.scenes} small synthetic scenes (simulate + fit 5 models + "
-          f"summary{' + figures' if args.plots else ''}; theory included), "
-          f"{os.cpu_count()} CPUs available\n")
-    print("| cores | wall time (s) | per scene (s) | speed-up |")
-    print("|---|---|---|---|")
-    for cores, seconds in sorted(times.items()):
-        print(f"| {cores} | {seconds:.1f} | {seconds / args.scenes:.2f} | "
-              f"{base / seconds:.2f} |")
+        for count in args.scenes:
+            config = batch_config(count, plots=args.plots, chunk_size=chunk_size)
+            for cores in args.cores:
+                folder = prepare(Path(temporary) / f"scenes{count}-cores{cores}", config)
+                print(f"bench_batch: {count} scenes, {cores} core(s) in {folder}", flush=True)
+                seconds = run(folder, cores, environment)
+                rerun = run(folder, cores, environment)
+                chunks = len(list((folder / "results" / "benchmarks" / "fit_chunk")
+                                  .glob("*.tsv")))
+                rows.append((count, cores, seconds, rerun, chunks, peak_memory(folder)))
+                print(f"bench_batch: {count} scenes, {cores} core(s): {seconds:.1f} s, "
+                      f"no-op rerun {rerun:.1f} s", flush=True)
+                shutil.rmtree(folder, ignore_errors=True)
+    print(f"\nWorkflow on small synthetic scenes (simulate + fit 5 models + summary"
+          f"{' + figures' if args.plots else ''}; theory included), chunk_size {args.chunk_size},"
+          f" {os.cpu_count()} CPUs available. Baseline: the workflow before chunking (one job "
+          f"per scene, commit 2ec3d7b), issue 16's figures on this machine.\n")
+    print("| scenes | cores | fit chunks | wall (s) | per scene (s) | baseline (s) | "
+          "baseline / now | target | no-op rerun (s) | peak job memory (MB) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for count, cores, seconds, rerun, chunks, memory in rows:
+        baseline = BASELINE.get((count, cores))
+        print(f"| {count} | {cores} | {chunks} | {seconds:.1f} | {seconds / count:.3f} | "
+              f"{baseline if baseline is not None else '-'} | "
+              f"{f'{baseline / seconds:.1f}' if baseline else '-'} | "
+              f"{TARGETS.get(count, '-')} | {rerun:.1f} | {memory:.0f} |")
+    print(f"\nTargets (issue 16): no-op rerun of 1,000 scenes <= {NO_OP_TARGET:.0f} s; peak "
+          f"memory of any job <= {MEMORY_TARGET:.0f} MB.")
     return 0
 
 

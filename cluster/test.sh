@@ -7,7 +7,10 @@
 #  3. Two copies of the working tree (tracked files plus untracked, not ignored ones, with
 #     their uncommitted edits) in a temp dir, each with a `shared` symlink beside it to the
 #     real ../shared; the default scenes run in one with `--profile workflow/profiles/default`
-#     and in the other with `--profile workflow/profiles/slurm` (every rule a SLURM job).
+#     (each scene its own chunk: the automatic chunk size of a handful of scenes) and in the
+#     other with `--profile workflow/profiles/slurm` and chunks of 3 scenes (chunk_size=3),
+#     sent as SLURM jobs by the profile's job groups: the comparison checks the SLURM run and
+#     the chunking at once (a scene's results must not depend on its chunk).
 #  4. cluster/compare_results.py compares the two results/ trees.
 #  5. The temp dir is removed, and the cluster is stopped if this run started it.
 #
@@ -194,8 +197,10 @@ run_workflow() {  # run_workflow NAME SNAKEMAKE-ARGS...
 run_workflow local --profile workflow/profiles/default
 # Without slurmdbd `sacct` knows no jobs: status comes from squeue (slurm.conf keeps finished
 # jobs MinJobAge=300 s), first checked 2 s after submission.
-run_workflow slurm --profile workflow/profiles/slurm \
+run_workflow slurm --profile workflow/profiles/slurm --config chunk_size=3 \
     --slurm-status-command squeue --slurm-init-seconds-before-status-checks 2
+slurm_jobs=$(grep -c "has been submitted with SLURM jobid" "$work/slurm.log" || true)
+say "slurm run: $slurm_jobs SLURM job(s) submitted"
 
 # --- 5. compare --------------------------------------------------------------------------------
 export LOCAL_RESULTS="$work/local/$project/results" SLURM_RESULTS="$work/slurm/$project/results"

@@ -70,7 +70,8 @@ def _expected_outputs(workdir):
                   f"results/synthetic/{name}/scene.yaml", f"results/truth/{name}.csv"]
         figures = SCENE_FIGURES + (("detection",) if spec["kind"] == "audio" else ())
         files += [f"results/plots/{name}/{f}.{ext}" for f in figures for ext in ("png", "pdf")]
-        files += [f"results/logs/fit/{name}.log", f"results/benchmarks/fit/{name}.tsv"]
+        # A handful of scenes: each is its own chunk (one process each).
+        files += [f"results/logs/fit/{name}.log", f"results/benchmarks/fit_chunk/scene-{name}.tsv"]
     files += [f"results/theory/{f}.{ext}" for f in THEORY_FIGURES for ext in ("png", "pdf")]
     return files
 
@@ -247,8 +248,8 @@ def test_adding_a_scene_reruns_only_that_scene_and_the_summary(run_copy):
                                        "models: [IIb]\ntiming_resolution: 1.0e-5\n")
     plan = _snakemake(run_copy, "--config", "real_data=False", "--dry-run")
     assert plan.returncode == 0, plan.stderr
-    assert _job_counts(plan.stdout + plan.stderr) == {"fit": 1, "scene_plots": 1, "summary": 1,
-                                                       "all": 1}
+    assert _job_counts(plan.stdout + plan.stderr) == {"fit_chunk": 1, "fit": 1, "scene_plots": 1,
+                                                       "summary": 1, "all": 1}
     assert "wildcards: scene=my-ball" in plan.stdout + plan.stderr
 
 

@@ -272,7 +272,9 @@ def _process_scene(task, stage, *, plots):
     fingerprint = scene_fingerprint(task)
     done = Path(task["done"])
     current = (os.path.exists(task["result"]) and done.is_file()
-               and done.read_text(encoding="utf-8").strip() == fingerprint)
+               and done.read_text(encoding="utf-8").strip() == fingerprint
+               # a synthetic scene's folder deleted since: simulated (the same) and refitted
+               and (task.get("spec") is None or os.path.exists(task["truth"])))
     record_path = task["result"]
     truth = None
     if not current:

@@ -217,7 +217,7 @@ def scene_task(name):
         "truth": f"{folder}/truth.json" if synthetic else None,
         "uncertainty": config.get("uncertainty", ["covariance"]),
         "noise": config.get("noise", False),
-        "result": f"results/{name}.h5", "done": f"results/chunks/done/{name}.json",
+        "result": f"results/{name}.h5", "done": f"results/logs/fit/{name}.fingerprint",
         "truth_csv": f"results/truth/{name}.csv" if synthetic else None,
         "figures": figure_paths(name), "log": f"results/logs/fit/{name}.log",
         "truth_log": f"results/logs/truth_table/{name}.log",
@@ -242,20 +242,23 @@ def staged(wildcards):
 def publish(step, what):
     """The shell command of a per-scene step: move the scene's files of this `step` (fit,
     truth, plots) from its chunk's staging folder into place (rename: atomic), or fail with
-    the scene's error. A file the chunk did not redo (up to date) is kept as it is."""
+    the scene's error (on standard error and in the step's log). A file the chunk did not
+    redo (up to date) is kept as it is."""
     return (
-        "s={params.staged:q}; "
+        "s={params.staged:q}; : > {log:q}; "
         f'if [ -e "$s/{step}.error" ]; then '
-        f'echo "dashpot: scene {{wildcards.scene}}: {what} failed: $(cat "$s/{step}.error")" >&2; '
-        "exit 1; fi; "
-        "for f in {output:q}; do b=$(basename \"$f\"); "
-        'if [ -e "$s/$b" ]; then mkdir -p "$(dirname "$f")" && mv -f "$s/$b" "$f"; '
+        f'echo "dashpot: scene {{wildcards.scene}}: {what} failed: $(cat "$s/{step}.error")" '
+        "| tee -a {log:q} >&2; exit 1; fi; "
+        'for f in {output:q}; do b=$(basename "$f"); '
+        'if [ -e "$s/$b" ]; then mkdir -p "$(dirname "$f")" && mv -f "$s/$b" "$f" && '
+        'echo "wrote $f" >> {log:q}; '
         'elif [ ! -e "$f" ]; then echo "dashpot: scene {wildcards.scene}: $f was not made '
-        '(see its log in results/logs)" >&2; exit 1; fi; done'
+        '(see its log in results/logs)" | tee -a {log:q} >&2; exit 1; '
+        'else echo "kept $f (up to date)" >> {log:q}; fi; done'
         # The fit's fingerprint, after its file: what the file was made from (the chunk
         # skips the scene while it matches; a stale or missing one refits it).
-        + ('; if [ -e "$s/fingerprint.json" ]; then mkdir -p results/chunks/done && '
-           'mv -f "$s/fingerprint.json" results/chunks/done/{wildcards.scene}.json; fi'
+        + ('; if [ -e "$s/fingerprint.json" ]; then mkdir -p results/logs/fit && '
+           'mv -f "$s/fingerprint.json" results/logs/fit/{wildcards.scene}.fingerprint; fi'
            if step == "fit" else "")
     )
 

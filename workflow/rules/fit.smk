@@ -39,6 +39,10 @@ rule fit:
         update("results/{scene}.h5"),
     params:
         staged=staged,
+    log:
+        "results/logs/publish/fit/{scene}.log",
+    conda:
+        "../envs/dashpot.yaml"
     localrule: True
     shell:
         publish("fit", "its fit")
@@ -84,6 +88,10 @@ rule truth_table:
         staged=staged,
     wildcard_constraints:
         scene=_names_pattern(SYNTHETIC_SCENES),
+    log:
+        "results/logs/publish/truth/{scene}.log",
+    conda:
+        "../envs/dashpot.yaml"
     localrule: True
     shell:
         publish("truth", "its truth table")

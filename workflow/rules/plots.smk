@@ -40,6 +40,10 @@ rule scene_plots:
         ),
     params:
         staged=staged,
+    log:
+        "results/logs/publish/scene_plots/{scene}.log",
+    conda:
+        "../envs/dashpot.yaml"
     localrule: True
     shell:
         publish("plots", "its figures")
@@ -65,6 +69,10 @@ rule detection_plot:
         staged=staged,
     wildcard_constraints:
         scene=_names_pattern(AUDIO_SCENES),
+    log:
+        "results/logs/publish/detection_plot/{scene}.log",
+    conda:
+        "../envs/dashpot.yaml"
     localrule: True
     shell:
         publish("plots", "its detection figure")
