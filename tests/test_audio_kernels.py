@@ -228,3 +228,24 @@ def test_compiled_detector_gives_the_reference_impacts_on_real_sound(monkeypatch
     if not path.exists():
         pytest.skip(f"{path} not found: the real recordings (../shared/data) are not available")
     assert _assert_same_impacts(path, monkeypatch) >= 30
+
+
+def test_batched_polish_equals_member_by_member(monkeypatch):
+    # Chains through a train with clutter within the 3 ms search of its members, so that
+    # members are replaced and the members after them costed again.
+    rng = np.random.default_rng(SEED + 4)
+    sequence = dashpot.bounce_sequence("hybrid", beta=80.0, omega0=3000.0, g=9.81, v0=1.5,
+                                       n_max=40)
+    trend = chaining._trend(sequence.impact_times)
+    replaced = 0
+    for _ in range(50):
+        times = np.sort(np.concatenate([
+            sequence.impact_times,
+            rng.choice(sequence.impact_times, size=30) + rng.uniform(-3e-3, 3e-3, size=30)]))
+        chain = np.sort(rng.choice(times.size, size=int(rng.integers(3, 40)), replace=False))
+        monkeypatch.setattr(envelope, "COMPILED", False)
+        expected = chaining._polish_chain(times, chain, trend)
+        monkeypatch.setattr(envelope, "COMPILED", True)
+        np.testing.assert_array_equal(chaining._polish_chain(times, chain, trend), expected)
+        replaced += int((expected != chain).sum())
+    assert replaced > 50  # the polish did replace members

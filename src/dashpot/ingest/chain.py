@@ -329,38 +329,95 @@ def _polish_chain(times, chain, trend):
     (and hide it from the strong triggers); the impact itself continues the geometric trend
     better. Each member in turn is replaced by the transient, among those within the
     back-search time of it, that minimises the cost of the three interval ratios it enters.
+
+    The costs of every member's options are computed in one batch on the chain as given
+    (elementwise, so each is what a member's own call gives); a member is costed again, on
+    its own, only where a replacement before it changed the members its ratios use.
     """
+    if not _envelope.COMPILED:  # the reference: one member at a time
+        return _polish_chain_reference(times, chain, trend)
+    coefficients, scatter = trend
+    original, chain = chain, chain.copy()
+    size = chain.size
+    if size < 2:
+        return chain
+    centres = times[original]
+    lower = np.searchsorted(times, centres - _BACK_SEARCH_SECONDS)
+    upper = np.searchsorted(times, centres + _BACK_SEARCH_SECONDS)
+    positions = np.arange(1, size)
+    lo = np.maximum(lower[1:], original[:-1] + 1)
+    hi = np.where(positions + 1 < size, np.minimum(upper[1:], np.append(original[2:], 0)),
+                  upper[1:])
+    counts = np.where(hi - lo >= 2, hi - lo, 0)
+    owner = np.repeat(positions, counts)  # position of each option
+    choice = {}  # position -> its best option, on the chain as given
+    if owner.size:
+        starts = np.repeat(lo - np.cumsum(counts) + counts, counts)
+        option = starts + np.arange(owner.size)  # index into `times` of each option
+        t = times[option]
+        member = np.append(centres, [np.nan, np.nan])  # times of the members, past the end NaN
+
+        def costed(present, a, b, c):
+            # Cost of one kind of ratio where the position has it, 0 (adds exactly) elsewhere.
+            return np.where(present, _ratio_cost(np.where(present, a, t), np.where(present, b, t),
+                                                 np.where(present, c, t), coefficients,
+                                                 scatter), 0.0)
+
+        total = costed(owner >= 2, member[owner - 2], member[owner - 1], t)
+        total = total + costed(owner + 1 < size, member[owner - 1], t, member[owner + 1])
+        total = total + costed(owner + 2 < size, t, member[owner + 1], member[owner + 2])
+        ends = np.cumsum(counts)
+        for position, count, end in zip(positions.tolist(), counts.tolist(), ends.tolist()):
+            if count:
+                choice[position] = int(option[end - count + int(np.argmin(total[end - count:end]))])
+    for position in range(1, size):
+        if chain[position - 1] == original[position - 1] and (
+                position < 2 or chain[position - 2] == original[position - 2]):
+            if position in choice:
+                chain[position] = choice[position]
+        else:
+            _polish_member(times, chain, position, coefficients, scatter)
+    return chain
+
+
+def _polish_chain_reference(times, chain, trend):
+    """:func:`_polish_chain`, one member at a time (the reference of its batched form)."""
     coefficients, scatter = trend
     chain = chain.copy()
     for position in range(1, chain.size):
-        lo, hi = np.searchsorted(times, [times[chain[position]] - _BACK_SEARCH_SECONDS,
-                                         times[chain[position]] + _BACK_SEARCH_SECONDS])
-        lo = max(lo, chain[position - 1] + 1)
-        if position + 1 < chain.size:
-            hi = min(hi, chain[position + 1])
-        options = np.arange(lo, hi)
-        if options.size < 2:
-            continue
-        # The (up to three) ratios the member enters, one row each, costed in one call.
-        t = times[options]
-        around = times[chain[max(position - 2, 0):position + 3]]
-        before = position - max(position - 2, 0)  # members of `around` before this one
-        rows = []
-        if before == 2:
-            rows.append((np.full_like(t, around[0]), np.full_like(t, around[1]), t))
-        if position + 1 < chain.size:
-            rows.append((np.full_like(t, around[before - 1]), t,
-                         np.full_like(t, around[before + 1])))
-        if position + 2 < chain.size:
-            rows.append((t, np.full_like(t, around[before + 1]),
-                         np.full_like(t, around[before + 2])))
-        if rows:
-            a, b, c = (np.array(column) for column in zip(*rows))
-            cost = _ratio_cost(a, b, c, coefficients, scatter).sum(axis=0)
-        else:
-            cost = np.zeros(options.size)
-        chain[position] = options[int(np.argmin(cost))]
+        _polish_member(times, chain, position, coefficients, scatter)
     return chain
+
+
+def _polish_member(times, chain, position, coefficients, scatter):
+    """Replace chain[position], in place, by the transient of least trend cost near it."""
+    lo, hi = np.searchsorted(times, [times[chain[position]] - _BACK_SEARCH_SECONDS,
+                                     times[chain[position]] + _BACK_SEARCH_SECONDS])
+    lo = max(lo, chain[position - 1] + 1)
+    if position + 1 < chain.size:
+        hi = min(hi, chain[position + 1])
+    options = np.arange(lo, hi)
+    if options.size < 2:
+        return
+    # The (up to three) ratios the member enters, one row each, costed in one call.
+    t = times[options]
+    around = times[chain[max(position - 2, 0):position + 3]]
+    before = position - max(position - 2, 0)  # members of `around` before this one
+    rows = []
+    if before == 2:
+        rows.append((np.full_like(t, around[0]), np.full_like(t, around[1]), t))
+    if position + 1 < chain.size:
+        rows.append((np.full_like(t, around[before - 1]), t,
+                     np.full_like(t, around[before + 1])))
+    if position + 2 < chain.size:
+        rows.append((t, np.full_like(t, around[before + 1]),
+                     np.full_like(t, around[before + 2])))
+    if rows:
+        a, b, c = (np.array(column) for column in zip(*rows))
+        cost = _ratio_cost(a, b, c, coefficients, scatter).sum(axis=0)
+    else:
+        cost = np.zeros(options.size)
+    chain[position] = options[int(np.argmin(cost))]
 
 
 def _trend(impact_times):
