@@ -249,3 +249,16 @@ def test_batched_polish_equals_member_by_member(monkeypatch):
         np.testing.assert_array_equal(chaining._polish_chain(times, chain, trend), expected)
         replaced += int((expected != chain).sum())
     assert replaced > 50  # the polish did replace members
+
+
+def test_window_maxima_and_distinct_counts_equal_their_numpy_forms():
+    rng = np.random.default_rng(SEED + 5)
+    values = rng.exponential(size=400)
+    first = np.minimum(np.arange(400), rng.integers(0, 400, size=400))
+    np.testing.assert_array_equal(
+        _kernels().window_maxima(values, first),
+        [values[a:i].max(initial=0.0) for i, a in enumerate(first)])
+    labels = rng.integers(0, 30, size=400)
+    stops = np.maximum(np.arange(400), np.minimum(400, np.arange(400) + rng.integers(0, 40, 400)))
+    np.testing.assert_array_equal(_kernels().distinct_counts(labels, stops),
+                                  [np.unique(labels[i:j]).size for i, j in enumerate(stops)])

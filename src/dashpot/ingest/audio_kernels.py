@@ -55,7 +55,7 @@ import numba
 import numpy as np
 
 __all__ = ["highpass", "envelope_triggers", "transient_measures", "power_rows", "whitened_rows",
-           "onset_picks", "chain_scores"]
+           "onset_picks", "chain_scores", "window_maxima", "distinct_counts"]
 
 # Float division by zero gives inf/nan as in numpy instead of raising; no fastmath, so that
 # every operation is rounded as numpy rounds it (no fused multiply-add, no reassociation).
@@ -523,3 +523,47 @@ def chain_scores(log_gap, jitter, weights, last, score, pointer, trend_centre=No
         _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, costs, True,
                      log_lo, log_hi, log_growth, k_from, k_to)
         k_from = k_to
+
+
+@_jit
+def _window_maxima(values, first):
+    out = np.empty(values.size)
+    for i in range(values.size):
+        largest = 0.0
+        for q in range(first[i], i):
+            if np.isnan(values[q]):  # numpy's max: NaN wins
+                largest = values[q]
+                break
+            if values[q] > largest:
+                largest = values[q]
+        out[i] = largest
+    return out
+
+
+def window_maxima(values, first):
+    """max(values[first[i]:i], initial=0) for each i (the loudest transient before each, in
+    :func:`.chain._chain_weights`)."""
+    return _window_maxima(np.ascontiguousarray(values, dtype=float),
+                          np.ascontiguousarray(first, dtype=np.int64))
+
+
+@_jit
+def _distinct_counts(labels, stops, size):
+    seen = np.full(size, -1, dtype=np.int64)
+    out = np.zeros(labels.size, dtype=np.int64)
+    for i in range(labels.size):
+        count = 0
+        for q in range(i, stops[i]):
+            if seen[labels[q]] != i:
+                seen[labels[q]] = i
+                count += 1
+        out[i] = count
+    return out
+
+
+def distinct_counts(labels, stops):
+    """Number of distinct values of labels[i:stops[i]] for each i (non-negative integer
+    labels; the members sharing a delay in :func:`.chain._shift_to_causes`)."""
+    labels = np.ascontiguousarray(labels, dtype=np.int64)
+    size = int(labels.max()) + 1 if labels.size else 0
+    return _distinct_counts(labels, np.ascontiguousarray(stops, dtype=np.int64), size)

@@ -150,7 +150,11 @@ def _chain_weights(times, power_ratio, amplitude):
     """
     weights = _NOISE_WEIGHT + 0.5 * np.log(power_ratio)
     earlier = np.searchsorted(times, times - _SECONDARY_SECONDS)
-    loudest_before = np.array([amplitude[a:i].max(initial=0.0) for i, a in enumerate(earlier)])
+    if _envelope.COMPILED:
+        loudest_before = _envelope._kernels().window_maxima(amplitude, earlier)
+    else:
+        loudest_before = np.array([amplitude[a:i].max(initial=0.0)
+                                   for i, a in enumerate(earlier)])
     secondary = loudest_before >= amplitude / _SECONDARY_LOUDNESS
     return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
 
@@ -238,8 +242,11 @@ def _shift_to_causes(times, chain):
         sorted_delays, sorted_owner = delays[order], owner[order]
         reach = np.searchsorted(sorted_delays, sorted_delays + 2 * _CAUSE_TOLERANCE,
                                 side="right")
-        support = np.array([np.unique(sorted_owner[i:j]).size
-                            for i, j in enumerate(reach)])
+        if _envelope.COMPILED:
+            support = _envelope._kernels().distinct_counts(sorted_owner, reach)
+        else:
+            support = np.array([np.unique(sorted_owner[i:j]).size
+                                for i, j in enumerate(reach)])
         best = int(np.argmax(support))
         if support[best] < max(4, _CAUSE_SHARE * chain.size):
             return chain
