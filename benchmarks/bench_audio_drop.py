@@ -17,8 +17,9 @@ Prints two tables.
    Recordings: the stereo 48 kHz 16-bit 12.8 s bouncy-ball drop in ``../shared/data`` (the
    issue's target; skipped with a message when the folder is absent), and a synthetic 3-minute
    stereo 48 kHz 16-bit recording of a bounce train with ringing and an echo, then noise.
-2. The first call in a new process: with the compiled code in numba's on-disk cache (loading
-   it), and with an empty cache (compiling it), against a later call in the same process.
+2. The first call in a new process (wall clock, after importing dashpot): with the compiled
+   code in numba's on-disk cache (loading it), and with an empty cache (compiling it),
+   against a later call in the same process.
 
 Pin the process to one core (``taskset -c 1``) on a shared machine.
 
@@ -118,17 +119,17 @@ import os, sys, time
 sys.path.insert(0, {benchmarks!r})
 start = time.perf_counter()
 from dashpot.ingest.audio import detect_impacts
+imported = time.perf_counter()
 detect_impacts({path!r})
-first = time.perf_counter() - start
-start = time.perf_counter()
+first = time.perf_counter()
 detect_impacts({path!r})
-print(first, time.perf_counter() - start)
+print(imported - start, first - imported, time.perf_counter() - first)
 """
 
 
 def first_call(path):
-    """(first call incl. import, second call) wall-clock seconds in a new process, with the
-    cache as it is and with an empty cache directory (compiling)."""
+    """(import, first call, second call) wall-clock seconds in a new process, with the
+    compiled code in the cache and with an empty cache directory (compiling)."""
     code = _FIRST_CALL.format(benchmarks=str(Path(__file__).parent), path=str(path))
     results = {}
     with tempfile.TemporaryDirectory() as empty:
@@ -156,11 +157,11 @@ def main():
                   f"skipped")
         speed_rows("synthetic 3-minute recording", synthetic)
         target = BOUNCY if BOUNCY.exists() else synthetic
-        print(f"\nFirst call in a new process, on {target.name} (wall clock, includes "
-              f"importing dashpot)")
-        print(f"{'numba cache':<40} {'first call s':>13} {'second call s':>14}")
-        for label, (first, second) in first_call(target).items():
-            print(f"{label:<40} {first:>13.2f} {second:>14.3f}")
+        print(f"\nFirst call in a new process, on {target.name} (wall clock; the first call "
+              f"loads or compiles the kernels)")
+        print(f"{'numba cache':<40} {'import s':>9} {'first call s':>13} {'second call s':>14}")
+        for label, (imported, first, second) in first_call(target).items():
+            print(f"{label:<40} {imported:>9.2f} {first:>13.2f} {second:>14.3f}")
 
 
 if __name__ == "__main__":
