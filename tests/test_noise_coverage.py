@@ -228,13 +228,6 @@ def test_every_reported_parameter_covers_at_its_stated_rates(case, capsys):
     assert not failures, failures
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured: on the noise-free Ib train of the 'Ib' case (15 impacts from 1 m/s, omega0 = "
-    "150 rad/s) the fit with sigma_eps and sigma_j held at 0.3 % and 17 µs ends at the "
-    "gravity-free limit v* = 1e-6 m/s with -2 ln L = -89.6, 123 above the truth's -212.7 "
-    "(with the noise fitted, or from 2 m/s over 18 impacts, it finds v* = 0.065 m/s); "
-    "suspected: the start values or the Newton steps reach v*'s lower bound and stay there "
-    "(not investigated further)"))
 def test_a_fit_with_its_noise_held_reaches_the_truth_on_a_noise_free_train():
     law, params, speed = "Ib", CASES["Ib"]["params"], CASES["Ib"]["speed"]
     clean = simulated_trains(law, params, 1, count=CASES["Ib"]["count"], speed=speed, seed=0,
