@@ -46,10 +46,11 @@ _RING_GAP_SECONDS = 0.5e-3  # a sound this long before a transient's jump is a s
 _RING_JUMP = 2.0  # ... if the power then jumps 3 dB over it
 _SPLIT_JUMP = 8.0  # a trigger 9 dB louder than a transient < 1 ms before it is a new one
 
-# The loops over the samples (high-pass, power envelope, trigger) and the AIC picker run
-# compiled (:mod:`.audio_kernels`, same operations in the same order, same results to the
-# last bit); the numpy forms below are their reference, which the tests compare them with.
-# False runs the reference (as do the chain's loops, :func:`.chain._best_chain`).
+# The loops over the samples (high-pass, power envelope, trigger, transient measures) and
+# the AIC picker run compiled (:mod:`.audio_kernels`: same operations in the same order, same
+# results to the last bit), and so do the chain's search and counts and its polish in one
+# batch (:mod:`.chain`); the numpy forms kept beside them are their reference, which the
+# tests compare them with. False runs the reference throughout.
 COMPILED = True
 
 
