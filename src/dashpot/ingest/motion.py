@@ -22,6 +22,8 @@ import re
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.sparse import csr_matrix
 
 from .._validation import BUMPER_POSITION_RANGE, check_range
 from ..errors import InputError
@@ -276,11 +278,20 @@ def _motion_run(run, bumper_position, notes, legs):
             expand[0, 0] = 1.0
             expand[1, 1 if split else 0] = 1.0
             expand[2:, n_acc:] = np.eye(2 * used.size)
-            fitted = (np.linalg.lstsq(design, s[rows], rcond=None)[0] if rows.size
-                      else np.zeros(design.shape[1]))
+            # Normal equations through the sparse design (at most three entries a row: the
+            # flights' columns are disjoint), far cheaper than a dense least-squares solve
+            # when a long record holds dozens of flights.
+            sparse = csr_matrix(design)
+            gram = (sparse.T @ sparse).toarray()
+            try:  # Cholesky: the Gram matrix of a design of full column rank
+                inverse = cho_solve(cho_factor(gram, check_finite=False),
+                                    np.eye(gram.shape[0]), check_finite=False)
+            except LinAlgError:  # rank-deficient (a degenerate flight): least norm
+                inverse = np.linalg.pinv(gram)
+            fitted = inverse @ (sparse.T @ s[rows]) if rows.size else np.zeros(design.shape[1])
             return dict(rows=rows, usable=usable, column=column, reference=reference,
-                        design=design, expand=expand, split=split, theta=expand @ fitted,
-                        residual=s[rows] - design @ fitted)
+                        design=design, inverse=inverse, expand=expand, split=split,
+                        theta=expand @ fitted, residual=s[rows] - design @ fitted)
 
         result = solve(labels >= 0)
         if result["rows"].size == 0:
@@ -306,6 +317,8 @@ def _motion_run(run, bumper_position, notes, legs):
                         & (index > cut_lo[flight]))
             outliers = (labels >= 0) & ~selected
             result = solve(selected)
+            if not result["usable"].any():
+                return None  # every flight cut below two samples: nothing left to fit
         rows, design, residual = result["rows"], result["design"], result["residual"]
         dof = rows.size - design.shape[1]
         result["variance"] = float(residual @ residual / dof) if dof >= 3 else sigma_x ** 2
@@ -321,7 +334,7 @@ def _motion_run(run, bumper_position, notes, legs):
                                      / np.mean(residual ** 2))
         expand = result["expand"]
         result["covariance"] = (max(ratio, 1.0) * result["variance"]
-                                * expand @ np.linalg.pinv(design.T @ design) @ expand.T)
+                                * expand @ result["inverse"] @ expand.T)
         result["outliers"] = int(outliers.sum())
         result["samples"] = np.bincount(seg, minlength=impacts + 1)
         result["first"] = np.full(impacts + 1, np.nan)
