@@ -70,12 +70,19 @@ def test_envelope_and_trigger_equal_the_reference():
     rho, weights = np.array([0.3, 0.05]), 1.0 / (2 * np.array([1e-3, 2e-3]) ** 2)
     lo, hi = settings.history, filtered.shape[0] - settings.lookahead + 1
     weak = settings.min_jump / envelope._WEAK_JUMP_FACTOR / settings.background
-    expected = envelope._envelope_triggers(filtered, rho, weights, settings, lo, hi, weak)
-    found = _kernels().envelope_triggers(filtered, rho, weights, settings.sta,
-                                         settings.background, lo, hi, settings.min_power, weak)
-    assert expected[2].size > 10  # the test has triggers to compare
-    for got, want in zip(found, expected):
-        np.testing.assert_array_equal(got, want)
+    power, sta, triggers, jump = envelope._envelope_triggers(filtered, rho, weights, settings,
+                                                             lo, hi, weak)
+    found, found_triggers, found_jump = _kernels().envelope_triggers(
+        filtered, rho, weights, settings.sta, settings.background, lo, hi, settings.min_power,
+        weak)
+    assert triggers.size > 10  # the test has triggers to compare
+    np.testing.assert_array_equal(found_triggers, triggers)
+    np.testing.assert_array_equal(found_jump, jump)
+    # The power and STA formed from the running sum's checkpoints, everywhere.
+    every = np.arange(filtered.shape[0])
+    np.testing.assert_array_equal(found.sta_at(every), sta)
+    np.testing.assert_array_equal(found.power_rows(np.array([0, 777]), 19000),
+                                  np.stack([power[:19000], power[777:19777]]))
 
 
 def test_onset_picks_equal_the_reference(monkeypatch):

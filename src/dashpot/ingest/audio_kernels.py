@@ -13,9 +13,10 @@ results are the same to the last bit:
   estimate's einsum) see the same memory layout and sum in the same order.
   Being a recursion, it is bound by the latency of its arithmetic; the channels are stepped
   together so that their chains overlap.
-* :func:`envelope_triggers` does the whitening and the noise-normalised power in one pass and
-  the running sum and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` in a
-  second (the sum kept in a short ring instead of a whole array).
+* :func:`envelope_triggers` does the whitening, the noise-normalised power, its running sum
+  and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` chunk by chunk, and
+  keeps the running sum only every 64 samples (:class:`Envelope` forms the power and STA
+  where they are asked for, from the nearest of these, by the same additions).
 * :func:`transient_measures` gathers each transient's amplitude, clipping flag and fit windows
   (maxima and counts: exact in any order); the mean level before the onset stays numpy's.
 * The AIC picker and the chain's Cauchy cost need logarithms. numpy's ``log`` and ``log1p``
@@ -54,7 +55,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["highpass", "envelope_triggers", "transient_measures", "power_rows", "whitened_rows",
+__all__ = ["highpass", "Envelope", "envelope_triggers", "transient_measures", "whitened_rows",
            "onset_picks", "chain_scores", "window_maxima", "distinct_counts"]
 
 # Float division by zero gives inf/nan as in numpy instead of raising; no fastmath, so that
@@ -114,48 +115,124 @@ def highpass(sos, block, zi):
     return out.T, np.moveaxis(state, (1, 2), (0, 1))
 
 
+# The running sum S of the power (S[0] = 0, S[m] = power[0] + … + power[m − 1]) is kept at
+# every _CHECKPOINT-th sample only; S anywhere else is summed on from the checkpoint before it,
+# the same additions in the same order as the whole pass.
+_CHECKPOINT = 64
+_CHUNK = 4096  # samples whose power is formed together (vectorized over a short buffer)
+
+
+@_jit
+def _power_at(filtered, rho, weights, n):
+    """Noise-normalised power of the whitened channels at sample n, summed over channels
+    in order from 0 as numpy adds the channels' columns."""
+    value = 0.0
+    if n == 0:
+        return value
+    for c in range(filtered.shape[1]):
+        whitened = filtered[n, c] - rho[c] * filtered[n - 1, c]
+        whitened = whitened * whitened
+        whitened = whitened * weights[c]
+        value += whitened
+    return value
+
+
 @_jit
 def _envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power,
-                       weak, power, sta, triggers, jump):
-    # Two passes: the power, channel by channel (vectorized), then the running sum, the STA
-    # and the trigger test together.
+                       weak, checkpoints, triggers, jump):
     frames, channels = filtered.shape
-    for c in range(channels):
-        column = filtered[:, c]
-        for n in range(1, frames):
-            whitened = column[n] - rho[c] * column[n - 1]
-            whitened = whitened * whitened
-            whitened = whitened * weights[c]
-            power[n] += whitened
-    # The running sum S (S[0] = 0, S[m] = power[0] + … + power[m − 1]) is kept in a ring of
-    # its last values (a power of two, at least `sta_length + background + 1`), not as a
-    # whole array: once S[m] is known, the STA of sample i = m − sta_length and its trigger
-    # test (which needs S[i − background]) follow.
+    # S is kept in a ring of its last values (a power of two, at least
+    # `sta_length + background + 1`): once S[m] is known, the STA of sample i = m − sta_length
+    # and its trigger test (which needs S[i − background]) follow.
     ring_size = 1
     while ring_size < sta_length + background + 1:
         ring_size *= 2
     mask = ring_size - 1
     ring = np.zeros(ring_size)
+    power = np.zeros(_CHUNK)
     count = 0
     total = 0.0
-    for m in range(1, frames + 1):
-        total += power[m - 1]
-        ring[m & mask] = total
-        i = m - sta_length
-        if i < 0:
-            continue
-        value = (total - ring[i & mask]) / sta_length
-        sta[i] = value
-        if i < lo or i >= hi or value < min_power:
-            continue
-        level = ring[i & mask] - ring[(i - background) & mask]
-        if level < background:  # np.maximum with a number: NaN stays NaN
-            level = float(background)
-        if value >= weak * level:
-            triggers[count] = i
-            jump[count] = value * background / level
-            count += 1
+    checkpoints[0] = 0.0
+    for start in range(0, frames, _CHUNK):
+        stop = min(start + _CHUNK, frames)
+        # The power of the chunk, channel by channel (contiguous, vectorized), added in
+        # channel order onto zero as numpy adds the columns.
+        for q in range(stop - start):
+            power[q] = 0.0
+        for c in range(channels):
+            for n in range(max(start, 1), stop):
+                whitened = filtered[n, c] - rho[c] * filtered[n - 1, c]
+                whitened = whitened * whitened
+                whitened = whitened * weights[c]
+                power[n - start] += whitened
+        for n in range(start, stop):
+            m = n + 1
+            total += power[n - start]
+            ring[m & mask] = total
+            if m % _CHECKPOINT == 0:
+                checkpoints[m // _CHECKPOINT] = total
+            i = m - sta_length
+            if i < lo or i >= hi:
+                continue
+            value = (total - ring[i & mask]) / sta_length
+            if value < min_power:
+                continue
+            level = ring[i & mask] - ring[(i - background) & mask]
+            if level < background:  # np.maximum with a number: NaN stays NaN
+                level = float(background)
+            if value >= weak * level:
+                triggers[count] = i
+                jump[count] = value * background / level
+                count += 1
     return count
+
+
+@_jit
+def _running_sum(filtered, rho, weights, checkpoints, m):
+    total = checkpoints[m // _CHECKPOINT]
+    for q in range(m // _CHECKPOINT * _CHECKPOINT, m):
+        total += _power_at(filtered, rho, weights, q)
+    return total
+
+
+@_jit
+def _sta_at(filtered, rho, weights, checkpoints, sta_length, indices):
+    frames = filtered.shape[0]
+    out = np.zeros(indices.size)
+    for k in range(indices.size):
+        i = indices[k]
+        if i + sta_length <= frames:  # 0 past the end, as the whole array holds it
+            out[k] = (_running_sum(filtered, rho, weights, checkpoints, i + sta_length)
+                      - _running_sum(filtered, rho, weights, checkpoints, i)) / sta_length
+    return out
+
+
+@_jit
+def _envelope_rows(filtered, rho, weights, starts, length):
+    rows = np.empty((starts.size, length))
+    for k in range(starts.size):
+        for i in range(length):
+            rows[k, i] = _power_at(filtered, rho, weights, starts[k] + i)
+    return rows
+
+
+class Envelope:
+    """The power envelope of a block, kept as its running sum's checkpoints: its rows and
+    STA are formed where asked, to the last bit as the whole arrays would hold them."""
+
+    def __init__(self, filtered, rho, weights, sta_length, checkpoints):
+        self.filtered, self.rho, self.weights = filtered, rho, weights
+        self.sta_length, self.checkpoints = sta_length, checkpoints
+
+    def power_rows(self, starts, length):
+        """Rows power[s : s + length] for each s in `starts`, as a (K, length) array."""
+        return _envelope_rows(self.filtered, self.rho, self.weights,
+                              np.ascontiguousarray(starts, dtype=np.int64), int(length))
+
+    def sta_at(self, indices):
+        """STA (mean power of the `sta_length` samples from each index on; 0 past the end)."""
+        return _sta_at(self.filtered, self.rho, self.weights, self.checkpoints,
+                       self.sta_length, np.ascontiguousarray(indices, dtype=np.int64))
 
 
 def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, min_power, weak):
@@ -177,26 +254,30 @@ def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, mi
 
     Returns
     -------
-    power : ndarray, shape (frames,)
-        Mean noise-normalised power of the whitened channels (power[0] = 0).
-    sta : ndarray, shape (frames,)
-        Mean power of the `sta_length` samples from each sample on (0 where they run past
-        the end).
+    envelope : Envelope
+        The mean noise-normalised power of the whitened channels (power[0] = 0) and its STA
+        (mean power of the `sta_length` samples from each sample on), formed where asked.
     triggers : ndarray of int64
         Samples passing both thresholds, increasing.
     jump : ndarray
         STA over the mean power of the background before each trigger (floored at 1).
+
+    Notes
+    -----
+    No array of the block's length is written: whole arrays of the power, its running sum and
+    the STA (tens of MB for a long block) cost more in fresh memory than forming them.
     """
     frames = filtered.shape[0]
-    # Outputs allocated by numpy (huge pages, see highpass), zeroed where the kernel expects
-    # it; room for a trigger at every sample, of which only the pages used are touched.
-    power, sta = np.zeros(frames), np.zeros(frames)
+    rho = np.ascontiguousarray(rho, dtype=float)
+    weights = np.ascontiguousarray(weights, dtype=float)
+    checkpoints = np.zeros(frames // _CHECKPOINT + 1)
+    # Room for a trigger at every sample, of which only the pages used are touched.
     triggers, jump = np.empty(max(hi - lo, 0), dtype=np.int64), np.empty(max(hi - lo, 0))
-    count = _envelope_triggers(filtered, np.ascontiguousarray(rho, dtype=float),
-                               np.ascontiguousarray(weights, dtype=float), int(sta_length),
-                               int(background), int(lo), int(hi), float(min_power),
-                               float(weak), power, sta, triggers, jump)
-    return power, sta, triggers[:count].copy(), jump[:count].copy()
+    count = _envelope_triggers(filtered, rho, weights, int(sta_length), int(background),
+                               int(lo), int(hi), float(min_power), float(weak), checkpoints,
+                               triggers, jump)
+    return (Envelope(filtered, rho, weights, int(sta_length), checkpoints),
+            triggers[:count].copy(), jump[:count].copy())
 
 
 @_jit
@@ -271,15 +352,6 @@ def transient_measures(raw, filtered, onsets, window_starts, level, amplitude_le
 
 # --------------------------------------------------------------------------------------------
 # AIC onset picker
-
-
-@_jit
-def _power_rows(power, starts, length):
-    rows = np.empty((starts.size, length))
-    for k in range(starts.size):
-        for i in range(length):
-            rows[k, i] = power[starts[k] + i]
-    return rows
 
 
 @_jit
@@ -400,11 +472,6 @@ def onset_picks(power, first, min_gap, min_tail, margin, ring_jump):
     second[later] = _aic_picks(np.ascontiguousarray(power[later]), picks[later], margin)
     return _separate_sounds(power, picks, second, later, int(min_gap), int(min_tail),
                             float(ring_jump))
-
-
-def power_rows(power, starts, length):
-    """Rows power[s : s + length] for each s in `starts`, as a (K, length) array."""
-    return _power_rows(power, np.ascontiguousarray(starts, dtype=np.int64), int(length))
 
 
 def whitened_rows(filtered, channel, rho, starts, length):

@@ -226,6 +226,20 @@ def _envelope_triggers(filtered, rho, weights, settings, lo, hi, weak):
     return power, sta, triggers, jump
 
 
+class _EnvelopeArrays:
+    """The power envelope and STA of a block as whole arrays (the reference path), with the
+    interface of :class:`.audio_kernels.Envelope`."""
+
+    def __init__(self, power, sta):
+        self.power, self.sta = power, sta
+
+    def power_rows(self, starts, length):
+        return _windows(self.power, starts, length)
+
+    def sta_at(self, indices):
+        return self.sta[indices]
+
+
 def _process(stream, block, final):
     """Find the transients in the carried samples + `block` and append them to the stream."""
     settings = stream.settings
@@ -283,12 +297,13 @@ def _process(stream, block, final):
     # (an impact landing on the ringing or echo of an earlier one jumps less).
     weak = settings.min_jump / _WEAK_JUMP_FACTOR / settings.background
     if COMPILED:
-        power, sta, triggers, jump = _kernels().envelope_triggers(
+        envelope, triggers, jump = _kernels().envelope_triggers(
             filtered, stream.rho, weights, settings.sta, settings.background, lo, hi,
             settings.min_power, weak)
     else:
         power, sta, triggers, jump = _envelope_triggers(filtered, stream.rho, weights,
                                                         settings, lo, hi, weak)
+        envelope = _EnvelopeArrays(power, sta)
     # Runs of consecutive trigger samples; each run is one trigger, at its largest jump.
     breaks = np.flatnonzero(np.diff(triggers) > 1) + 1
     run_first = np.concatenate(([0], breaks)) if triggers.size else np.zeros(0, dtype=np.int64)
@@ -322,15 +337,14 @@ def _process(stream, block, final):
         first = np.clip(previous + settings.sta - search_start, 0,
                         length - 2 * _AIC_MARGIN - settings.sta)
         gap = max(_AIC_MARGIN, int(round(_RING_GAP_SECONDS * settings.sample_rate)))
-        onsets = _onset_picks(_kernels().power_rows(power, search_start, length) if COMPILED
-                              else _windows(power, search_start, length), first, gap,
+        onsets = _onset_picks(envelope.power_rows(search_start, length), first, gap,
                               settings.sta)
         # Each channel's own whitened signal, y[n] − ρ·y[n−1], over the same stretches.
         channel_onsets = np.stack([_onset_picks(
             _whitened_windows(filtered, c, stream.rho[c], search_start, length), first, gap,
             settings.sta) for c in range(stream.channels)], axis=1)
-        _keep_transients(stream, raw, filtered, sta, search_start + onsets,
-                         search_start[:, None] + channel_onsets, strong)
+        _keep_transients(stream, raw, filtered, envelope.sta_at(search_start + onsets),
+                         search_start + onsets, search_start[:, None] + channel_onsets, strong)
     stream.done_until = stream.start + max(limit, first_new)
 
     keep_from = max(0, frames - settings.carry)
@@ -338,8 +352,9 @@ def _process(stream, block, final):
     stream.start += keep_from
 
 
-def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong):
-    """Group triggers into transients and store what the later steps need of each."""
+def _keep_transients(stream, raw, filtered, strengths, onsets, channel_onsets, strong):
+    """Group triggers into transients and store what the later steps need of each
+    (`strengths`: the STA at each onset)."""
     settings = stream.settings
     channel = np.arange(stream.channels)
     # Peak deviation of the raw samples (all channels) within `amplitude` samples after each
@@ -364,7 +379,7 @@ def _keep_transients(stream, raw, filtered, sta, onsets, channel_onsets, strong)
         windows = filtered[window_starts[:, :, None] + np.arange(settings.pre + settings.span),
                            channel[None, :, None]]
     # Python scalars for the loop (indexing numpy arrays one element at a time costs more).
-    strengths, amplitude_list = sta[onsets].tolist(), amplitudes.tolist()
+    strengths, amplitude_list = strengths.tolist(), amplitudes.tolist()
     flat_list, strong_list = flat.tolist(), strong.tolist()
     absolute_starts = stream.start + window_starts
     for i, onset in enumerate(onsets.tolist()):
