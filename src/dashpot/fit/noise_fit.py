@@ -929,8 +929,9 @@ class _Problem:
                         best.units[index][:, None, columns], trains[index], self.step_lower,
                         self.step_upper, NEWTON_ITERATIONS, soft=self.soft)
         for k, t in enumerate(refit_rows):
-            chosen[t]["params"] = refit.params[k, 0].copy()
-            chosen[t]["refit"] = (float(refit.value[k, 0]), refit.hessian[k, 0])
+            if np.isfinite(refit.value[k, 0]):
+                chosen[t]["params"] = refit.params[k, 0].copy()
+                chosen[t]["refit"] = (float(refit.value[k, 0]), refit.hessian[k, 0])
         return chosen, refit.evaluations
 
     def released_starts(self, base, held, trains):
@@ -1219,12 +1220,12 @@ class _Problem:
                         note += " rescaled to the spread at the adjusted sigma_eps"
                 if name == "sigma_eps" and at_zero:
                     value_i = 0.0
-                if is_noise and (name not in sd_of or (name == "sigma_eps" and at_zero)):
-                    # At 0: no curvature; the 68 % upper bound stands for the error.
-                    stderr = high68
-                elif name == "sigma_eps" and eps_interval is not None:
+                if name == "sigma_eps" and eps_interval is not None and not at_zero:
                     # The adjusted profile's, as its interval.
                     stderr = 0.5 * (high68 - low68) / Z68
+                elif is_noise and (name not in sd_of or (name == "sigma_eps" and at_zero)):
+                    # At 0: no curvature; the 68 % upper bound stands for the error.
+                    stderr = high68
                 estimates[name] = Estimate(value_i, stderr, low68, high68, low95, high95, unit,
                                            status, note)
             lower = 0.0 if name in ("sigma_eps", "sigma_j") else self.lower[i]
