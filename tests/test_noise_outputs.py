@@ -1,10 +1,11 @@
 """Fits under the noise model in the cross-scene summary and in a scene's figures.
 
 A scene file written with the noise fits gives one summary row per noise fit (model
-``noise:<law>``) with its σ_ε, σ_j and χ²/ν of the innovations, and its figures draw each noise
-fit's ε(v) and a second selection panel; a scene file without them gives the summary and figures
-it gave before, plus the empty noise columns. The train is drawn by the noise model's own
-simulator: 30 impacts from 2 m/s, ε = 0.94 with 0.4 % bounce-to-bounce scatter.
+``noise:<law>``) with its σ_ε, σ_j and χ²/ν of the innovations, and its figures draw each
+noise fit's ε(v) and a second selection panel (with the effects the data required beside it);
+a scene file without them gives the summary and figures it gave before, plus the empty noise
+columns. The train is drawn by the noise model's own simulator: 30 impacts from 2 m/s,
+ε = 0.94 with 0.4 % bounce-to-bounce scatter.
 """
 
 import math
@@ -17,7 +18,7 @@ import pytest
 from dashpot.figures import load_record, scene_figures
 from dashpot.fit import fit_scene
 from dashpot.likelihood import TrainModel
-from dashpot.physics.flight import gravity_flight
+from dashpot.physics.flight import drag_flight, gravity_flight
 from dashpot.physics.laws import LAWS
 from dashpot.scene import Scene
 from dashpot.store import write_scene_fit, write_summary
@@ -161,9 +162,104 @@ def test_selection_figure_has_a_panel_of_the_noise_fits_weights(scene_files):
             == [labels[m] for m in record["noise_selection"]["model"]])
 
 
+@pytest.fixture(scope="module")
+def drag_scene_file(tmp_path_factory):
+    """A train with strong air drag (k_d = 0.5 1/m from 3 m/s: a flight at 2.8 m/s loses
+    about 10 % of its speed, 30 times the 0.3 % scatter), fitted under the noise model with
+    the constant law, its drag rung and Ia; the scene gives no mass and diameter."""
+    model = TrainModel(LAWS["constant"].bind(0.95), lambda v: drag_flight(v, G, 0.5))
+    drawn = model.simulate(30, np.random.default_rng(20261125 + 13), start_time=0.3,
+                           start_speed=3.0, process_sigma=0.003, jitter=20e-6,
+                           detector_sigma=DETECTOR)
+    impacts = pd.DataFrame({"time": drawn.times, "time_uncertainty": DETECTOR})
+    path = tmp_path_factory.mktemp("noise-drag") / "drag.h5"
+    fit = fit_scene(impacts, Scene(), ("Ia",), noise=True, noise_laws=("constant",))
+    write_scene_fit(path, fit, impacts)
+    return path
+
+
+def test_the_drag_train_loses_many_times_its_scatter_per_flight():
+    """The drag scene qualifies: 1 − L/u at the fastest rebound, L the closed-form landing
+    speed u/√(1 + k_d u²/g) (Timmerman and van der Weele, Am. J. Phys. 67, 538, 1999),
+    against the 0.3 % scatter."""
+    rebound = 0.95 * 3.0
+    landing = rebound / math.sqrt(1.0 + 0.5 * rebound ** 2 / G)
+    assert 1.0 - landing / rebound >= 10 * 0.003
+
+
+@pytest.mark.parametrize("which", ["constant", "drag"])
+def test_selection_figure_says_which_effects_the_data_required(which, scene_files,
+                                                               drag_scene_file):
+    """Beside the noise panel a legend: its heading names the effects the data required (as
+    the verdict does), one entry per effect tried with its best fit's ΔBIC against the
+    simpler rung from the noise selection table; the bars of fits not kept are hatched and
+    say "not kept"."""
+    path = scene_files[1] if which == "constant" else drag_scene_file
+    record = load_record(path)
+    table, verdict = record["noise_selection"], record["noise_verdict"]
+    noise_axes = scene_figures(record)["selection"].axes[1]
+    legend = noise_axes.get_legend()
+    assert legend is not None and legend.get_gid() == "noise-effects"
+    heading = " ".join(legend.get_title().get_text().split())  # wrapped over lines
+    entries = [text.get_text() for text in legend.get_texts()]
+    # The verdict's split into required and not required effects.
+    required_part = verdict.partition("the data required ")[2].partition("; not required")[0]
+    tried = [e for e in dict.fromkeys(table["effect"]) if isinstance(e, str) and e]
+    assert tried, table
+    for effect in tried:
+        rows = table[(table["effect"] == effect) & np.isfinite(table["bic_gain"])]
+        best = rows.loc[rows["bic_gain"].idxmax()]
+        required = bool(best["kept"])  # no gravity models here: nothing is carried
+        assert (f"{effect} (" in required_part) == required, (effect, verdict)
+        assert (effect in heading) == required, (effect, heading)
+        entry = [text for text in entries if text.startswith(f"{effect}: ")]
+        assert len(entry) == 1, (effect, entries)
+        assert entry[0].startswith(f"{effect}: {'required' if required else 'not required'}")
+        assert (f"{best['model']}: ΔBIC = {best['bic_gain']:.1f} against {best['simpler']}"
+                in entry[0]), entry
+    if "no effect beyond a constant restitution" in verdict:
+        assert "no effect beyond" in heading
+    if which == "drag":
+        assert "drag" in heading and "drag (" in required_part
+    # Bars: hatched and "not kept" exactly for the fits the nested steps did not keep.
+    notes = [text.get_text() for text in noise_axes.texts]
+    for bar, note, kept in zip(noise_axes.patches, notes, table["kept"].astype(bool)):
+        assert (bar.get_hatch() == "//") == (not kept)
+        assert note.endswith("\nnot kept" if not kept else "\nkept"), note
+    assert len(noise_axes.patches) == len(table)
+
+
 def test_figures_of_a_scene_without_noise_have_no_noise_curves_or_panel(scene_files):
     plain_path, _, _ = scene_files
     figures = scene_figures(load_record(plain_path))
     assert set(figures) == {"intervals", "restitution", "selection"}
     assert set(_lines_by_gid(figures["restitution"])) == {"Ia"}
     assert len(figures["selection"].axes) == 1
+    assert figures["selection"].axes[0].get_legend() is None
+
+
+def test_an_effect_carried_by_a_kept_fit_is_listed_as_required():
+    """Ib kept on its step against the constant law (its rung Ia was not kept: ΔBIC 2):
+    the contact duration Ib carries is required, carried by Ib, as the verdict says it."""
+    from dashpot.figures import noise_effect_steps
+    from dashpot.plots import selection_figure
+
+    table = pd.DataFrame({"model": ["constant", "Ia", "Ib"],
+                          "effect": ["", "contact duration", "gravity in contact"],
+                          "simpler": ["", "constant", "constant"],
+                          "bic_gain": [math.nan, 2.0, 9.5], "kept": [True, False, True],
+                          "selected": [False, False, True]})
+    steps = noise_effect_steps(table)
+    assert steps == [("contact duration", "Ia", "constant", 2.0, True, "Ib"),
+                     ("gravity in contact", "Ib", "constant", 9.5, True, "")]
+    figure = selection_figure(["Ia"], [1.0], [0.0], noise=(["constant", "Ia", "Ib"],
+                              [0.1, 0.2, 0.7], [3.0, 1.0, 0.0], "AIC"),
+                              noise_steps=steps, noise_kept=table["kept"])
+    legend = figure.axes[1].get_legend()
+    heading = " ".join(legend.get_title().get_text().split())  # wrapped over lines
+    assert heading.startswith("the data required contact duration, gravity in contact (")
+    entries = [text.get_text() for text in legend.get_texts()]
+    assert entries[0] == ("contact duration: required, carried by Ib\n"
+                          "Ia: ΔBIC = 2.0 against constant")
+    # Without the nested-steps columns (older files): no list, nothing hatched.
+    assert noise_effect_steps(table.drop(columns="kept")) is None

@@ -9,7 +9,9 @@ scene file (``results/<scene>.h5``, read with :func:`load_record`):
   where the scene was also fitted under the noise model, each of those fits' ε(v) (its law at
   the fitted parameters, over the observed speed range, as stored in ``noise_fits/<law>``);
 - ``selection``: the Akaike weights and ΔAIC of the models, with a second panel of the fits
-  under the noise model where the scene has them;
+  under the noise model where the scene has them, beside it the effects the data required
+  (:func:`noise_effect_steps`: each effect's best ΔBIC against its simpler rung) and the bars of
+  the fits the nested steps did not keep hatched;
 - ``detection`` (audio recordings only): the recording's envelope with the detected impacts.
 
 Measured ε and impact speed (:func:`restitution_points`): where the sensor measured speeds
@@ -37,7 +39,7 @@ from . import plots
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
-           "drag_corrected_points",
+           "drag_corrected_points", "noise_effect_steps",
            "scene_figures", "detection_figure_data", "detection_figure", "save_scene_figures"]
 
 SCENE_FIGURES = ("intervals", "restitution", "selection")
@@ -260,10 +262,69 @@ def _weights_and_criterion(selection):
 
 
 def _selection_figure(selection, noise_selection=None):
-    """The selection figure, with the panel of the fits under the noise model where given."""
+    """The selection figure, with the panel of the fits under the noise model where given
+    (the effects the data required beside it, the fits not kept hatched)."""
     models, weights, delta, criterion = _weights_and_criterion(selection)
-    noise = None if noise_selection is None else _weights_and_criterion(noise_selection)
-    return plots.selection_figure(models, weights, delta, criterion=criterion, noise=noise)
+    if noise_selection is None:
+        return plots.selection_figure(models, weights, delta, criterion=criterion)
+    steps = noise_effect_steps(noise_selection)
+    kept = None if steps is None else noise_selection["kept"].to_numpy(bool)
+    return plots.selection_figure(models, weights, delta, criterion=criterion,
+                                  noise=_weights_and_criterion(noise_selection),
+                                  noise_steps=steps, noise_kept=kept)
+
+
+def noise_effect_steps(noise_selection):
+    """Each effect the nested steps of the noise selection tried, as the verdict reads them.
+
+    Parameters
+    ----------
+    noise_selection : pandas.DataFrame
+        The noise selection table (:func:`dashpot.noise_selection.noise_selection_table`, or
+        as stored in a scene file): columns ``model``, ``effect``, ``simpler``, ``bic_gain``
+        (dimensionless), ``kept``, ``selected``.
+
+    Returns
+    -------
+    list of tuple or None
+        One ``(effect, fit, simpler, bic_gain, required, carrier)`` per effect with a finite
+        BIC step, in the table's order: the fit adding it with the largest ΔBIC against its
+        simpler rung, that rung, the ΔBIC, whether the data required the effect (that fit was
+        kept, or a kept fit carries the effect from a simpler rung of its own) and that
+        carrying fit ("" where the effect's own fit was kept or none carries it). None for a
+        table without the nested-steps columns (files written before them).
+    """
+    from .noise_selection import EFFECTS, SIMPLER
+
+    columns = ("model", "effect", "simpler", "bic_gain", "kept", "selected")
+    if not all(name in noise_selection for name in columns):
+        return None
+    table = noise_selection.reset_index(drop=True)
+    effects = table["effect"].fillna("").astype(str)
+    gains = table["bic_gain"].to_numpy(float)
+    kept_mask = table["kept"].to_numpy(bool)
+    # Kept fits, the selected one first (the verdict names that one as the carrier).
+    kept = sorted(table.loc[kept_mask, "model"].astype(str),
+                  key=lambda name: not bool(table.loc[table["model"] == name, "selected"].iloc[0]))
+
+    def carried(name):
+        found = set()
+        while name in SIMPLER:
+            found.add(EFFECTS[name])
+            name = SIMPLER[name]
+        return found
+
+    steps = []
+    for effect in dict.fromkeys(e for e in effects if e):
+        rows = np.flatnonzero((effects == effect).to_numpy() & np.isfinite(gains))
+        if rows.size == 0:
+            continue
+        best = rows[np.argmax(gains[rows])]
+        carrier = "" if kept_mask[best] else next(
+            (name for name in kept if effect in carried(name)), "")
+        steps.append((effect, str(table.loc[best, "model"]), str(table.loc[best, "simpler"]),
+                      float(gains[best]), bool(kept_mask[best]) or bool(carrier), carrier))
+    return steps
 
 
 def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000):

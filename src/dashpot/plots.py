@@ -29,6 +29,7 @@ References
 from __future__ import annotations
 
 import os
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -835,7 +836,8 @@ def _sorted_curve(name, curve):
     return curve_speed, np.where(curve_eps > 0.0, curve_eps, np.nan)
 
 
-def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", noise=None):
+def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", noise=None,
+                     noise_steps=None, noise_kept=None):
     """Akaike weight of each model as a bar, with its ΔAIC (or ΔQAIC) written above it.
 
     Parameters
@@ -853,12 +855,23 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
     noise : tuple, optional
         ``(names, akaike_weights, delta, criterion)`` of the fits under the noise model (laws
         and models, as the first three parameters): drawn as a second panel below.
+    noise_steps : sequence of tuple, optional
+        The effects the nested steps of the noise selection tried
+        (:func:`dashpot.figures.noise_effect_steps`), each ``(effect, fit, simpler, bic_gain,
+        required, carrier)``: the effect's best fit, the simpler rung it was compared with, its
+        ΔBIC against that rung (dimensionless), whether the data required the effect, and the
+        kept fit carrying it from a simpler rung ("" where none). Listed beside the noise panel
+        under a heading naming the required effects (an empty sequence: none was tried).
+    noise_kept : sequence of bool, optional
+        Per fit under the noise model, whether the nested steps kept it (:mod:`dashpot.
+        noise_selection`): the bars of fits not kept are hatched.
 
     Returns
     -------
     matplotlib.figure.Figure
         One axes: Akaike weight (dimensionless) per model; a second one per fit under the
-        noise model where `noise` is given.
+        noise model where `noise` is given, with the effects the data required in its legend
+        where `noise_steps` is given.
     """
     models = [str(m) for m in models]
     weights, delta = _weights_and_delta(models, akaike_weights, delta_aic)
@@ -869,7 +882,10 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
         panels.append((names, *_weights_and_delta(names, noise_weights, noise_delta),
                        noise_criterion))
     width = max(len(panel[0]) for panel in panels)
-    fig = Figure(figsize=(1.3 * max(width, 3) + 2.0, 4.5 * len(panels)), layout="constrained")
+    # Room on the right for the list of effects beside the noise panel.
+    extra = 4.5 if noise is not None and noise_steps is not None else 0.0
+    fig = Figure(figsize=(1.3 * max(width, 3) + 2.0 + extra, 4.5 * len(panels)),
+                 layout="constrained")
     axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
     model_colors = [_style(m)["color"] for m in models]
     _weight_bars(axes[0], models, weights, delta, criterion, model_colors,
@@ -881,11 +897,64 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
     if noise is not None:
         names, noise_weights, noise_delta, noise_criterion = panels[1]
         _weight_bars(axes[1], names, noise_weights, noise_delta, noise_criterion,
-                     [_noise_color(n) for n in names], [_label(n) for n in names])
+                     [_noise_color(n) for n in names], [_label(n) for n in names],
+                     notes=None if noise_kept is None else
+                     ["kept" if keep else "not kept" for keep in np.asarray(noise_kept, bool)])
         axes[1].set_xlabel("restitution law or contact model, fitted under the noise model")
         axes[1].set_title("Under the noise model (bounce-to-bounce scatter, timing jitter)" + (
             "\non the misfit's scale (QAIC)" if noise_criterion == "QAIC" else ""))
+        if noise_kept is not None:
+            _hatch_not_kept(axes[1], names, noise_kept)
+        if noise_steps is not None:
+            _effect_legend(axes[1], noise_steps, hatched=noise_kept is not None)
     return fig
+
+
+_NOT_KEPT_HATCH = "//"
+
+
+def _hatch_not_kept(ax, names, kept):
+    """Hatch the bars of the fits the nested steps did not keep (the bars' notes say it too:
+    a bar of weight 0 shows no hatching)."""
+    kept = np.asarray(kept, dtype=bool).ravel()
+    if kept.size != len(names):
+        raise ValueError(f"noise_kept must have one entry per fit under the noise model; got "
+                         f"{kept.size} for {len(names)} fits")
+    for bar, name, keep in zip(ax.patches, names, kept):
+        bar.set_gid(f"noise:{name}")
+        if not keep:
+            bar.set_hatch(_NOT_KEPT_HATCH)
+
+
+def _effect_legend(ax, steps, *, hatched):
+    """Legend beside the noise panel: which effects the data required (the heading), then
+    each effect tried with its best fit's ΔBIC against its simpler rung."""
+    from matplotlib.patches import Patch
+
+    from .noise_selection import NESTED_STEP_BIC
+
+    steps = [tuple(step) for step in steps]
+    required = [step[0] for step in steps if step[4]]
+    heading = (textwrap.fill("the data required " + ", ".join(required), 42) if required
+               else "the data required no effect beyond\na constant restitution")
+    heading += (f"\n(an effect is kept where its fit's BIC is\n≥ {NESTED_STEP_BIC:g} below "
+                "that of its simpler rung)")
+    handles, labels = [], []
+    for effect, fit, simpler, gain, needed, carrier in steps:
+        word = "required" if needed else "not required"
+        if needed and carrier:
+            word += f", carried by {carrier}"
+        handles.append(Patch(facecolor=_noise_color(fit), edgecolor="0.2",
+                             hatch=None if needed else _NOT_KEPT_HATCH))
+        labels.append(f"{effect}: {word}\n{fit}: ΔBIC = {gain:.1f} against {simpler}")
+    if hatched:
+        handles.append(Patch(facecolor="white", edgecolor="0.2", hatch=_NOT_KEPT_HATCH))
+        labels.append("hatched bar: fit not kept")
+    legend = ax.legend(handles, labels, title=heading, loc="upper left",
+                       bbox_to_anchor=(1.02, 1.0), fontsize="small", title_fontsize="small",
+                       alignment="left", frameon=False)
+    legend.set_gid("noise-effects")
+    return legend
 
 
 def _weights_and_delta(models, akaike_weights, delta_aic):
@@ -897,24 +966,27 @@ def _weights_and_delta(models, akaike_weights, delta_aic):
     return weights, delta
 
 
-def _weight_bars(ax, models, weights, delta, criterion, colors, labels):
-    """One bar per model (its Akaike weight) with Δ and w written above it."""
+def _weight_bars(ax, models, weights, delta, criterion, colors, labels, notes=None):
+    """One bar per model (its Akaike weight) with Δ and w written above it, and the bar's
+    entry of `notes` below them where given."""
     position = np.arange(len(models))
     ok = np.isfinite(weights)
     heights = np.where(ok, weights, 0.0)
     bars = ax.bar(position, heights, width=0.65, color=colors, edgecolor="0.2", linewidth=0.6)
-    for bar, weight, d, good in zip(bars, weights, delta, ok):
+    for index, (bar, weight, d, good) in enumerate(zip(bars, weights, delta, ok)):
         if not good:
             text = "fit failed"
         elif np.isfinite(d):
             text = rf"$\Delta${criterion} = {d:.1f}" f"\nw = {weight:.2f}"
         else:
             text = rf"$\Delta${criterion} = ∞" f"\nw = {weight:.2f}"
+        if notes is not None and good:
+            text += f"\n{notes[index]}"
         ax.annotate(text, xy=(bar.get_x() + bar.get_width() / 2, bar.get_height()),
                     xytext=(0, 3), textcoords="offset points", ha="center", va="bottom",
                     fontsize="small")
     ax.set_xticks(position, labels)
-    ax.set_ylim(0.0, 1.15)
+    ax.set_ylim(0.0, 1.15 if notes is None else 1.25)  # room for the notes' third line
     ax.set_xlim(-0.6, len(models) - 0.4)
     ax.set_ylabel("Akaike weight (dimensionless)")
     ax.grid(axis="y", alpha=0.3)
