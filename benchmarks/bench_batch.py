@@ -21,6 +21,7 @@ import argparse
 import csv
 import math
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -97,8 +98,15 @@ def snapshot_package(folder):
     return environment
 
 
-def run(folder, cores, environment=None):
-    """Run the workflow in `folder` on `cores` cores, echoing progress; returns wall seconds."""
+def _children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run(folder, cores, environment=None, cpu=None):
+    """Run the workflow in `folder` on `cores` cores, echoing progress; returns wall seconds
+    (and appends the CPU seconds of the run and its jobs to the list `cpu`)."""
+    cpu_start = _children_cpu()
     command = [str(SNAKEMAKE), "--snakefile", str(folder / "Snakefile"), "--directory",
                str(folder), "--cores", str(cores), "--quiet", "rules"]
     start = time.perf_counter()
@@ -109,6 +117,8 @@ def run(folder, cores, environment=None):
                 print(f"  [{cores} core{'s' if cores > 1 else ''}] {line.strip()}", flush=True)
         status = process.wait()
     elapsed = time.perf_counter() - start
+    if cpu is not None:
+        cpu.append(_children_cpu() - cpu_start)
     if status != 0:
         raise SystemExit(f"bench_batch: the workflow failed at {cores} core(s) (exit {status})")
     return elapsed
@@ -145,11 +155,12 @@ def main(argv=None):
             for cores in args.cores:
                 folder = prepare(Path(temporary) / f"scenes{count}-cores{cores}", config)
                 print(f"bench_batch: {count} scenes, {cores} core(s) in {folder}", flush=True)
-                seconds = run(folder, cores, environment)
+                cpu = []
+                seconds = run(folder, cores, environment, cpu)
                 rerun = run(folder, cores, environment)
                 chunks = len(list((folder / "results" / "benchmarks" / "fit_chunk")
                                   .glob("*.tsv")))
-                rows.append((count, cores, seconds, rerun, chunks, peak_memory(folder)))
+                rows.append((count, cores, seconds, cpu[0], rerun, chunks, peak_memory(folder)))
                 print(f"bench_batch: {count} scenes, {cores} core(s): {seconds:.1f} s, "
                       f"no-op rerun {rerun:.1f} s", flush=True)
                 shutil.rmtree(folder, ignore_errors=True)
@@ -157,12 +168,15 @@ def main(argv=None):
           f"{' + figures' if args.plots else ''}; theory included), chunk_size {args.chunk_size},"
           f" {os.cpu_count()} CPUs available. Baseline: the workflow before chunking (one job "
           f"per scene, commit 2ec3d7b), issue 16's figures on this machine.\n")
-    print("| scenes | cores | fit chunks | wall (s) | per scene (s) | baseline (s) | "
+    # CPU: of Snakemake and every job; on a machine shared with other work the wall time
+    # grows, the CPU time much less.
+    print("| scenes | cores | fit chunks | wall (s) | CPU (s) | per scene (s) | baseline (s) | "
           "baseline / now | target | no-op rerun (s) | peak job memory (MB) |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for count, cores, seconds, rerun, chunks, memory in rows:
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for count, cores, seconds, cpu_seconds, rerun, chunks, memory in rows:
         baseline = BASELINE.get((count, cores))
-        print(f"| {count} | {cores} | {chunks} | {seconds:.1f} | {seconds / count:.3f} | "
+        print(f"| {count} | {cores} | {chunks} | {seconds:.1f} | {cpu_seconds:.0f} | "
+              f"{seconds / count:.3f} | "
               f"{baseline if baseline is not None else '-'} | "
               f"{f'{baseline / seconds:.1f}' if baseline else '-'} | "
               f"{TARGETS.get(count, '-')} | {rerun:.1f} | {memory:.0f} |")

@@ -59,7 +59,7 @@ def test_adding_a_scene_moves_no_other_scene():
 
 
 def test_automatic_sizes():
-    assert [auto_chunk_size(n) for n in (1, 8, 9, 20, 200, 10_000)] == [1, 1, 3, 5, 50, 50]
+    assert [auto_chunk_size(n) for n in (1, 8, 9, 20, 200, 10_000)] == [1, 1, 5, 10, 50, 50]
     assert chunks(["a", "b"], 1) == {"scene-a": ["a"], "scene-b": ["b"]}
     assert plots_wanted("auto", 100) and not plots_wanted("auto", 101)
     assert plots_wanted(True, 10_000) and not plots_wanted(False, 1)

@@ -41,11 +41,12 @@ FIGURES = ("intervals", "restitution", "selection")
 
 
 def auto_chunk_size(count):
-    """Scenes per chunk for `count` scenes: 1 up to :data:`SMALL_BATCH`, then about a
-    quarter of the scenes (four jobs keep two cores busy), at most :data:`LARGEST_CHUNK`."""
+    """Scenes per chunk for `count` scenes: 1 up to :data:`SMALL_BATCH`, then half of the
+    scenes (two jobs keep two cores busy, each paying the start-up once), at most
+    :data:`LARGEST_CHUNK`."""
     if count <= SMALL_BATCH:
         return 1
-    return min(LARGEST_CHUNK, math.ceil(count / 4))
+    return min(LARGEST_CHUNK, math.ceil(count / 2))
 
 
 def chunks(names, size):
@@ -307,6 +308,15 @@ def _process_scene(task, stage, *, plots):
     return "up to date" if current else "fitted"
 
 
+def _recording(task):
+    """The scene's recording: a synthetic scene's in its folder, named after its kind."""
+    if task.get("spec") is None:
+        return task["recording"]
+    from .synth.scene import RECORDING_NAMES
+
+    return str(Path(task["folder"]) / RECORDING_NAMES[task["spec"]["kind"]])
+
+
 def _truth_csv(record_path, truth, target, log):
     from .truth import write_truth_csv
 
@@ -327,7 +337,7 @@ def _figures(task, record_path, stage, log):
     record = load_record(record_path)
     figures = scene_figures(record)
     if task.get("audio"):
-        figures["detection"] = detection_figure(record, task["recording"])
+        figures["detection"] = detection_figure(record, _recording(task))
     for name, figure in figures.items():
         written = save_figure(figure, stage / name)
         log.info("drew %s", ", ".join(path.name for path in written))

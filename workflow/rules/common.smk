@@ -17,9 +17,10 @@ import yaml
 
 from dashpot.batch import auto_chunk_size, chunks, plots_wanted
 from dashpot.errors import InputError
-from dashpot.pipeline import is_audio, workflow_scene
-from dashpot.summary import scene_file_problem
-from dashpot.synth.scene import RECORDING_NAMES
+
+# dashpot.pipeline (the scene schema), dashpot.summary (h5py) are imported where first used:
+# every run, a no-op one too, starts by building this module, so it imports only what the
+# scenes at hand need (a batch of synthetic scenes needs neither until results exist).
 
 
 def _reserved_names():
@@ -42,6 +43,8 @@ def _scene_problem(name, scene_file, mapping):
     if name.lower() in RESERVED_NAMES:
         return None, (f"{source}: the scene name {name!r} is reserved for the workflow's "
                       f"own outputs ({', '.join(sorted(RESERVED_NAMES))}): rename the scene")
+    from dashpot.pipeline import workflow_scene
+
     try:
         scene = workflow_scene(name, scene_file=scene_file, mapping=mapping)
     except InputError as error:
@@ -63,6 +66,8 @@ def _checked(name, source, scene_file, mapping):
     scene, problem = _scene_problem(name, scene_file, mapping)
     if scene is None:
         return _entry(source, scene_file, None, False, problem)
+    from dashpot.pipeline import is_audio
+
     return _entry(source, scene_file, os.path.normpath(scene.recording), is_audio(scene))
 
 
@@ -92,13 +97,15 @@ def _collect_scenes():
     for name, spec in config.get("synthetic", {}).items():
         if name in scenes:
             raise ValueError(f"config.yaml: synthetic scene {name!r} has the name of another scene")
-        recording = f"results/synthetic/{name}/{RECORDING_NAMES[spec['kind']]}"
-        scenes[name] = _entry("synthetic", None, recording, spec["kind"] == "audio")
+        # Its recording is written by its chunk (dashpot.batch), which knows its name.
+        scenes[name] = _entry("synthetic", None, None, spec["kind"] == "audio")
     for name, scene in scenes.items():
         # A damaged result would be taken as up to date ("Nothing to be done") and break the
         # summary: the scene stops with a line saying so, and deleting the file recomputes it.
         result = f"results/{name}.h5"
         if scene["problem"] is None and os.path.exists(result):
+            from dashpot.summary import scene_file_problem
+
             problem = scene_file_problem(result)
             if problem is not None:
                 scene["problem"] = f"{problem}: delete it to compute the scene again"

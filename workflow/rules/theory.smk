@@ -1,32 +1,17 @@
 rule theory:
-    """Critical speed and restitution curves of every contact model (the paper's figures)."""
+    """Critical speed and restitution curves of every contact model (the paper's), as CSV,
+    and the paper's figures recomputed: contact time, ε(ζ), critical speed, ε(ṽ). One job:
+    the figures' Python start-up is paid once."""
     output:
         critical="results/theory/critical_velocity.csv",
         restitution="results/theory/restitution_vs_zeta.csv",
-    params:
-        speeds=config["theory"]["speeds"],
-        zeta_max=config["theory"]["zeta_max"],
-        points=config["theory"]["points"],
-    log:
-        "results/logs/theory.log",
-    benchmark:
-        "results/benchmarks/theory.tsv"
-    conda:
-        "../envs/dashpot.yaml"
-    script:
-        "../scripts/theory.py"
-
-
-rule theory_plots:
-    """The paper's figures recomputed: contact time, ε(ζ), critical speed, ε(ṽ)."""
-    output:
         contact_time=report(
             "results/theory/contact_time.png",
             caption="../report/theory_contact_time.rst",
             category="Theory",
             labels={"figure": "contact time"},
         ),
-        restitution=report(
+        restitution_figure=report(
             "results/theory/restitution.png",
             caption="../report/theory_restitution.rst",
             category="Theory",
@@ -51,10 +36,10 @@ rule theory_plots:
         zeta_max=config["theory"]["zeta_max"],
         points=config["theory"]["points"],
     log:
-        "results/logs/theory_plots.log",
+        "results/logs/theory.log",
     benchmark:
-        "results/benchmarks/theory_plots.tsv"
+        "results/benchmarks/theory.tsv"
     conda:
         "../envs/dashpot.yaml"
     script:
-        "../scripts/theory_plots.py"
+        "../scripts/theory.py"
