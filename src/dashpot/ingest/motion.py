@@ -598,10 +598,29 @@ def _motion_run(run, bumper_position, notes, legs):
                          f"reversal beyond the noise, timed by parabolas with the fitted leg "
                          f"accelerations")
             found = tuple(np.concatenate([a, b]) for a, b in zip(found, tail))
+    # Every reversal is reported all the same, flagged where short: one after the train's last
+    # well-sampled reversal is put back unless a contact of the train lies within 3σ of the
+    # samples where its velocity turned, which bracket the contact (the same contact, timed
+    # by its excursions; a reversal timed by its outgoing flight alone is late by the contact).
+    times, sigmas = found[0], found[1]
+    sigma = np.hypot(contacts[1], np.max(sigmas) if sigmas.size else 0.0)
+    window_lo = np.minimum(turn_lo[timed], contacts[0]) - 3.0 * sigma
+    window_hi = np.maximum(turn_hi[timed], contacts[0]) + 3.0 * sigma
+    represented = (np.searchsorted(times, window_hi, side="right")
+                   > np.searchsorted(times, window_lo, side="left"))
+    represented |= ~(k > (good[-1] if good.size else impacts))[timed]  # no train: none back
+    if np.any(~represented):
+        notes.append(f"run '{label}': {int(np.sum(~represented))} reversal(s) after the last "
+                     f"with two free-flight samples on each side kept, flagged as the others")
+        found = tuple(np.concatenate([a, b[~represented]]) for a, b in zip(found, contacts))
+        order = np.argsort(found[0], kind="stable")
+        found = tuple(a[order] for a in found)
     # Past the last resolved reversal the bounces shrink into the noise: the train ends where
     # an impact's timing noise exceeds a quarter of the change between successive intervals,
     # (1 − r)·interval/4 with r the median interval ratio so far, beyond which intervals
     # would no longer shrink bounce by bounce (a ratio above 1 would be a 3σ event before).
+    # This is a limit on the timing, not on the samples: a short reversal timed well enough
+    # stays, flagged.
     times, sigmas = found[0], found[1]
     resolved_times = impact_time[timed & real_reversal & is_impact]
     trailing = times > (resolved_times[-1] if resolved_times.size else np.inf)
@@ -613,27 +632,11 @@ def _motion_run(run, bumper_position, notes, legs):
             noisy = trailing[1:] & (sigmas[1:] > (1.0 - ratio) * intervals / 4.0)
             if noisy.any():
                 cut = int(np.flatnonzero(noisy)[0]) + 1
-                notes.append(f"run '{label}': {times.size - cut} last contact(s) found as "
-                             f"excursions left out: their timing noise exceeds a quarter of "
-                             f"the change between successive intervals (median interval ratio "
-                             f"{ratio:.3f})")
+                notes.append(f"run '{label}': {times.size - cut} last contact(s) left out: their "
+                             f"timing noise exceeds a quarter of the change between successive "
+                             f"intervals (median interval ratio {ratio:.3f}), the train ends "
+                             f"there")
                 found = tuple(a[:cut] for a in found)
-    # Every reversal is reported all the same, flagged where short: one that the train left
-    # out or cut is put back unless a contact of the train lies within 3σ of the samples where
-    # its velocity turned, which bracket the contact (the same contact, timed by its
-    # excursions; a reversal timed by its outgoing flight alone is late by the contact).
-    times, sigmas = found[0], found[1]
-    sigma = np.hypot(contacts[1], np.max(sigmas) if sigmas.size else 0.0)
-    window_lo = np.minimum(turn_lo[timed], contacts[0]) - 3.0 * sigma
-    window_hi = np.maximum(turn_hi[timed], contacts[0]) + 3.0 * sigma
-    represented = (np.searchsorted(times, window_hi, side="right")
-                   > np.searchsorted(times, window_lo, side="left"))
-    if np.any(~represented):
-        notes.append(f"run '{label}': {int(np.sum(~represented))} reversal(s) after the train's "
-                     f"last well-timed contact kept, flagged as the others")
-        found = tuple(np.concatenate([a, b[~represented]]) for a, b in zip(found, contacts))
-        order = np.argsort(found[0], kind="stable")
-        found = tuple(a[order] for a in found)
     final_flags = found[5]
     inferred = int(np.sum(final_flags == "inferred"))
     if inferred:
@@ -890,9 +893,11 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     the velocity turned (1σ: their spacing/√12); the speed it cannot measure is NaN. After the
     last reversal with two free samples on each side the excursions below time the smallest
     bounces better (each flight fitted whole); a flagged reversal there is replaced by the
-    contact they find within 3σ of it, and kept, flagged, where they find none (velocity-only
-    records, which have no excursions, keep them all). Only a contact whose fitted flight
-    never reaches the bumper position is left out, noted.
+    contact they find within 3σ of the samples where its velocity turned, and kept, flagged,
+    where they find none (velocity-only
+    records, which have no excursions, keep them all). A contact whose fitted flight never
+    reaches the bumper position is left out, noted; so are the contacts past the train's end
+    below.
 
     After the last reversal, bounces too slow to pass the velocity threshold are still found
     as excursions of the position from the bumper: runs of two or more samples more than 4σ
@@ -900,8 +905,8 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     accelerations; a contact lies between consecutive excursions. The train ends where an
     impact's timing noise exceeds a quarter of the change between successive intervals,
     (1 − r)·interval/4 with r the median interval ratio: beyond it the intervals no longer
-    shrink bounce by bounce within the noise. That cut leaves out excursions only; a reversal
-    it reaches is put back.
+    shrink bounce by bounce within the noise. The limit is on the timing, not on the samples:
+    a short reversal timed well enough stays in the train, flagged.
     """
     if bumper_position is not None:
         bumper_position = check_range("bumper_position", bumper_position,
