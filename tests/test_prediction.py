@@ -83,6 +83,21 @@ def test_too_short_a_train_is_refused():
         prediction_band(short, "constant")
 
 
+def test_no_continuation_reaching_the_end_is_refused(monkeypatch):
+    """A law whose every simulated continuation breaks down gives no band: a clear error, not
+    an IndexError from an empty quantile."""
+    data = simulated_trains(seed=20261131, trains=1)[0]
+    simulate = TrainModel.simulate
+
+    def broken(self, *args, **kwargs):
+        result = simulate(self, *args, **kwargs)
+        return dataclasses.replace(result, times=np.full_like(result.times, np.nan))
+
+    monkeypatch.setattr(TrainModel, "simulate", broken)
+    with pytest.raises(ValueError, match="none of the 200 continuations"):
+        prediction_band(data, "constant", draws=200)
+
+
 def recording_check(name, recording, law, **drag):
     path = DATA / name / recording
     if not path.is_file():

@@ -116,7 +116,8 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
     Raises
     ------
     ValueError
-        Fewer than 2 held-out intervals, a level outside (0, 1), or a fit that failed.
+        Fewer than 2 held-out intervals, a level outside (0, 1), a fit that failed, or no
+        simulated continuation that reaches the last held-out impact.
     """
     if not 0.0 < level < 1.0:
         raise ValueError(f"level must be in (0, 1); got {level!r}")
@@ -169,6 +170,11 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
                                    jitter=jitter, detector_sigma=detector)
     intervals = np.diff(simulated.times[:, positions], axis=1)
     intervals = intervals[~broken & np.all(np.isfinite(intervals), axis=1)]
+    if not intervals.shape[0]:
+        # Every continuation ended or broke down before the last held-out impact (a contact
+        # model held at a limit where its flight cannot be continued): no band.
+        raise ValueError(f"none of the {draws} continuations of the fit of {law!r} to the first "
+                         f"{fitted} impacts reaches the last held-out impact")
     tail = (1.0 - level) / 2.0
     lower, median, upper = np.quantile(intervals, [tail, 0.5, 1.0 - tail], axis=0)
     observed = np.diff(np.concatenate([[head.times[-1]], data.times[fitted:]]))
