@@ -904,12 +904,15 @@ class _Problem:
             if xs.size:
                 k = int(np.argmin(values))
                 lowest, where, row = values[k], xs[k], rows[k]
-                if 0 < k < xs.size - 1:
+                if 0 < k < xs.size - 1 and np.all(np.diff(xs[k - 1:k + 2]) > 0):
                     # The vertex of the parabola through the least point and its neighbours,
-                    # kept between them.
-                    a, b, _ = np.polyfit(xs[k - 1:k + 2] - xs[k], values[k - 1:k + 2], 2)
+                    # kept between them; the refit starts from the others interpolated
+                    # quadratically between their three fits, near where it ends.
+                    near = slice(k - 1, k + 2)
+                    a, b, _ = np.polyfit(xs[near] - xs[k], values[near], 2)
                     if a > 0:
                         where = float(np.clip(xs[k] - b / (2.0 * a), xs[k - 1], xs[k + 1]))
+                        row = _lagrange_weights(xs[near], where) @ rows[near]
             at_zero = (a_zero[t] <= lowest + 10 * CONVERGED
                        if math.isfinite(a_zero[t]) or math.isfinite(lowest)
                        else bool(plain_zero[t]))
@@ -1458,6 +1461,16 @@ def _span(centre, lower, upper, count):
         else:
             out.append(centre[:, None] + (bound - centre[:, None]) * fractions)
     return np.concatenate([out[0][:, ::-1], out[1]], axis=1)
+
+
+def _lagrange_weights(nodes, x):
+    """Weights of the values at three `nodes` that interpolate them quadratically at x."""
+    weights = np.ones(3)
+    for i in range(3):
+        for j in range(3):
+            if j != i:
+                weights[i] *= (x - nodes[j]) / (nodes[i] - nodes[j])
+    return weights
 
 
 def _crossing(xs, roots, level, side):
