@@ -332,12 +332,12 @@ def _tracker_layout(lines):
     Returns (separator, the text from the header on, each column's track name ('' for the
     time column), the track names in order).
     """
-    rows = [line for line in lines if line.strip()]
-    if len(rows) < 3:
+    first = [k for k, line in enumerate(lines[:60]) if line.strip()][:3]
+    if len(first) < 3:
         return None
     for separator in ("\t", ";", ","):
-        names = next(csv.reader([rows[0]], delimiter=separator))
-        header = next(csv.reader([rows[1]], delimiter=separator))
+        names = next(csv.reader([lines[first[0]]], delimiter=separator))
+        header = next(csv.reader([lines[first[1]]], delimiter=separator))
         if len(names) < 2 or names[0].strip() or len(header) < 2:
             continue
         named = [n.strip() for n in names if n.strip()]
@@ -354,7 +354,7 @@ def _tracker_layout(lines):
         named_at = np.where(written != "", np.arange(width), 0)
         owner = written[np.maximum.accumulate(named_at)].astype(str)
         tracks = tuple(dict.fromkeys(owner[1:][owner[1:] != ""]))
-        text = "\n".join([separator.join(header[:width])] + rows[2:])
+        text = "\n".join([separator.join(header[:width])] + lines[first[1] + 1:])
         return separator, text, list(owner), tracks
     return None
 
