@@ -6,8 +6,10 @@ closed-form drag flight of :mod:`dashpot.physics.flight` (a ping-pong-like ball:
 2.5 m/s, k_d = 0.18 1/m, σ_ε = 0.3 %), read by ``prepare_data`` as a recording's would be, and
 fitted with the scene giving no mass and diameter, so that k_d is free. Seeds were chosen once.
 Cart trains (two accelerations, :func:`dashpot.physics.flight.track_flight`) check the
-friction rung. Coverage tolerances are binomial: the count of intervals holding the truth within 3σ of its
-mean.
+friction rung: not kept without friction, kept and covering the truth with it where impact
+times can see it (g_eff and the first impact speed known), and the issue's cart run with
+measured speeds as a measured shortfall. Coverage tolerances are binomial: the count of
+intervals holding the truth within 3σ of its mean.
 """
 
 from __future__ import annotations
@@ -23,9 +25,9 @@ from dashpot.fit import prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.likelihood import TrainModel
 from dashpot.noise_selection import NESTED_STEP_BIC, noise_selection_table
-from dashpot.physics.flight import drag_flight
+from dashpot.physics.flight import drag_flight, track_flight
 from dashpot.physics.laws import LAWS
-from dashpot.scene import Scene
+from dashpot.scene import Known, Scene
 
 G = 9.80665  # the default scene's g
 EPS, K_D, SPEED, SCATTER, BOUNCES = 0.95, 0.18, 2.5, 0.003, 45
@@ -188,3 +190,101 @@ def test_k_d_under_the_scenes_prior_is_narrowed_by_the_data_and_covers_the_truth
     assert np.median([e.stderr for e in k_d]) < prior.uncertainty
     e = [fit.estimates["e"] for fit in fits]
     assert sum(x.low95 <= EPS <= x.high95 for x in e) >= binomial_range(PRIOR_TRIALS, 0.9545)[0]
+
+
+# --- rolling friction on a cart: the friction rung where the train has friction ---------------
+
+FRICTION_TRIALS = 16
+INCLINE = 6.0  # degrees
+CART_G_EFF = G * math.sin(math.radians(INCLINE))  # m/s², g sin θ
+CART_FRICTION = 0.03 * CART_G_EFF  # m/s², the friction deceleration: 3 % of g_eff
+CART_EPS, CART_SPEED, CART_BOUNCES, CART_TIMING = 0.8, 0.5, 15, 1e-3
+CART_SPEED_SIGMA = 0.005  # m/s, a motion sensor's speed error (1 % at 0.5 m/s)
+
+
+def cart_trains(trials):
+    """Cart trains with rolling friction (a_away = g_eff + f, a_toward = g_eff − f), one per
+    seed 20261125 + k, drawn by the noise model's simulator; with each impact's and rebound's
+    speed as a motion sensor would measure them (Gaussian error CART_SPEED_SIGMA)."""
+    trains = []
+    for k in range(trials):
+        rng = np.random.default_rng(20261125 + k)
+        model = TrainModel(LAWS["constant"].bind(CART_EPS),
+                           lambda v: track_flight(v, CART_G_EFF + CART_FRICTION,
+                                                  CART_G_EFF - CART_FRICTION))
+        drawn = model.simulate(CART_BOUNCES, rng, start_time=0.0, start_speed=CART_SPEED,
+                               process_sigma=SCATTER, jitter=CART_TIMING)
+        count = drawn.times.size  # one train: the arrays are 1-D
+        trains.append(pd.DataFrame({
+            "time": drawn.times, "time_uncertainty": CART_TIMING,
+            "impact_speed": drawn.impact_speeds + rng.normal(0.0, CART_SPEED_SIGMA, count),
+            "rebound_speed": drawn.rebound_speeds + rng.normal(0.0, CART_SPEED_SIGMA, count),
+            "speed_uncertainty": CART_SPEED_SIGMA}))
+    return trains
+
+
+def friction_rungs(tables, scene):
+    """The constant law and its friction rung fitted to every table, and which is kept."""
+    data = [prepare_data(table, scene) for table in tables]
+    constant = fit_noise_models(data, "constant", scene, accuracy="fast")
+    friction = fit_noise_models(data, "constant", scene, accuracy="fast", effects=("friction",))
+    kept = [bool(noise_selection_table({"constant": c, "constant+friction": d})[0].set_index(
+        "model").loc["constant+friction", "kept"]) for c, d in zip(constant, friction)]
+    return constant, friction, np.array(kept)
+
+
+def test_the_friction_loss_is_many_times_the_scatter():
+    """The cart scenario qualifies: a flight loses 1 − L/u = 1 − √(a_toward/a_away) of its
+    speed (the incline row of :mod:`dashpot.physics.flight`, Bartz's cart section), 2-4 % as on
+    the real cart runs and at least 5σ of the bounce-to-bounce scatter."""
+    loss = 1.0 - math.sqrt((CART_G_EFF - CART_FRICTION) / (CART_G_EFF + CART_FRICTION))
+    assert 0.02 <= loss <= 0.04
+    assert loss >= 5.0 * SCATTER
+
+
+def test_the_friction_rung_is_kept_where_the_cart_has_friction_and_covers_it():
+    """Impact times alone see friction where the flight's scale is known: the scene states
+    g_eff (measured) and the first impact speed, so the first interval fixes
+    g_eff − f/2 (for small f, T = u(1/a_away + 1/√(a_away a_toward)) ≈ 2u/(g_eff + f/2) and
+    the ratio of intervals carries ε·√(a_toward/a_away)). The rung is kept in ≥ 90 % of the
+    trials (binomial: at least 90 % less 3σ of the count), and the 68 and 95 % intervals of
+    f, hence of a_away = g_eff + f and a_toward = g_eff − f (g_eff held), cover at their
+    nominal rates with widths matching the scatter of the estimates."""
+    scene = Scene(g_eff=CART_G_EFF, friction=True, first_impact_speed=Known(CART_SPEED))
+    tables = [table[["time", "time_uncertainty"]] for table in cart_trains(FRICTION_TRIALS)]
+    _, friction, kept = friction_rungs(tables, scene)
+    assert all(result.success for result in friction)
+    assert kept.sum() >= binomial_range(FRICTION_TRIALS, 0.9)[0], kept
+    assert all(result.estimates["g_eff"].status == "fixed" for result in friction)
+    f = [result.estimates["friction"] for result in friction]
+    assert all(e.unit == "m/s^2" for e in f)
+    for level, rate in (("68", 0.6827), ("95", 0.9545)):
+        inside = sum(getattr(e, f"low{level}") <= CART_FRICTION <= getattr(e, f"high{level}")
+                     for e in f)
+        low, high = binomial_range(FRICTION_TRIALS, rate)
+        assert low <= inside <= min(high, FRICTION_TRIALS), (level, inside)
+    half = np.median([0.5 * (e.high68 - e.low68) for e in f])
+    spread = np.std([e.value for e in f], ddof=1)
+    assert 0.7 * spread <= half <= 1.4 * spread, (half, spread)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "measured: on an incline scene (6° ± 0.5° prior, first impact speed unknown) the noise "
+    "model sees the impact times only, not a motion sensor's measured speeds; from times the "
+    "friction is degenerate with ε and v0 (the intervals are geometric either way), so the "
+    "friction rung gains nothing: ΔBIC = -5.3 (= -2 ln 14, its two parameters) on 8 of 8 "
+    "trains with f = 3 % of g_eff, 0 of 8 kept, and no 95 % interval of f reaches the true "
+    "0.031 m/s² (fitted f <= 0.003, upper limits 0.003-0.023)"))
+def test_the_friction_rung_is_kept_on_a_cart_run_with_measured_speeds():
+    """The issue's case: a cart run from a motion sensor (speeds measured to 1 %) on an
+    incline whose angle is a prior; the speeds show 3 % lost in each flight (8σ of the
+    mean loss's error over the train), so the rung should be kept in ≥ 90 % of the trials
+    and its accelerations cover the truth."""
+    trials = 8
+    scene = Scene(incline_angle=INCLINE, friction=True)
+    constant, friction, kept = friction_rungs(cart_trains(trials), scene)
+    assert kept.sum() >= binomial_range(trials, 0.9)[0], (
+        kept, [c.bic - d.bic for c, d in zip(constant, friction)])
+    f = [result.estimates["friction"] for result in friction]
+    inside = sum(e.low95 <= CART_FRICTION <= e.high95 for e in f)
+    assert inside >= binomial_range(trials, 0.9545)[0]
