@@ -638,6 +638,19 @@ def test_tracker_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layout
     assert "1 frame(s) without a point inside the track left out" in notes
 
 
+def test_tracker_track_never_marked_needs_no_choice(tmp_path, tracked_ball):
+    """A second point mass created but never marked (its columns blank on every frame) makes
+    no choice to make: the one track with points is read."""
+    time, x, height, truth = tracked_ball
+    everywhere = np.ones(time.size, dtype=bool)
+    path = tmp_path / "unmarked.txt"
+    tracker6_export(path, time, {"mass A": (everywhere, {"x": x, "y": height}),
+                                 "mass B": (~everywhere, {"x": x, "y": height})})
+    found = read_impacts(path)
+    assert len(found) == (truth["rebound_speeds"] > 0).sum()
+    assert "run 0 = 'mass A'" in " ".join(found.attrs["notes"])
+
+
 def test_tracker_several_tracks_on_the_command_line(tmp_path, tracked_ball):
     """`dashpot impacts` on a two-track Tracker export: one line naming the file and the
     tracks, exit status 2, nothing written."""

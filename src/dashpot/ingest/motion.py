@@ -765,13 +765,15 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
 def _chosen_track(path, table, runs, track):
     """The runs of the `track` asked for in a Tracker export (all runs when it has one track).
 
-    A Tracker export of several tracks without `track`, or a `track` it does not hold, is an
-    InputError naming the tracks there are.
+    A Tracker export of several tracks with positions without `track`, or a `track` it does
+    not hold, is an InputError naming the tracks there are.
     """
     tracks = table.tracks
     available = ", ".join(f"'{name}'" for name in tracks)
     if track is None:
-        if len(tracks) > 1:
+        # Several tracks with a time and a position (or velocity) are ambiguous; one of them
+        # beside tracks without (a protractor, a tape measure) is not.
+        if len(tracks) > 1 and len(runs) > 1:
             raise InputError(path, f"{table.where}Tracker export of {len(tracks)} tracks "
                                    f"({available}): choose one (read_motion_sensor(..., "
                                    f"track='{tracks[0]}')), or export that track alone")
@@ -809,8 +811,10 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     track : str, optional
         Name of the track to read from a Tracker export of several tracks (Tracker 6 writes
         ``#multi:``, a row with each track's name above its columns, the header ``t``, ``x``,
-        ``y``, ``x``, ``y``, ... and blanks where a track has no point). Without it such a file
-        is refused, the error naming its tracks; a single-track export needs none.
+        ``y``, ``x``, ``y``, ... and blanks where a track has no point; or the tracks one below
+        the other, each under a line with its name). Without it such a file is refused, the
+        error naming its tracks, unless only one track has a position or velocity column; a
+        single-track export needs none.
 
     Returns
     -------
