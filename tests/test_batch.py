@@ -2,6 +2,7 @@
 fails alone inside its chunk, chunk membership stays put when a scene is added, and the
 command's help starts without the scientific stack."""
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -136,3 +137,19 @@ def test_chunk_size_changes_no_result_and_a_broken_scene_fails_alone(tmp_path):
     # What each written file was made from is kept beside its log; none for the broken one.
     made = sorted(path.stem for path in (results / "logs" / "fit").glob("*.fingerprint"))
     assert made == sorted(SYNTHETIC)
+    # A scene added to the chunk: the chunk runs again, fits the new scene and skips the
+    # others, whose files stay as they were.
+    digests = {name: hashlib.sha256((results / f"{name}.h5").read_bytes()).hexdigest()
+               for name in SYNTHETIC}
+    config_path = tmp_path / "chunked" / "config" / "config.yaml"
+    config = yaml.safe_load(config_path.read_text())
+    config["synthetic"]["tiny-new"] = {**SYNTHETIC["tiny-1"], "seed": 20261125 + 9}
+    config_path.write_text(yaml.safe_dump(config))
+    added = _snakemake(tmp_path / "chunked", "--keep-going")
+    assert added.returncode != 0  # the broken scene still fails
+    assert (results / "tiny-new.h5").is_file()
+    assert digests == {name: hashlib.sha256((results / f"{name}.h5").read_bytes()).hexdigest()
+                       for name in SYNTHETIC}
+    chunk_log = next((results / "logs" / "fit_chunk").glob("*.log")).read_text()
+    assert all(f"{name}: up to date" in chunk_log for name in SYNTHETIC), chunk_log[-2000:]
+    assert "tiny-new: fitted" in chunk_log and f"{BROKEN}: failed" in chunk_log
