@@ -131,6 +131,20 @@ def test_phyphox_excel_with_both_stopwatch_sets_prefers_multiple(tmp_path, stiff
     assert any("'Multiple'" in n for n in frame.attrs["notes"])
 
 
+def test_phyphox_workbook_click_on_a_round_time_keeps_its_uncertainty(tmp_path, stiff):
+    """Clicks at whole 48 kHz samples in a phyphox workbook, the first at a round time: a
+    workbook cell holds the float, whose shortest text ('1.0') says nothing about resolution.
+    Every click gets the same 1σ, one audio sample over √12."""
+    times = np.round(stiff.impact_times * 48000.0) / 48000.0 + 0.5
+    path = tmp_path / "clicks.xlsx"
+    truth = write_phyphox_stopwatch(path, times, layout="clicks", excel=True)
+    assert float(truth["impact_times"][0]).is_integer()
+    frame = read_phyphox(path)
+    np.testing.assert_allclose(frame["time"], truth["impact_times"], rtol=1e-12)
+    np.testing.assert_allclose(frame["time_uncertainty"], 1.0 / (48000.0 * 12 ** 0.5),
+                               rtol=1e-6)
+
+
 # ---------------------------------------------------------------------------- timestamps
 
 @pytest.mark.parametrize("unit", ["s", "ms"])
@@ -146,6 +160,19 @@ def test_timestamps_units(tmp_path, stiff, unit, declared):
     assert frame["time_uncertainty"].iloc[0] == pytest.approx(truth["resolution"] / 12 ** 0.5)
     if declared == "inferred":
         assert any("not declared" in n and f"read as {unit}" in n for n in frame.attrs["notes"])
+
+
+def test_timestamps_resaved_by_a_spreadsheet_share_one_resolution(tmp_path, stiff):
+    """Impact times to 0.1 ms saved again from a spreadsheet (shortest text: 1.25 for 1.2500,
+    0.5 for 0.5000): the column's resolution is its digits' (0.1 ms), not one cell's, so every
+    impact's 1σ is 0.1 ms/√12."""
+    times = np.round(stiff.impact_times + 0.5, 4)
+    assert times[0] == 0.5
+    path = tmp_path / "resaved.csv"
+    pd.DataFrame({"time (s)": times}).to_csv(path, index=False)
+    assert "\n0.5\n" in path.read_text()
+    frame = read_timestamps(path)
+    np.testing.assert_allclose(frame["time_uncertainty"], 1e-4 / 12 ** 0.5, rtol=1e-9)
 
 
 def test_timestamps_uncertainty_column_and_no_header(tmp_path):

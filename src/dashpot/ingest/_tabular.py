@@ -484,7 +484,8 @@ def _load_tables(path):
 
 
 def _numbers(path, table, index, *, what):
-    """Float values of column `index` and the resolution of the written digits.
+    """Float values of column `index` and the resolution of its written digits (the column's,
+    on each cell with a number; NaN elsewhere).
 
     Empty cells and 'NaN' become NaN (callers decide what they mean); any other text raises
     InputError naming its row and column.
@@ -502,11 +503,17 @@ def _numbers(path, table, index, *, what):
                              column=table.columns[index].header)
         raise InputError(path, f"{table.where}{what} '{cell}' is not a number", row=row + 1)
     # Resolution of the written digits: one unit of the last decimal place, allowing for an
-    # exponent (phyphox writes 1.234567890E-1).
+    # exponent (phyphox writes 1.234567890E-1), taken for the whole column as the median over
+    # its cells. One cell's text does not set it: a spreadsheet writes the shortest text of a
+    # number (1.25 for 1.2500, 0.5 for a click at exactly half a second), and a workbook's
+    # cells hold floats whose digits show no resolution at all.
     parts = strings.str.extract(_NUMBER)
     decimals = parts["frac"].fillna("").str.len() - pd.to_numeric(parts["exp"]).fillna(0)
-    resolution = 10.0 ** (-decimals.to_numpy(dtype=float))
-    resolution[~np.isfinite(values.to_numpy(dtype=float))] = np.nan
+    written = 10.0 ** (-decimals.to_numpy(dtype=float))
+    finite = np.isfinite(values.to_numpy(dtype=float))
+    resolution = np.full(finite.size, np.nan)
+    if finite.any():
+        resolution[finite] = float(np.median(written[finite]))
     return values.to_numpy(dtype=float), resolution
 
 
