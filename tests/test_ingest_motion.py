@@ -476,12 +476,12 @@ def test_motion_that_is_no_bounce_train_never_crashes(tmp_path):
 
 
 def test_random_bounce_trains_never_crash(tmp_path):
-    """60 carts drawn over a wide range (accelerations 0.2-9.8 m/s², a different one on each
+    """40 carts drawn over a wide range (accelerations 0.2-9.8 m/s², a different one on each
     leg, drops 1-80 cm, restitution 0.1-0.95, 10-100 Hz, noise 0.1-5 mm; position, velocity
     only, or two runs): each file is read into an impact table or refused with a one-line
     InputError naming the file, never another exception (outlier cuts that left every flight
     below two samples crashed the leg fit with an IndexError)."""
-    for trial in range(60):  # 60 short files, ~30 ms each
+    for trial in range(40):  # 40 short files, ~50 ms each
         rng = np.random.default_rng([SEED, 16, trial])
         a_toward, a_away = rng.uniform(0.2, 9.8, size=2)
         restitution = rng.uniform(0.1, 0.95)
