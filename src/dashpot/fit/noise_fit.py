@@ -836,6 +836,10 @@ class _Problem:
         fits = _newton(self.objective, starts, free, self.units(starts)[..., free], trains,
                        self.step_lower, self.step_upper, NEWTON_ITERATIONS, soft=self.soft)
         best = _pick(fits, trains, np.argmin(fits.value, axis=1))
+        # The law's parameters the data do not determine at the best fit (no curvature, or
+        # at a bound), per train: left out of the adjustment of σ_ε's profile.
+        self.undetermined = [set(self.covariance(best.hessian[t], best.params[t], free)[2])
+                             for t in range(trains.size)]
         # The deterministic train (σ_ε = 0 exactly), started from the best fit.
         zero = None
         if "sigma_eps" not in self.fixed:
@@ -1045,12 +1049,17 @@ class _Problem:
         return out
 
     def _mean_log_det(self, hessian, free):
-        """ln det of the Hessian block of the law's parameters and v0 (NaN where not
-        positive definite), natural coordinates."""
-        mean = [k for k, f in enumerate(free) if f <= self.index("v0")]
-        sign, value = np.linalg.slogdet(np.nan_to_num(hessian[..., mean, :][..., mean],
-                                                      nan=0.0))
-        return np.where(sign > 0, value, np.nan)
+        """ln det of the Hessian block (trains, ...) of the law's parameters and v0 the data
+        determine in each train (``undetermined`` left out: its curvature is noise), NaN
+        where not positive definite; natural coordinates."""
+        out = np.full(hessian.shape[:-2], np.nan)
+        for t in range(hessian.shape[0]):
+            mean = [k for k, f in enumerate(free) if f <= self.index("v0")
+                    and f not in self.undetermined[t]]
+            sign, value = np.linalg.slogdet(np.nan_to_num(
+                hessian[t][..., mean, :][..., mean], nan=0.0))
+            out[t] = np.where(sign > 0, value, np.nan)
+        return out
 
     def _adjusted(self, best, zero, fitted, grid, others):
         """Rise of σ_ε's profile adjusted for the fitted law and v0 (Cox and Reid [4]_):
