@@ -45,7 +45,10 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
     A straight line, or a parabola from nine ratios on (restitution may change faster at high
     speed), refitted up to `rounds` times without the ratios more than 3 scatters off it: a
     missed impact doubles an interval, and the two ratios around it (about 1.9 and 0.5) would
-    bend the fit.
+    bend the fit. The first fit leaves out the ratios more than 5 robust scatters (1.4826 ×
+    the median absolute deviation) off their median, unless that leaves fewer than half:
+    a few ratios of 0.2 or 4 (a ring's burst taken for an impact) bend a least-squares fit
+    through all ratios so far that every later round keeps them.
 
     Parameters
     ----------
@@ -66,7 +69,14 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
     intervals = np.diff(np.asarray(impact_times, dtype=float))
     log_ratio = np.log(intervals[1:] / intervals[:-1])
     log_interval = np.log(intervals[:-1])
-    keep = np.ones(log_ratio.size, dtype=bool)
+    # The first fit starts without the ratios far off their median (5 robust scatters): two
+    # ratios of a missed impact or a ring taken for one (ln ratio of ±0.7 or more) would bend
+    # a least-squares parabola through all of them, widening the scatter the next rounds
+    # start from until nothing is left out.
+    spread = 1.4826 * np.median(np.abs(log_ratio - np.median(log_ratio)))
+    keep = np.abs(log_ratio - np.median(log_ratio)) <= 5.0 * max(spread, floor, 1e-12)
+    if keep.sum() < max(3, log_ratio.size // 2):
+        keep = np.ones(log_ratio.size, dtype=bool)
     for _ in range(rounds):
         degree = 2 if keep.sum() >= 9 else 1
         coefficients = np.polyfit(log_interval[keep], log_ratio[keep], degree)

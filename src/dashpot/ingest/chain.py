@@ -49,6 +49,8 @@ _CAUSE_TOLERANCE = 0.3e-3  # s: the same delay after every impact, to the rough 
 _CAUSE_SHARE = 0.25  # of the members that must have a transient at that delay before them
 _CAUSE_FRACTION = 0.8  # a cause lies within this fraction of the interval before its member
 _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this different
+_MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
+# pulled early by up to the jitter (a ring or echo before them)
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 
 
@@ -167,8 +169,10 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     (restitution changes smoothly with impact speed, which is proportional to the interval
     [5]_); a second pass scores every step by how far its ratio is from that line, in units
     of the chain's robust scatter: an echo or a ring that replaced an impact would break the
-    trend twice. Finally the chain is followed on (:func:`_extend_chain`) where the trend
-    predicts further impacts, among all transients, weak ones included.
+    trend twice. Members that follow a transient left out at a recurring secondary delay are
+    moved onto it where the trend says so (:func:`_move_to_causes`). Finally the chain is
+    followed on (:func:`_extend_chain`) where the trend predicts further impacts, among all
+    transients, weak ones included.
 
     Returns
     -------
@@ -192,14 +196,79 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
                                    amplitude[candidates])]
     if chain.size < 4:
         return chain, 0
-    chain = _shift_to_causes(times, chain)
+    chain = _move_to_causes(times, amplitude, _shift_to_causes(times, chain))
     trend = _trend(times[chain])
     chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
     chain = _polish_chain(times, chain, trend)
     chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
                                    _secondary_delays(times, chain))
     chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
+    chain = _move_to_causes(times, amplitude, chain)
     return _drop_faint_between(amplitude, chain), skipped
+
+
+def _chain_cost(times):
+    """Sum of the Cauchy costs of the interval ratios of impacts at `times` (s) about their
+    own robust trend (:func:`_robust_trend`, :func:`_ratio_cost`)."""
+    if times.size < 5 or np.any(np.diff(times) <= 0):
+        return np.inf
+    coefficients, scatter = _robust_trend(times)
+    return float(_ratio_cost(times[:-2], times[1:-1], times[2:], coefficients, scatter).sum())
+
+
+def _move_to_causes(times, amplitude, chain):
+    """Chain with members that follow a sound at a recurring secondary delay moved onto it.
+
+    The secondaries of the impacts the chain holds (a ring's burst 5-8 ms after its impact,
+    an echo) are left out and recur at fixed delays (:func:`_secondary_delays`). A member
+    with a transient left out at one of these delays before it (to 0.3 ms, from 3 ms on,
+    within 0.8 of the interval before it, and at least half as loud as the member: a burst
+    may swell to 1.5 times its impact) is that transient's secondary where the impact itself
+    was passed over, often for a run of bounces once the impacts grow quiet. The members so
+    placed are moved together (a run of them fits the trend as well as the impacts inside
+    the run; only its ends tell), and kept moved if the chain's interval ratios then follow
+    their trend better (:func:`_chain_cost`); each moved member is then put back on its own
+    where that fits better still (a true impact that happens to follow a secondary of an
+    earlier one).
+    """
+    chain = np.asarray(chain)
+    if chain.size < 6:
+        return chain
+    delays = _secondary_delays(times, chain)
+    delays = delays[delays >= _CAUSE_DELAY_SECONDS[0]]
+    if delays.size == 0:
+        return chain
+    members = times[chain]
+    before = np.diff(members, prepend=-np.inf)
+    previous = np.concatenate(([-np.inf], members[:-1]))
+    in_chain = np.zeros(times.size, dtype=bool)
+    in_chain[chain] = True
+    moved = chain.copy()
+    for position in range(1, chain.size):
+        best, best_error = -1, _MOVE_TOLERANCE
+        for delay in delays:
+            if delay >= _CAUSE_FRACTION * before[position]:
+                continue
+            lo, hi = np.searchsorted(times, [members[position] - delay - _MOVE_TOLERANCE,
+                                             members[position] - delay + _MOVE_TOLERANCE])
+            for cause in range(lo, hi):
+                error = abs(members[position] - delay - times[cause])
+                if (not in_chain[cause] and error <= best_error
+                        and times[cause] - previous[position] > _MERGE_SECONDS
+                        and 2.0 * amplitude[cause] >= amplitude[chain[position]]):
+                    best, best_error = cause, error
+        if best >= 0:
+            moved[position] = best
+    if np.array_equal(moved, chain):
+        return chain
+    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members):
+        return chain
+    for position in np.flatnonzero(moved != chain):
+        trial = moved.copy()
+        trial[position] = chain[position]
+        if _chain_cost(times[np.sort(trial)]) < _chain_cost(times[np.sort(moved)]):
+            moved = trial
+    return np.sort(moved)
 
 
 def _shift_to_causes(times, chain):
@@ -796,7 +865,8 @@ def _trim_growing_end(times, sigmas, scatter):
     its log exceeds 3σ of the onsets' timing noise (`sigmas`, s, on both intervals) plus
     the scatter of the log ratios about their trend (`scatter`: the restitution's own
     variation), the last impact is not a bounce of this train and is dropped, and so on
-    backwards (at most a quarter of the impacts).
+    backwards (at most a quarter of the impacts), unless the last interval is two or three
+    bounces of the trend (:func:`_spans_missed_bounces`: an impact missed in between).
     """
     keep = times.size
     while keep > max(4, int(0.75 * times.size)):
@@ -804,10 +874,34 @@ def _trim_growing_end(times, sigmas, scatter):
         first, second = b - a, c - b
         timing = (sigmas[keep - 3] ** 2 + sigmas[keep - 2] ** 2) / first**2 + (
             sigmas[keep - 2] ** 2 + sigmas[keep - 1] ** 2) / second**2
-        if np.log(second / first) <= 3.0 * np.sqrt(timing) + scatter:
+        allowed = 3.0 * np.sqrt(timing) + scatter
+        if np.log(second / first) <= allowed or _spans_missed_bounces(
+                times[:keep - 1], second, allowed):
             break
         keep -= 1
     return keep
+
+
+def _spans_missed_bounces(times, interval, allowed):
+    """Whether `interval` (s) after `times` is two or three bounces of their trend.
+
+    An impact lost under the ring of the one before (the last bounces barely rise over it)
+    leaves an interval of two bounces, about twice the last one: not a growing interval.
+    The trend of the impacts before (:func:`_robust_trend`) steps the last interval on by
+    two and by three bounces; `interval` must match one of the sums to within `allowed`
+    (in log).
+    """
+    if times.size < 5:
+        return False
+    coefficients, _ = _robust_trend(times)
+    step = _trend_step(coefficients, np.diff(times).min())
+    bounce, total = float(times[-1] - times[-2]), 0.0
+    for count in range(1, 4):
+        bounce = step(bounce)
+        total += bounce
+        if count >= 2 and abs(np.log(interval / total)) <= allowed:
+            return True
+    return False
 
 
 def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
