@@ -261,5 +261,13 @@ def test_an_effect_carried_by_a_kept_fit_is_listed_as_required():
     entries = [text.get_text() for text in legend.get_texts()]
     assert entries[0] == ("contact duration: required, carried by Ib\n"
                           "Ia: ΔBIC = 2.0 against constant")
+    # Drawn, the list sits inside the figure beside the panel (the layout made room for it).
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    box = legend.get_window_extent(canvas.get_renderer())
+    assert box.x0 >= figure.axes[1].get_window_extent().x1
+    assert box.x1 <= figure.bbox.x1 and box.y0 >= figure.bbox.y0
     # Without the nested-steps columns (older files): no list, nothing hatched.
     assert noise_effect_steps(table.drop(columns="kept")) is None
