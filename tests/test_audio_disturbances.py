@@ -19,8 +19,8 @@ import pytest
 import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_faint_between, _move_to_causes, _shift_to_causes,
-                                  _trim_growing_end)
+from dashpot.ingest.chain import (_drop_faint_between, _fill_impacts, _move_to_causes,
+                                  _robust_trend, _shift_to_causes, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -190,3 +190,31 @@ def test_the_ratio_trend_is_not_bent_by_ring_bursts_taken_for_impacts():
     times = np.sort(np.concatenate([impacts, impacts[-7:] + 6.4e-3]))
     _, scatter = ratio_trend(times)
     assert scatter < 0.02
+
+
+def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_out():
+    # Impacts shrinking by 0.9; impacts 20-23 were passed over and their rings' bursts, 6.5 ms
+    # later, stand in for them (the burst of every impact recurs at that delay).
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    timed = impacts.copy()
+    timed[20:24] += 6.5e-3
+    coefficients, scatter = _robust_trend(np.delete(timed, np.arange(20, 24)))
+
+    def probe(predicted, tolerance, not_before=None):
+        # The impacts' own onsets are in the file, where the trend puts them.
+        nearest = impacts[np.abs(impacts - predicted).argmin()]
+        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([6.5e-3]), probe, impacts[-1] + 1.0)
+    assert sorted(retimed) == [20, 21, 22, 23]
+    np.testing.assert_allclose([retimed[k][0] for k in range(20, 24)], impacts[20:24])
+
+    def silent(predicted, tolerance, not_before=None):
+        return None
+
+    # No onset where the trend puts them: the bursts are left out (gaps), never kept as
+    # impacts nor replaced by predicted times.
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([6.5e-3]), silent, impacts[-1] + 1.0)
+    assert retimed == {20: None, 21: None, 22: None, 23: None} and not added

@@ -947,7 +947,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
     not itself come at a secondary's delay after an earlier impact (an onset there is probed
     past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
-    told from the ring).
+    told from the ring). Where a ring died down before the impact (a ring's short burst), the
+    impact may also rise over the quietest stretch before it, as any probed onset, at least
+    1 ms after the burst's start.
+    An impact coming later than its tolerance allows, at a secondary's delay after an earlier
+    impact or after the predicted time, is a ring's burst or an echo standing in for an
+    impact that was passed over (it barely rose over the sound before it): the impact is
+    probed at the predicted time and, found, replaces it; not found, it is left out (None).
     An impact that is not found stays in the sequence as a predicted anchor, so that the
     predictions after it step over it; past the last impact two in a row end the search.
     """
@@ -997,11 +1003,31 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
                     and following < predicted < before and secondary(following, i)):
                 result = peel(predicted, tolerance, following, before)
+                if result is None:
+                    # A short secondary (a ring's burst) may have died down before the
+                    # impact: its onset then jumps over the quietest stretch before it, as
+                    # any probed onset, if well after the secondary's start.
+                    result = probe(predicted, tolerance)
+                    if (result is None or result[0] <= following + _MERGE_SECONDS
+                            or not accept(result, predicted, tolerance, before)):
+                        result = None
                 # No onset of its own rises out of the ring or echo: the data do not time
                 # this impact. It is left out (None), a gap in the train for the fit to
                 # flag, rather than given the time the trend predicts, which would be
                 # circular evidence for the fit that follows; the prediction stays as an
                 # anchor for the next ones.
+                retimed[origin[i + 1]] = result
+                anchors[i + 1] = predicted if result is None else result[0]
+            elif (origin[i + 1] >= 0 and following - predicted > tolerance
+                    and (secondary(following, i) or (delays.size > 0 and np.abs(
+                        following - predicted - delays).min() <= tolerance))):
+                # It comes late, at a secondary's delay after an earlier impact or after the
+                # predicted one: a ring's burst or an echo standing in for an impact that was
+                # passed over (it barely rose over the sound before it). The impact is looked
+                # for where the trend puts it; not found, the secondary is left out (a gap).
+                result = probe(predicted, tolerance)
+                if not accept(result, predicted, tolerance, following):
+                    result = None
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
             i += 1
