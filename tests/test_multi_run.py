@@ -304,6 +304,35 @@ def test_capstone_soft_bumper_every_run_rests_on_its_bumper(tmp_path, seed):
 
 
 @pytest.mark.xfail(strict=True, reason=(
+    "measured: above 50 Hz the motion reader finds almost nothing: on this cart's Capstone "
+    "export (30 seeds x 3 runs) at 100 Hz with 1 mm noise 8 impacts in all (of 360 timed at "
+    "50 Hz), at 200 Hz with 0.3 mm noise none; its central-difference velocity noise grows "
+    "with the rate (sigma_x/(sqrt(2)*dt)) and a soft contact's turn spans more samples than "
+    "a reversal may (2 + guard). A derivative over ~20 ms, tried, timed them in 83 of 90 runs "
+    "at 100 Hz and 90 of 90 at 200 Hz, but on hard carts at 100 Hz it also timed a contact "
+    "before the record began and doubled two, so it is not in"))
+@pytest.mark.parametrize(("rate", "noise"), [(100.0, 1e-3), (200.0, 3e-4)])
+def test_capstone_soft_bumper_above_50_hz(tmp_path, rate, noise):
+    """The paper's cart sampled at 100 and 200 Hz: in every run the four bounces of 0.36 m/s
+    and more are found, each timed within 4 of its stated σ."""
+    from dashpot.ingest import read_impacts
+    from dashpot.synth.tables import write_motion_sensor
+
+    train = bounce_sequence("hybrid", beta=CART["beta"], omega0=CART["omega0"], g=CART["g"],
+                            v0=1.0, n_max=30)
+    path = tmp_path / "capstone.csv"
+    truth = write_motion_sensor(path, train, runs=3, sample_rate=rate, noise=noise, seed=SEED)
+    impacts = read_impacts(path)
+    for run, true in enumerate(truth["runs"]):
+        found = impacts[impacts["run"] == run]
+        assert len(found) >= 4, true["label"]
+        times = np.asarray(true["impact_times"])
+        nearest = np.abs(found["time"].to_numpy()[:, None] - times[None, :]).argmin(axis=1)
+        pull = (found["time"].to_numpy() - times[nearest]) / found["time_uncertainty"]
+        assert np.unique(nearest).size == nearest.size and np.all(np.abs(pull) <= 4.0)
+
+
+@pytest.mark.xfail(strict=True, reason=(
     "measured: every run now rests on its bumper (run 'Run #3' fitted k = 255.1 +- 4.0 N/m, "
     "truth 255), but run 0's own k = 246.1 +- 4.1 N/m is 2.2 sigma below the truth and the "
     "joint k = 250.2 +- 2.3 N/m 2.0 sigma below; the reader's impact times are late by 0.22 "
