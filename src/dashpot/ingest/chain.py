@@ -1050,5 +1050,16 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             loudness.insert(i + 1, loudness[i])
         origin.insert(i + 1, -1)
         i += 1
+    # The train's last sound, one recurring secondary delay after the impact before it, is
+    # that impact's ring burst or echo: no impact followed it to tell it from one.
+    last = len(anchors) - 1
+    while last > 0 and origin[last] < 0:
+        last -= 1
+    if (last >= 4 and origin[last] == len(times) - 1 and origin[last - 1] >= 0
+            and origin[last] not in retimed and delays.size > 0
+            and np.abs(anchors[last] - anchors[last - 1] - delays).min()
+            < _PROBE_SECONDARY_SECONDS
+            and not any(moment > anchors[last] for moment, *_ in added)):
+        retimed[origin[last]] = None
     return added, retimed
 
