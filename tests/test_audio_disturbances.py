@@ -221,21 +221,22 @@ def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_o
 
 
 def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
-    # The last sound of the train is the ring burst of the last impact, 6.5 ms after it
-    # (the last intervals are about 7 ms): nothing after it tells it from a bounce but its
-    # delay, the one at which the bursts of all impacts recur.
-    impacts = np.cumsum(0.1 * 0.85 ** np.arange(18))
-    timed = np.append(impacts, impacts[-1] + 6.5e-3)
+    # The last sound of the train is the ring burst of the last impact, at the delay at which
+    # the bursts of all impacts recur, which happens to be where the next bounce would come:
+    # nothing after it tells it from a bounce but that delay.
+    intervals = 0.1 * 0.85 ** np.arange(18)
+    impacts = np.cumsum(intervals)
+    burst = 0.1 * 0.85**18
+    timed = np.append(impacts, impacts[-1] + burst)
     coefficients, scatter = _robust_trend(impacts)
 
     def silent(predicted, tolerance, not_before=None):
         return None
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
-                                   np.array([6.5e-3]), silent, timed[-1] + 1.0)
+                                   np.array([burst]), silent, timed[-1] + 1.0)
     assert retimed == {timed.size - 1: None} and not added
-    # A last impact at another delay stays.
-    other = np.append(impacts, impacts[-1] + 5.8e-3)
-    _, retimed = _fill_impacts(other, np.ones(other.size), coefficients, scatter,
-                               np.array([6.5e-3]), silent, other[-1] + 1.0)
-    assert timed.size - 1 not in retimed
+    # Where the bursts recur at another delay, the same last bounce stays.
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([burst + 1e-3]), silent, timed[-1] + 1.0)
+    assert not retimed
