@@ -693,7 +693,9 @@ def _secondary_delays(times, chain):
     echo from a wall). Each is refined to the median of the delays within 1 ms of it.
     """
     impacts = times[chain]
-    others = np.setdiff1d(np.flatnonzero(times > impacts[0]), chain)
+    # Within the train only: after the last impact the clicks of a ball at rest (every
+    # 80-100 ms) measured from the last impacts make chance peaks of their own.
+    others = np.setdiff1d(np.flatnonzero((times > impacts[0]) & (times < impacts[-1])), chain)
     if others.size < 3:
         return np.zeros(0)
     delays = (times[others][:, None] - impacts[None, :]).ravel()
