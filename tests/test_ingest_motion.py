@@ -698,3 +698,32 @@ def test_stated_time_and_speed_uncertainties_cover_at_their_rates(tmp_path):
             low, high = binom.interval(0.999, effective, rate)
             covered = np.mean(np.abs(z) <= level)
             assert low / effective <= covered <= high / effective, (level, covered, z.size)
+
+
+def test_tracker_track_is_chosen_on_the_command_line_and_in_the_scene(tmp_path, tracked_ball):
+    """The track of a several-track Tracker export is chosen by `dashpot impacts --track`, by
+    the scene's reader option `track` (through `fit`) and by the API; the chosen track's
+    impacts are the same as those of a file holding that track alone."""
+    import dashpot
+
+    time, x, height, _ = tracked_ball
+    everywhere = np.ones(time.size, dtype=bool)
+    both = tmp_path / "two.txt"
+    tracker6_export(both, time, {"mass A": (everywhere, {"x": x, "y": height + 0.3}),
+                                 "mass B": (everywhere, {"x": x, "y": height})})
+    alone = tmp_path / "b.txt"
+    tracker6_export(alone, time, {"mass B": (everywhere, {"x": x, "y": height})})
+    expected = read_impacts(alone)
+    chosen = dashpot.read_impacts(both, track="mass B")
+    np.testing.assert_array_equal(chosen["time"].to_numpy(), expected["time"].to_numpy())
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(both), "-o", str(output), "--track", "mass B"])
+    assert status == 0, err
+    np.testing.assert_allclose(pd.read_csv(output)["time"], expected["time"], rtol=0,
+                               atol=1e-12)
+    scene = tmp_path / "scene.yaml"
+    scene.write_text("reader: {track: mass B}\nmodels: [Ia]\nnoise: false\n")
+    status, out, err = run_cli(["fit", str(both), "--scene", str(scene), "-o",
+                                str(tmp_path / "fit.h5")])
+    assert status == 0, err
+    assert f"{len(expected)} impacts" in out

@@ -76,7 +76,8 @@ def load_scene(path: PathLike) -> Scene:
 
 def read_impacts(path: PathLike, *, kind: str | None = None, flag_length: float | None = None,
                  gate_distance: float | None = None, unit: str | None = None,
-                 bumper_position: float | None = None) -> pd.DataFrame:
+                 bumper_position: float | None = None,
+                 track: str | None = None) -> pd.DataFrame:
     """The impact table of a recording: one row per impact, sorted by time (SI units).
 
     Parameters
@@ -94,6 +95,8 @@ def read_impacts(path: PathLike, *, kind: str | None = None, flag_length: float 
         Time unit of a timestamp table whose header does not say.
     bumper_position : float, optional
         Position of the bumper in m for motion-sensor exports (else inferred).
+    track : str, optional
+        Which track of a Tracker export holding several (e.g. "mass A").
 
     Returns
     -------
@@ -115,7 +118,7 @@ def read_impacts(path: PathLike, *, kind: str | None = None, flag_length: float 
     from .ingest import read_impacts as read
 
     return read(path, kind=kind, flag_length=flag_length, gate_distance=gate_distance,
-                unit=unit, bumper_position=bumper_position)
+                unit=unit, bumper_position=bumper_position, track=track)
 
 
 def fit_scene(impacts: pd.DataFrame, scene: SceneLike = None,

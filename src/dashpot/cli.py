@@ -102,7 +102,7 @@ def _impacts(args, console):
 
     table = read_impacts(args.recording, kind=args.kind, flag_length=args.flag_length,
                          gate_distance=args.gate_distance, unit=args.unit,
-                         bumper_position=args.bumper_position)
+                         bumper_position=args.bumper_position, track=args.track)
     _write_csv_atomically(table, args.output, [args.recording])
     notes = "; ".join(table.attrs.get("notes", []))
     console.say(f"{args.recording}: {len(table)} impacts -> {_shown(args.output)}"
@@ -515,6 +515,8 @@ def build_parser():
                          type=_number(*BUMPER_POSITION_RANGE, unit="m", low_inclusive=True),
                          help="bumper position in m, in [%g, %g] (motion sensor; default "
                               "inferred)" % BUMPER_POSITION_RANGE)
+    impacts.add_argument("--track", help="track of a Tracker export holding several (e.g. "
+                                         "'mass A')")
     impacts.set_defaults(run=_impacts)
     bounces = command("bounces")
     bounces.add_argument("impacts", help="impact table written by dashpot impacts")

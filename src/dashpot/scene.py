@@ -162,7 +162,7 @@ class Scene:
         Resolution of the impact times in s (a sample period, a clock tick); sets the timing
         uncertainty where the recording does not give one, and the solver tolerance.
     reader : dict
-        Options for the reader (flag_length, gate_distance, bumper_position, unit).
+        Options for the reader (flag_length, gate_distance, bumper_position, unit, track).
     accuracy : str
         Numerical accuracy level of the fits ("auto", "fast", "standard", "exact").
     noise : bool or "auto"

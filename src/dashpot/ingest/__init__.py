@@ -46,7 +46,7 @@ KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
 
 
 def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=None,
-                 bumper_position=None):
+                 bumper_position=None, track=None):
     """Impact table of any supported recording, choosing the reader from the file.
 
     Parameters
@@ -65,6 +65,9 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
         Time unit of a timestamp table, where its header does not say.
     bumper_position : float, optional
         Position of the bumper in m for motion-sensor exports (else inferred).
+    track : str, optional
+        Which track of a Tracker export holding several (e.g. "mass A"); needed only where
+        more than one track has points.
 
     Returns
     -------
@@ -78,7 +81,7 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
         the message gives the ffmpeg command that extracts a WAV), its content is unusable,
         or it holds no impact (an empty table is never returned: its reader's notes say why).
     """
-    impacts = _read(path, kind, flag_length, gate_distance, unit, bumper_position)
+    impacts = _read(path, kind, flag_length, gate_distance, unit, bumper_position, track)
     if impacts.empty:
         notes = "; ".join(impacts.attrs.get("notes", []))
         raise InputError(path, "no impacts found" + (f" ({notes})" if notes else ""))
@@ -107,7 +110,7 @@ def unreadable_media_problem(path):
             f"sound to WAV first, e.g. `ffmpeg -i {path.name} -vn -c:a pcm_s16le {target}`")
 
 
-def _read(path, kind, flag_length, gate_distance, unit, bumper_position):
+def _read(path, kind, flag_length, gate_distance, unit, bumper_position, track):
     """The impact table of the reader `kind` chooses (see read_impacts)."""
     path = Path(path)
     if not path.is_file():
@@ -134,7 +137,7 @@ def _read(path, kind, flag_length, gate_distance, unit, bumper_position):
     if kind == "timestamps":
         return tables.read_timestamps(path, unit=unit)
     if kind == "motion_sensor":
-        return tables.read_motion_sensor(path, bumper_position=bumper_position)
+        return tables.read_motion_sensor(path, bumper_position=bumper_position, track=track)
     if flag_length is None:
         raise InputError(path, "a photogate log needs the flag length (--flag-length, in m)")
     return tables.read_photogate(path, flag_length=flag_length, gate_distance=gate_distance)
