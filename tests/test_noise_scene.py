@@ -145,9 +145,10 @@ def test_without_noise_nothing_changes(constant_train):
         assert noisy.results[model].notes == fit.notes
 
 
-def _documented_blocks():
-    """The text blocks of the layout document's "Everything in the file": path -> unit."""
-    section = DOCS.read_text().split("## Everything in the file", 1)[1].split("\n## ", 1)[0]
+def _documented_blocks(heading="## Everything in the file"):
+    """The text blocks of a section of the layout document (by default "Everything in the
+    file"): path -> unit."""
+    section = DOCS.read_text().split(heading, 1)[1].split("\n## ", 1)[0]
     blocks = []
     for block in re.findall(r"```text\n(.*?)```", section, flags=re.S):
         tree = {}
@@ -192,9 +193,12 @@ def test_the_noise_fits_round_trip_through_hdf5_as_documented(constant_train, tm
     without, with_noise = tmp_path / "plain.h5", tmp_path / "noise.h5"
     write_scene_fit(without, plain, impacts, config={"models": ["Ia"]})
     write_scene_fit(with_noise, noisy, impacts, config={"models": ["Ia"]})
-    # Without the noise fits: exactly the documented base layout, nothing optional.
+    # Without the noise fits: exactly the documented base layout, nothing optional. With
+    # them, the noise groups, and the bounce table's drag-corrected columns of the drag rung.
+    (drag_columns,) = _documented_blocks("## `bounces`")
+    assert "constant+drag" in noisy.noise_results
     assert _file_tree(without) == base
-    assert _file_tree(with_noise) == {**base, **optional}
+    assert _file_tree(with_noise) == {**base, **optional, **drag_columns}
     with h5py.File(with_noise, "r") as source:
         assert set(source["noise_fits"]) == set(noisy.noise_results)
         documented = DOCS.read_text()
