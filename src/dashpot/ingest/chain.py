@@ -1021,10 +1021,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
             elif (origin[i + 1] >= 0 and following - predicted > tolerance
-                    and (secondary(following, i) or (delays.size > 0 and np.abs(
-                        following - predicted - delays).min() <= tolerance))):
+                    and (secondary(following, i) or np.any(
+                        (delays >= _CAUSE_DELAY_SECONDS[0])
+                        & (np.abs(following - predicted - delays) <= tolerance)))):
                 # It comes late, at a secondary's delay after an earlier impact or after the
-                # predicted one: a ring's burst or an echo standing in for an impact that was
+                # predicted one (from 3 ms on: closer sounds are the impact's own first
+                # arrival): a ring's burst or an echo standing in for an impact that was
                 # passed over (it barely rose over the sound before it). The impact is looked
                 # for where the trend puts it; not found, the secondary is left out (a gap).
                 result = probe(predicted, tolerance)
