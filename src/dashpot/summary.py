@@ -268,7 +268,7 @@ def _scene_row(scene, status, problem):
     return row
 
 
-def summary_from_files(paths, problems=None, *, by_run=False):
+def summary_from_files(paths, problems=None, *, by_run=False, block=500):
     """:func:`summary_from_records` of scene files, each named by its file stem, with a status.
 
     Every file is read once (:func:`read_summary_record`); one that cannot be read gives one
@@ -285,6 +285,8 @@ def summary_from_files(paths, problems=None, *, by_run=False):
     by_run : bool, optional
         One row per run and model (:func:`dashpot.run_summary.summary_by_run`, from the
         records already read).
+    block : int, optional
+        Files read before their rows are made and their records let go (memory).
 
     Returns
     -------
@@ -295,29 +297,46 @@ def summary_from_files(paths, problems=None, *, by_run=False):
         `paths`, then one row per scene without a usable file.
     """
     problems = dict(problems or {})
-    records, unusable = {}, []
-    for path in paths:
-        scene = Path(path).stem
-        problem = scene_file_problem(path)
-        if problem is None:
-            try:
-                records[scene] = read_summary_record(path)
-            except _READ_ERRORS as error:
-                problem = f"{path}: damaged scene file ({_one_line(error)})"
-        if problem is not None:
-            unusable.append(_scene_row(scene, "unreadable", problem))
-    table = summary_from_records(records)
+    parts, unusable, seen = [], [], set()
+    paths = list(paths)
+    # A block of files at a time: its records (about 0.1 MB a scene) become summary rows and
+    # are let go, so that memory stays flat however many scenes there are.
+    for first in range(0, len(paths), block):
+        records = {}
+        for path in paths[first:first + block]:
+            scene = Path(path).stem
+            problem = scene_file_problem(path)
+            if problem is None:
+                try:
+                    records[scene] = read_summary_record(path)
+                except _READ_ERRORS as error:
+                    problem = f"{path}: damaged scene file ({_one_line(error)})"
+            if problem is not None:
+                unusable.append(_scene_row(scene, "unreadable", problem))
+                seen.add(scene)
+        if records:
+            part = summary_from_records(records)
+            if by_run:
+                from .run_summary import summary_by_run
+
+                part = summary_by_run(part, paths[first:first + block], records=records)
+            parts.append(part)
+            seen |= set(records)
+    table = (pd.concat(parts, ignore_index=True) if len(parts) > 1 else
+             parts[0] if parts else _empty_table())
+    if by_run and not parts:
+        from .run_summary import _order
+
+        table = table.assign(run=np.zeros(0, dtype=np.int64))
+        table = table[_order(table)]
     stale = table["scene"].isin(list(problems))
     table.loc[stale, "status"] = "stale"
     table.loc[stale, "problem"] = table.loc[stale, "scene"].map(problems)
-    seen = set(records) | {row["scene"] for row in unusable}
     unusable += [_scene_row(scene, "failed", problem) for scene, problem in problems.items()
                  if scene not in seen]
     if unusable:
         rows = pd.DataFrame(unusable, columns=list(SUMMARY_COLUMNS))
+        if by_run:
+            rows = rows.assign(run=np.zeros(len(rows), dtype=np.int64))[list(table.columns)]
         table = pd.concat([table, rows], ignore_index=True) if len(table) else rows
-    if by_run:
-        from .run_summary import summary_by_run
-
-        return summary_by_run(table, paths, records=records)
     return table
