@@ -10,6 +10,7 @@
 # summary keeps the scene's old rows, marked stale.
 import os
 import re
+import shlex
 import sys
 from pathlib import Path
 
@@ -247,27 +248,15 @@ def staged(wildcards):
 
 
 def publish(step, what):
-    """The shell command of a per-scene step: move the scene's files of this `step` (fit,
-    truth, plots) from its chunk's staging folder into place (rename: atomic), or fail with
-    the scene's error (on standard error and in the step's log). A file the chunk did not
-    redo (up to date) is kept as it is."""
-    return (
-        "s={params.staged:q}; : > {log:q}; "
-        f'if [ -e "$s/{step}.error" ]; then '
-        f'echo "dashpot: scene {{wildcards.scene}}: {what} failed: $(cat "$s/{step}.error")" '
-        "| tee -a {log:q} >&2; exit 1; fi; "
-        'for f in {output:q}; do b=$(basename "$f"); '
-        'if [ -e "$s/$b" ]; then mkdir -p "$(dirname "$f")" && mv -f "$s/$b" "$f" && '
-        'echo "wrote $f" >> {log:q}; '
-        'elif [ ! -e "$f" ]; then echo "dashpot: scene {wildcards.scene}: $f was not made '
-        '(see its log in results/logs)" | tee -a {log:q} >&2; exit 1; '
-        'else echo "kept $f (up to date)" >> {log:q}; fi; done'
-        # The fit's fingerprint, after its file: what the file was made from (the chunk
-        # skips the scene while it matches; a stale or missing one refits it).
-        + ('; if [ -e "$s/fingerprint.json" ]; then mkdir -p results/logs/fit && '
-           'mv -f "$s/fingerprint.json" results/logs/fit/{wildcards.scene}.fingerprint; fi'
-           if step == "fit" else "")
-    )
+    """The shell command of a per-scene step (workflow/scripts/publish.sh): move the scene's
+    files of this `step` (fit, truth, plots) from its chunk's staging folder into place
+    (rename: atomic), or fail with the scene's error (on standard error and in the step's
+    log). A file the chunk did not redo (up to date) is kept as it is."""
+    # Relative to the working directory (the Snakefile's folder in every run here), so that
+    # the command, which Snakemake compares with the last run's, stays the same in a copy.
+    script = os.path.relpath(Path(workflow.basedir) / "workflow" / "scripts" / "publish.sh")
+    return (f"bash {shlex.quote(script)} {step} {shlex.quote(what)} {{params.staged:q}} "
+            "{log:q} {wildcards.scene:q} {output:q}")
 
 
 def summary_input(wildcards):
