@@ -1553,6 +1553,20 @@ def _derivatives(values, count, pairs):
     return centre, gradient, hessian
 
 
+def _batched_solve(matrices, vectors):
+    """x with matrices @ x = vectors for a stack of systems (..., n, n) and (..., n).
+
+    numpy's batched solve raises for the whole stack where one matrix is exactly singular (a
+    direction in which one train's likelihood is flat to the last bit); there the stack is
+    solved by the pseudo-inverse instead, the least-norm step, so the other trains' steps are
+    those of the plain solve and the singular one takes no step along its flat direction.
+    """
+    try:
+        return np.linalg.solve(matrices, vectors[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return (np.linalg.pinv(matrices) @ vectors[..., None])[..., 0]
+
+
 def _newton(objective, start, free, units, trains, lower, upper, iterations, reference=None,
             soft=()):
     """Minimize `objective` over the `free` columns for every (train, start) row at once.
@@ -1636,8 +1650,7 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             scale = np.abs(np.diagonal(hessian, axis1=-2, axis2=-1)) + 1e-12
             system = hessian + damping[..., None, None] * scale[..., :, None] * np.eye(count)
             system = np.where(usable[..., None, None], system, np.eye(count))
-            step = -np.linalg.solve(system, np.where(usable[..., None], gradient, 0.0)[
-                ..., None])[..., 0]
+            step = -_batched_solve(system, np.where(usable[..., None], gradient, 0.0))
             step = np.clip(np.nan_to_num(step), -3.0, 3.0)
             moved = params.copy()
             moved[..., free] = np.clip(params[..., free] + step * units, low, high)
@@ -1674,9 +1687,9 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             held = ((position <= low) & (gradient > 0.0)) | ((position >= high)
                                                              & (gradient < 0.0))
             free_gradient = np.where(usable[..., None] & ~held, gradient, 0.0)
-            newton = 0.5 * np.sum(free_gradient * np.linalg.solve(
-                np.where(definite[..., None, None], safe, np.eye(count)),
-                free_gradient[..., None])[..., 0], axis=-1)
+            newton = 0.5 * np.sum(free_gradient * _batched_solve(
+                np.where(definite[..., None, None], safe, np.eye(count)), free_gradient),
+                axis=-1)
             newton = np.where(definite, newton, np.inf)
             done = (newton < tolerance) | (~better & (damping >= 1e12)) | (
                 better & (centre - trial < tolerance) & (newton < 10 * tolerance))
