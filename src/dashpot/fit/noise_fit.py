@@ -1230,15 +1230,22 @@ class _Problem:
                             name, t, profiles[name], at_zero))
                     note = ("profile likelihood adjusted for the fitted law and v0 (Cox-Reid)"
                             if name == "sigma_eps" else "profile likelihood")
-                    if i in widen:
-                        # About the reported value: the plain profile's shape, the spread
-                        # at the adjusted σ_ε.
-                        centre, ratio = best.params[t, i], widen[i]
+                    centre = best.params[t, i]
+                    if not is_noise and (i in widen or value_i != centre):
+                        # About the reported value (refitted at the adjusted σ_ε, where the
+                        # profile was made about the maximum-likelihood fit): the plain
+                        # profile's shape, the spread at the adjusted σ_ε where known.
+                        # A bound at the range's end (the profile never reached the level
+                        # there) stays at that end.
+                        ratio = widen.get(i, 1.0)
                         low68, high68, low95, high95 = (
+                            float(b) if not self.lower[i] < b < self.upper[i] else
                             float(np.clip(value_i + ratio * (b - centre), self.lower[i],
                                           self.upper[i]))
                             for b in (low68, high68, low95, high95))
-                        note += " rescaled to the spread at the adjusted sigma_eps"
+                        note += (" rescaled to the spread at the adjusted sigma_eps"
+                                 if i in widen else " moved to the value at the adjusted "
+                                 "sigma_eps")
                 if name == "sigma_eps" and at_zero:
                     value_i = 0.0
                 if name == "sigma_eps" and eps_interval is not None and not at_zero:
