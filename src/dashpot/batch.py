@@ -169,8 +169,9 @@ def fit_scene(task, output, log):
     if methods and scene.uncertainty == ("covariance",):
         # The config's methods, for every scene whose scene.yaml does not choose its own.
         scene = replace(scene, uncertainty=tuple(dict.fromkeys(["covariance", *methods])))
-    if task.get("noise") and not scene.noise:
-        # The config's noise model, for every scene (a scene.yaml can only add it).
+    if task.get("noise") is True and scene.noise is not True:
+        # The config's noise model, for every scene (its scene.yaml's default "auto", which
+        # fits it only where the data need it, included).
         scene = replace(scene, noise=True)
     impacts, runs_fit = analyze_runs(scene.recording, scene)
     scene_fit = runs_fit.first  # the first run's, at the root of the file
