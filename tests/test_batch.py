@@ -153,3 +153,25 @@ def test_chunk_size_changes_no_result_and_a_broken_scene_fails_alone(tmp_path):
     chunk_log = next((results / "logs" / "fit_chunk").glob("*.log")).read_text()
     assert all(f"{name}: up to date" in chunk_log for name in SYNTHETIC), chunk_log[-2000:]
     assert "tiny-new: fitted" in chunk_log and f"{BROKEN}: failed" in chunk_log
+
+
+def test_config_noise_fits_every_scene_under_the_noise_model(tmp_path):
+    """The workflow's `noise: true` reaches a scene whose scene.yaml leaves noise at its
+    default (auto, which would not fit it on a clean train)."""
+    import logging
+
+    import h5py
+
+    from dashpot.batch import fit_scene
+    from dashpot.pipeline import write_synthetic_scene
+
+    spec = {**SYNTHETIC["tiny-1"], "seed": 20261125 + 11}
+    write_synthetic_scene(tmp_path / "scene", spec, name="noisy")
+    written = {}
+    for noise in (False, True):
+        output = tmp_path / f"noise-{noise}.h5"
+        fit_scene({"name": "noisy", "scene_input": str(tmp_path / "scene"), "noise": noise},
+                  output, logging.getLogger("test"))
+        with h5py.File(output, "r") as source:
+            written[noise] = "noise_fits" in source
+    assert written == {False: False, True: True}
