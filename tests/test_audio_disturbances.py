@@ -36,8 +36,9 @@ MEASURED = ("measured on this block: recall 0.942 (3754 of 3985 impacts timed wi
             "0.880 / 0.928")
 
 
-def disturbed_train(seed):
-    """(samples, true onsets, options) of one train with the disturbances of issue 14."""
+def disturbed_train(seed, rate=RATE):
+    """(samples, true onsets, options) of one train with the disturbances of issue 14, sampled
+    at `rate` (Hz)."""
     rng = np.random.default_rng(seed)
     sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
                                        omega0=rng.uniform(2000, 4000), g=9.81,
@@ -53,7 +54,7 @@ def disturbed_train(seed):
     if rng.uniform() < 0.5:
         options.update(burst_delays=[rng.uniform(5e-3, 8e-3)],
                        burst_levels=[rng.uniform(0.3, 1.5)])
-    samples, onsets = impact_sound(times, speeds, sample_rate=RATE, seed=seed,
+    samples, onsets = impact_sound(times, speeds, sample_rate=rate, seed=seed,
                                    snr_db=weakest_db + 20 * np.log10(speeds.max() / speeds.min()),
                                    **options)
     return samples, onsets, options

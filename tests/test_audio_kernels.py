@@ -183,24 +183,9 @@ def _assert_same_impacts(path, monkeypatch, **options):
 def _disturbed(seed, rate):
     """Samples of a train with the disturbances of tests/test_audio_disturbances.py (apex
     clicks, a rest tail, a ring, an echo at 5-200 ms, in half the trains ring bursts)."""
-    rng = np.random.default_rng(seed)
-    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                       omega0=rng.uniform(2000, 4000), g=9.81,
-                                       v0=rng.uniform(0.5, 0.9), n_max=400)
-    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
-    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
-    weakest_db = rng.uniform(20.0, 45.0)
-    options = dict(apex_click_db=-40.0, rest_click_period=rng.uniform(0.08, 0.1),
-                   rest_click_duration=0.6, echo_delay=rng.uniform(5e-3, 0.2),
-                   echo_level=rng.uniform(0.1, 0.5), ring_level=rng.uniform(0.0, 0.4),
-                   ring_delay=rng.uniform(0.01, 0.03))
-    if rng.uniform() < 0.5:
-        options.update(burst_delays=[rng.uniform(5e-3, 8e-3)],
-                       burst_levels=[rng.uniform(0.3, 1.5)])
-    samples, _ = impact_sound(times, speeds, sample_rate=rate, seed=seed,
-                              snr_db=weakest_db + 20 * np.log10(speeds.max() / speeds.min()),
-                              **options)
-    return samples
+    from test_audio_disturbances import disturbed_train
+
+    return disturbed_train(seed, rate)[0]
 
 
 @pytest.mark.parametrize(("k", "rate", "channels", "block_seconds", "extra"), [

@@ -294,7 +294,7 @@ def noise_effect_steps(noise_selection):
         carrying fit ("" where the effect's own fit was kept or none carries it). None for a
         table without the nested-steps columns (files written before them).
     """
-    from .noise_selection import EFFECTS, SIMPLER
+    from .noise_selection import carried_effects
 
     columns = ("model", "effect", "simpler", "bic_gain", "kept", "selected")
     if not all(name in noise_selection for name in columns):
@@ -307,13 +307,6 @@ def noise_effect_steps(noise_selection):
     kept = sorted(table.loc[kept_mask, "model"].astype(str),
                   key=lambda name: not bool(table.loc[table["model"] == name, "selected"].iloc[0]))
 
-    def carried(name):
-        found = set()
-        while name in SIMPLER:
-            found.add(EFFECTS[name])
-            name = SIMPLER[name]
-        return found
-
     steps = []
     for effect in dict.fromkeys(e for e in effects if e):
         rows = np.flatnonzero((effects == effect).to_numpy() & np.isfinite(gains))
@@ -321,7 +314,7 @@ def noise_effect_steps(noise_selection):
             continue
         best = rows[np.argmax(gains[rows])]
         carrier = "" if kept_mask[best] else next(
-            (name for name in kept if effect in carried(name)), "")
+            (name for name in kept if effect in carried_effects(name)), "")
         steps.append((effect, str(table.loc[best, "model"]), str(table.loc[best, "simpler"]),
                       float(gains[best]), bool(kept_mask[best]) or bool(carrier), carrier))
     return steps

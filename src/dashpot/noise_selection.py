@@ -139,7 +139,7 @@ def _depth(name):
     return depth
 
 
-def _carried(name):
+def carried_effects(name):
     """Effects a law or model carries: its own and those of its simpler rungs."""
     effects = set()
     while name in SIMPLER:
@@ -175,7 +175,7 @@ def _verdict(results, table, chosen, base_ok, c_hat):
         text = f"{best['model']}: ΔBIC = {best['bic_gain']:.1f} against {best['simpler']}"
         # Required where some kept fit carries the effect: it adds it, or a simpler rung of
         # its own did (Ib has the contact duration of Ia even where Ia alone was not kept).
-        carrier = next((name for name in kept if effect in _carried(name)), None)
+        carrier = next((name for name in kept if effect in carried_effects(name)), None)
         if bool(best["kept"]):
             required.append(f"{effect} ({text})")
         elif carrier is not None:
