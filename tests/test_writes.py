@@ -378,13 +378,18 @@ def test_theory_writer_on_a_full_disk(full_disk, tmp_path):
 
 
 def test_theory_writer_writes_whole_files(tmp_path):
+    figures = ("contact_time", "restitution_figure", "critical_speed", "restitution_vs_speed")
     snakemake = SimpleNamespace(
         log=[str(tmp_path / "theory.log")],
         params=SimpleNamespace(zeta_max=1.0, points=50, speeds=[0.5]),
         output=SimpleNamespace(critical=str(tmp_path / "critical.csv"),
-                               restitution=str(tmp_path / "restitution.csv")))
+                               restitution=str(tmp_path / "restitution.csv"),
+                               **{name: str(tmp_path / f"{name}.png") for name in figures}))
     runpy.run_path(str(THEORY), init_globals={"snakemake": snakemake})
     assert len(pd.read_csv(tmp_path / "critical.csv")) == 50
+    for name in figures:  # the figures of the same job, PNG and PDF
+        assert (tmp_path / f"{name}.png").stat().st_size > 0
+        assert (tmp_path / f"{name}.pdf").stat().st_size > 0
     assert _temporaries(tmp_path) == []
 
 

@@ -56,5 +56,5 @@ with job_log(snakemake.log[0], "theory curves and figures") as log:
         "restitution_vs_speed": plots.restitution_vs_speed_figure(),
     }
     for name, figure in figures.items():
-        written = plots.save_figure(figure, Path(output[name]).with_suffix(""))
+        written = plots.save_figure(figure, Path(getattr(output, name)).with_suffix(""))
         log.info("wrote %s", ", ".join(map(str, written)))
