@@ -290,19 +290,24 @@ def test_the_friction_rung_is_kept_on_a_cart_run_with_measured_speeds():
     assert inside >= binomial_range(trials, 0.9545)[0]
 
 
-def test_a_batch_of_friction_rung_fits_gets_the_fits_its_trains_get_alone():
-    """fit_noise_models fits each data set on its own (its docstring), with the friction rung
-    too: 8 cart trains with friction drawn in one batch (seed 20261125) on the incline scene,
-    fitted together and one by one. A singular Newton system in one train's profile steps
-    once raised LinAlgError for the whole batch."""
+def _friction_batch(scene):
+    """8 cart trains with friction drawn in one batch (seed 20261125), as `scene`'s data."""
     g_eff = CART_G_EFF
     model = TrainModel(LAWS["constant"].bind(np.full(8, CART_EPS)),
                        lambda v: track_flight(v, g_eff + CART_FRICTION, g_eff - CART_FRICTION))
     drawn = model.simulate(CART_BOUNCES, np.random.default_rng(20261125), start_time=0.0,
                            start_speed=CART_SPEED, process_sigma=SCATTER, jitter=CART_TIMING)
-    scene = Scene(incline_angle=INCLINE, friction=True)
-    data = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": CART_TIMING}), scene)
+    return [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": CART_TIMING}), scene)
             for times in drawn.times]
+
+
+def test_a_batch_of_friction_rung_fits_gets_the_fits_its_trains_get_alone():
+    """fit_noise_models fits each data set on its own (its docstring), with the friction rung
+    too: 8 cart trains with friction drawn in one batch (seed 20261125) on the incline scene,
+    fitted together and one by one. A singular Newton system in one train's profile steps
+    once raised LinAlgError for the whole batch."""
+    scene = Scene(incline_angle=INCLINE, friction=True)
+    data = _friction_batch(scene)
     batch = fit_noise_models(data, "constant", scene, accuracy="fast", effects=("friction",))
     alone = [fit_noise_models([train], "constant", scene, accuracy="fast",
                               effects=("friction",))[0] for train in data]
@@ -318,14 +323,8 @@ def test_every_interval_holds_its_own_value():
     given the 95 % interval [0, 0.003]). 8 cart trains with friction on an incline prior."""
     from dashpot.scene import Known
 
-    g_eff = CART_G_EFF
-    model = TrainModel(LAWS["constant"].bind(np.full(8, CART_EPS)),
-                       lambda v: track_flight(v, g_eff + CART_FRICTION, g_eff - CART_FRICTION))
-    drawn = model.simulate(CART_BOUNCES, np.random.default_rng(20261125), start_time=0.0,
-                           start_speed=CART_SPEED, process_sigma=SCATTER, jitter=CART_TIMING)
     scene = Scene(incline_angle=INCLINE, friction=True, first_impact_speed=Known(CART_SPEED))
-    data = [prepare_data(pd.DataFrame({"time": times, "time_uncertainty": CART_TIMING}), scene)
-            for times in drawn.times]
+    data = _friction_batch(scene)
     outside = [(k, name, e.value, e.low68, e.high68, e.low95, e.high95)
                for k, fit in enumerate(fit_noise_models(data, "constant", scene,
                                                         accuracy="fast",
