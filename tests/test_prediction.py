@@ -14,7 +14,7 @@ import pytest
 from dashpot.fit import prepare_data
 from dashpot.fit.prediction import prediction_band
 from dashpot.likelihood import TrainModel
-from dashpot.physics.flight import gravity_flight
+from dashpot.physics.flight import drag_flight, gravity_flight
 from dashpot.physics.laws import LAWS
 from dashpot.scene import Known, Scene, load_scene
 
@@ -55,6 +55,27 @@ def test_half_band_holds_half_the_intervals_on_trains_of_the_model():
               for row, data in enumerate(simulated_trains(seed=20261130))]
     coverage = np.mean(np.concatenate([c.inside for c in checks]))
     assert abs(coverage - 0.5) <= 3.0 * math.sqrt(0.25 / len(checks)), coverage
+
+
+def test_band_with_a_fitted_drag_covers_drag_trains():
+    """The `effects` path: trains flown with quadratic drag (k_d = 0.15 1/m, a light ball),
+    fitted as constant+drag (k_d free) and continued with the fitted and drawn k_d: 95 % of
+    the held-out intervals inside the 95 % band and half inside the 50 % band (tolerances as
+    above; measured 0.924 and 0.464 on these trains)."""
+    k_d, trains = 0.15, 30
+    model = TrainModel(LAWS["constant"].bind(np.full(trains, 0.95)),
+                       lambda v: drag_flight(v, G, k_d))
+    drawn = model.simulate(IMPACTS, np.random.default_rng(20261125 + 7), start_time=0.3,
+                           start_speed=3.0, process_sigma=0.003, jitter=20e-6)
+    data = [prepare_data(pd.DataFrame({"time": times}), Scene()) for times in drawn.times]
+    for level in (0.95, 0.5):  # and the central half: the band is not inflated either
+        checks = [prediction_band(train, "constant", draws=2000, seed=row, level=level,
+                                  effects=("drag",)) for row, train in enumerate(data)]
+        assert all("k_d" in c.fit.estimates for c in checks)
+        coverage = np.mean(np.concatenate([c.inside for c in checks]))
+        spread = 3.0 * math.sqrt(level * (1.0 - level) / trains)
+        assert coverage >= level - spread, (level, coverage)
+        assert level > 0.9 or coverage <= level + spread, (level, coverage)
 
 
 def test_band_excludes_a_train_that_changed_its_law():
@@ -118,13 +139,21 @@ def test_pingpong_recording_predicts_its_last_third():
     assert check.coverage >= 0.90, check.coverage
 
 
-def test_bouncy_ball_recording_predicts_its_last_third():
-    """The quadratic speed law (the speed term the noise selection requires there; the fit it
-    selects, constant+drag, flies a free drag constant, which the band's simulation does not
-    take without the ball's mass and diameter): ≥ 90 % of the last third's intervals inside
-    the 95 % band (the issue's target). Its σ_ε is known to 13 % from
-    the fitted part: with σ_ε held at its fit, 15 of 17 (two intervals 2.1 and 2.4σ above the
+@pytest.mark.parametrize(("law", "effects"), [("constant", ("drag",)), ("quadratic", ())])
+def test_bouncy_ball_recording_predicts_its_last_third(law, effects):
+    """The fit the noise selection selects there, constant+drag (a free drag constant: the
+    ball's mass and diameter are not known), and the quadratic speed law, whose speed term the
+    selection also requires over the constant: ≥ 90 % of the last third's intervals inside
+    the 95 % band (the issue's target). σ_ε is known to 13 % from the fitted part: with σ_ε
+    held at its fit the quadratic law held 15 of 17 (two intervals 2.1 and 2.4σ above the
     median, all 17 above it)."""
-    check = recording_check("bouncy-ball-pfe", "drop_0.9m.wav", "quadratic")
+    path = DATA / "bouncy-ball-pfe" / "drop_0.9m.wav"
+    if not path.is_file():
+        pytest.skip(f"real recording absent: {path}")
+    from dashpot.analysis import scene_impacts
+
+    scene = load_scene(REPO / "data" / "bouncy-ball-pfe" / "scene.yaml")
+    check = prediction_band(prepare_data(scene_impacts(path, scene), scene), law, scene,
+                            effects=effects)
     assert check.observed.size >= 15
     assert check.coverage >= 0.90, check.coverage

@@ -85,7 +85,7 @@ def _head(data, count):
 
 
 def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0.95,
-                    draws=20000, parameter_uncertainty=True, seed=0):
+                    draws=20000, parameter_uncertainty=True, seed=0, effects=()):
     """Fit `law` to the start of a train and check the rest against its prediction band.
 
     Parameters
@@ -108,6 +108,10 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
         below 0 is a continuation without that noise.
     seed : int
         Seed of the simulation.
+    effects : tuple of {"drag", "friction"}
+        Flight effects fitted beside the law, as in :func:`fit_noise_model` (a ladder rung
+        such as ``constant+drag`` is the law "constant" with ``effects=("drag",)``); the
+        continuations fly with the fitted (and, with `parameter_uncertainty`, drawn) ones.
 
     Returns
     -------
@@ -127,11 +131,11 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
         raise ValueError(f"{data.count} impacts leave fewer than 2 held-out intervals after "
                          f"fitting {fitted}")
     head = _head(data, fitted)
-    fit = fit_noise_model(head, law, scene, profile=False)
+    fit = fit_noise_model(head, law, scene, profile=False, effects=effects)
     if not fit.success:
         raise ValueError(f"the fit of {law!r} to the first {fitted} impacts failed: "
                          f"{fit.message}")
-    problem = _Problem([head], law, scene, {})
+    problem = _Problem([head], law, scene, {}, effects=effects)
     rng = np.random.default_rng(seed)
     rows = np.tile(_natural_row(fit, problem), (draws, 1))
     if parameter_uncertainty:
