@@ -42,6 +42,7 @@ import math
 
 import numpy as np
 
+from .physics.laws import LAWS
 from .select import SELECTION_COLUMNS, _misfit_scale, selection_table
 
 __all__ = ["noise_selection_table", "NOISE_SELECTION_COLUMNS", "NESTED_STEP_BIC", "SIMPLER",
@@ -49,15 +50,12 @@ __all__ = ["noise_selection_table", "NOISE_SELECTION_COLUMNS", "NESTED_STEP_BIC"
 
 NESTED_STEP_BIC = 6.0
 BASE = "constant"
-SIMPLER = {"linear": BASE, "quadratic": BASE, "power": BASE, "viscoelastic-hertz": BASE,
-           "hunt-crossley": BASE, "constant+drag": BASE, "constant+friction": BASE, "Ia": BASE,
-           "IIa": BASE, "Ib": "Ia", "IIb": "IIa", "hybrid": "IIa"}
+# The laws' and models' rungs are their registry entries' (RestitutionLaw.simpler, .effect).
+SIMPLER = {**{name: law.simpler for name, law in LAWS.items() if law.simpler is not None},
+           "constant+drag": BASE, "constant+friction": BASE}
 """The simpler rung of each law or model (see the module notes)."""
-EFFECTS = {**{law: "speed term" for law in ("linear", "quadratic", "power",
-                                              "viscoelastic-hertz", "hunt-crossley")},
-           "constant+drag": "drag", "constant+friction": "friction",
-           "Ia": "contact duration", "IIa": "contact duration", "Ib": "gravity in contact",
-           "IIb": "gravity in contact", "hybrid": "gravity in contact"}
+EFFECTS = {**{name: law.effect for name, law in LAWS.items() if law.simpler is not None},
+           "constant+drag": "drag", "constant+friction": "friction"}
 """The effect each law or model adds to its simpler rung."""
 NOISE_SELECTION_COLUMNS = SELECTION_COLUMNS + (
     "neg2_log_likelihood", "sigma_eps", "sigma_j", "effect", "simpler", "bic_gain", "kept",

@@ -166,8 +166,7 @@ import numpy as np
 
 from ..likelihood import TrainModel
 from ..physics.flight import gravity_flight, track_flight
-from ..physics.laws import LAWS, VISCOELASTIC_C1, dashpot_contact_time, dashpot_step
-from ..physics.models import MODELS
+from ..physics.laws import LAWS
 from ..scene import Scene
 from .accuracy import _trains_solver
 from .results import Estimate, FitResult
@@ -383,7 +382,6 @@ class _Problem:
             self.times[row, d.index] = d.times
             # Without stated uncertainties the jitter is the whole timing noise.
             self.detector[row, d.index] = d.sigma if d.sigma_known else 0.0
-        self.dashpot = law in MODELS
         # The step map depends on every parameter but v0 and the noise: the rows of a batch
         # that share these share one tabulated step map.
         self.step_columns = [i for i, n in enumerate(self.names) if n not in NOISE_PARAMETERS]
@@ -488,19 +486,17 @@ class _Problem:
             else:
                 priors.append(("v0", known_v0.value, known_v0.uncertainty))
                 self.notes.append("prior on v0 from the scene")
-        stiffness, mass = scene.stiffness, scene.mass
-        if self.law_name in MODELS and stiffness is not None and mass is not None \
-                and "v_star" not in fixed:
-            v_star = self.g / math.sqrt(stiffness.value / mass.value)
-            if stiffness.uncertainty is None and mass.uncertainty is None:
-                values["v_star"] = v_star
-                self.notes.append("stiffness and mass known exactly: v* = g/sqrt(k/m) fixed")
+        # The law's own parameter the scene knows (v* of a dashpot model from a known
+        # stiffness and mass): fixed, or a Gaussian prior.
+        known = (None if self.law.scene_prior is None
+                 else self.law.scene_prior(scene.stiffness, scene.mass, self.g))
+        if known is not None and known[0] not in fixed:
+            name, value, sd, note = known
+            if sd is None:
+                values[name] = value
             else:
-                # v* ∝ (m/k)^(1/2): relative sd half the relative sd of k/m.
-                relative = 0.5 * math.hypot((stiffness.uncertainty or 0.0) / stiffness.value,
-                                            (mass.uncertainty or 0.0) / mass.value)
-                priors.append(("v_star", v_star, v_star * relative))
-                self.notes.append("prior on omega0 from the known stiffness and mass")
+                priors.append((name, value, sd))
+            self.notes.append(note)
         for name, value in self.flight_fixed.items():
             if name not in fixed:
                 values[name] = value
@@ -539,23 +535,23 @@ class _Problem:
             return self.law.rebound(finite(speed), *law_params)
 
         contact = None
-        if self.dashpot:
-            rebound, contact = self._dashpot_maps(law_params, finite)
+        if self.law.contact is not None:
+            rebound, contact = self._contact_maps(law_params, finite)
         flight = self.flight_of(rows)
         return TrainModel(rebound, lambda v: flight(finite(v)), contact)
 
-    def _dashpot_maps(self, law_params, finite=lambda speed: speed, level="exact"):
-        """Rebound and contact-time maps of a dashpot model sharing one collision per speed
-        array (the filter asks both at the same speeds, one after the other); the collision
-        exact or from the surrogate tables of `level`."""
-        zeta, v_star = law_params
+    def _contact_maps(self, law_params, finite=lambda speed: speed, level="exact"):
+        """Rebound and contact-time maps of a law with a contact duration (a dashpot model)
+        sharing one evaluation of its ``contact`` per speed array (the filter asks both at
+        the same speeds, one after the other); exact or from the surrogate tables of
+        `level`."""
         last = {}
 
         def both(speed):
             if last.get("speed") is not speed:
                 last["speed"] = speed
-                last["value"] = dashpot_step(self.law_name, finite(speed), zeta, v_star, self.g,
-                                             level)
+                last["value"] = self.law.contact(finite(speed), *law_params, g=self.g,
+                                                 level=level)
             return last["value"]
 
         return (lambda speed: both(speed)[:2]), (lambda speed: both(speed)[2:])
@@ -566,8 +562,8 @@ class _Problem:
         collisions from the surrogate tables of `level` unless it is "exact"."""
         law_params = [law_rows[:, i] for i in range(len(self.law.parameters))]
         contact = None
-        if self.dashpot:
-            rebound, contact = self._dashpot_maps(law_params, level=level)
+        if self.law.contact is not None:
+            rebound, contact = self._contact_maps(law_params, level=level)
         else:
             def rebound(speed):
                 return self.law.rebound(speed, *law_params)
@@ -771,18 +767,9 @@ class _Problem:
         v0 = self.fixed.get("v0", rebound / eps)
         typical = v0 * eps ** (0.5 * data.count)
         start = {p.name: p.start for p in self.law.parameters}
-        name = self.law_name
-        if name == "constant":
-            start["e"] = eps
-        elif name in ("linear", "quadratic"):
-            start["e0"] = eps
-        elif name == "power":
-            start["a"] = eps
-        elif name == "viscoelastic-hertz":
-            start["kappa"] = (1.0 - eps) / (VISCOELASTIC_C1 * typical ** 0.2)
-        elif name == "hunt-crossley":
-            start["chi"] = 1.5 * (1.0 - eps) / typical
-        elif self.dashpot:
+        name = self.law.contact_model
+        if name is not None:
+            # A dashpot model's: from its deterministic fits.
             known = self.fixed.get("v_star")
             # Start values from the deterministic trains, by the fast surrogate trains at the
             # tabulated levels (a start needs no more).
@@ -795,6 +782,9 @@ class _Problem:
                 raise ValueError(f"no start values: {how}")
             start["zeta"], start["v_star"] = values["zeta"], self.g / values["omega0"]
             v0 = values["v0"]
+        elif self.law.start is not None:
+            # The law's own, from the first flights' restitution and a typical speed.
+            start.update(self.law.start(eps, typical))
         return ([start[p] for p in self.law.parameter_names] + list(self.flight_start.values())
                 + [v0, 0.0, 0.0])
 
@@ -1262,7 +1252,7 @@ class _Problem:
                        vary=name not in self.fixed)
             params[name].stderr = estimates[name].stderr
         kept = [fit_free[k] for k in keep]
-        if self.dashpot:
+        if self.law.derived is not None:
             self.derived(estimates, params_row, cov, kept)
         sigma_j = estimates["sigma_j"]
         if "sigma_j" not in self.fixed and params_row[self.index("sigma_j")] <= math.log(
@@ -1283,9 +1273,9 @@ class _Problem:
         curve_speed = np.geomspace(bottom, top, 200) if top > bottom else np.array([top])
         curve = self.law(curve_speed, *params_row[:len(self.law.parameters)])
         contact = np.zeros(speeds.size)
-        if self.dashpot:
-            contact = dashpot_contact_time(self.law_name, np.maximum(speeds, 0.0),
-                                           params_row[0], params_row[1], self.g)[0]
+        if self.law.contact is not None:
+            contact = self.law.contact(np.maximum(speeds, 0.0),
+                                       *params_row[:len(self.law.parameters)], g=self.g)[2]
         timing_sigma = np.sqrt(self.detector[t, observed] ** 2 + sigma_j.value ** 2)
         predicted_at = run.predicted_times[0, observed]
         # The first impact anchors the train: it predicts itself.
@@ -1409,40 +1399,41 @@ class _Problem:
         return tuple(float(np.clip(b, lower, upper)) for b in (low68, high68, low95, high95))
 
     def derived(self, estimates, row, cov, kept):
-        """ω0 = g/v* and β = ζω0 of a dashpot model.
+        """The law's derived quantities (:attr:`RestitutionLaw.derived`: ω0 = g/v* and β = ζω0
+        of a dashpot model).
 
-        ω0's intervals are v*'s mapped through g/v* (a monotone map keeps a profile
-        likelihood's intervals); its standard error and β's by linear propagation from the
-        covariance of the determined parameters `kept`. A fitted ζ or v* the data do not
-        determine makes them inf (β's intervals [0, inf]).
+        A quantity mapped from a parameter's interval (ω0 from v*'s: a monotone map keeps a
+        profile likelihood's intervals) takes those bounds; the others are Gaussian, clipped at
+        their physical lower bound. Standard errors by linear propagation from the covariance
+        of the determined parameters `kept`; a fitted parameter it depends on that the data do
+        not determine makes it inf (a propagated interval then [lower bound, inf]).
         """
-        zeta, v_star = row[0], row[1]
-        omega0 = self.g / v_star
-        undetermined = [i for i in (0, 1) if self.names[i] not in self.fixed and i not in kept]
-        gradients = {"omega0": np.zeros(len(kept)), "beta": np.zeros(len(kept))}
-        if 1 in kept:
-            gradients["omega0"][kept.index(1)] = -omega0 / v_star
-            gradients["beta"][kept.index(1)] = -zeta * omega0 / v_star
-        if 0 in kept:
-            gradients["beta"][kept.index(0)] = omega0
-        sd = {}
-        for name, gradient in gradients.items():
+        values = dict(zip(self.law.parameter_names, row[:len(self.law.parameters)]))
+        for quantity in self.law.derived(values, self.g):
+            depends = [self.index(name) for name in quantity.gradient]
+            undetermined = [i for i in depends if self.names[i] not in self.fixed
+                            and i not in kept]
+            gradient = np.zeros(len(kept))
+            for i, slope in zip(depends, quantity.gradient.values()):
+                if i in kept:
+                    gradient[kept.index(i)] = slope
             variance = gradient @ cov @ gradient if np.all(np.isfinite(cov)) else math.inf
-            sd[name] = (math.sqrt(variance) if np.isfinite(variance) and variance >= 0
-                        and not (undetermined if name == "beta" else 1 in undetermined)
-                        else math.inf)
-        star = estimates["v_star"]
-        with np.errstate(divide="ignore"):
-            bounds = [float(self.g / np.float64(v)) if v > 0 else math.inf
-                      for v in (star.high68, star.low68, star.high95, star.low95)]
-        estimates["omega0"] = Estimate(omega0, sd["omega0"], *bounds, "rad/s", "derived",
-                                       "omega0 = g/v_star (intervals from v_star's)")
-        beta, spread = zeta * omega0, sd["beta"]
-        low = (lambda z: max(beta - z * spread, 0.0)) if math.isfinite(spread) else (
-            lambda z: 0.0)
-        estimates["beta"] = Estimate(beta, spread, low(Z68), beta + Z68 * spread, low(Z95),
-                                     beta + Z95 * spread, "1/s", "derived",
-                                     "beta = zeta * omega0 (linear propagation)")
+            spread = (math.sqrt(variance) if np.isfinite(variance) and variance >= 0
+                      and not undetermined else math.inf)
+            value = quantity.value
+            if quantity.interval_of is not None:
+                source = estimates[quantity.interval_of]
+                ends = ((source.high68, source.low68, source.high95, source.low95)
+                        if quantity.decreasing else
+                        (source.low68, source.high68, source.low95, source.high95))
+                bounds = [quantity.through(b) for b in ends]
+            else:
+                floor = quantity.lower
+                low = ((lambda z: max(value - z * spread, floor)) if math.isfinite(spread)
+                       else (lambda z: floor))
+                bounds = [low(Z68), value + Z68 * spread, low(Z95), value + Z95 * spread]
+            estimates[quantity.name] = Estimate(value, spread, *bounds, quantity.unit,
+                                                "derived", quantity.note)
 
     def failed(self, t, message, notes):
         return failed_noise_fit(self.datasets[t], self.model_name, message, notes)

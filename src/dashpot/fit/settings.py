@@ -1,13 +1,16 @@
 """Settings shared by the fit's modules: fitted coordinates, intervals, optimizer and start-value
 settings, thresholds of the notes.
 
-They sit at the bottom of the fit's import graph (this module imports none of the others), so
-that the modules using them do not import each other in a circle.
+They sit at the bottom of the fit's import graph (this module imports none of the others, only
+the registry of restitution laws), so that the modules using them do not import each other in a
+circle.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from ..physics.laws import LADDER
 
 
 Z68, Z95 = 1.0, 2.0  # normal quantiles of the central 68.27 % and 95.45 % intervals
@@ -39,5 +42,6 @@ ZETA_ELASTIC_GRID = np.geomspace(1e-12, 1e-4, 33)
 WEAK_RELATIVE_ERROR = 0.5
 STRONG_CORRELATION = 0.98
 # The restitution-law ladder fitted under the noise model beside the dashpot models (``fit_scene``
-# with noise=True), simplest first: names of :data:`dashpot.physics.laws.LAWS`.
-NOISE_LAWS = ("constant", "linear", "quadratic", "power", "viscoelastic-hertz", "hunt-crossley")
+# with noise=True), simplest first: every law of :data:`dashpot.physics.laws.LAWS` without a
+# contact duration (a law added to the registry joins it).
+NOISE_LAWS = LADDER

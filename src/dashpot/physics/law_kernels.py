@@ -1,4 +1,5 @@
-"""Compiled kernels of the Hunt–Crossley law (:func:`dashpot.physics.laws.hunt_crossley_restitution`).
+"""Compiled kernels of the Hunt–Crossley law
+(:func:`dashpot.physics.laws.hunt_crossley.hunt_crossley_restitution`).
 
 Kept apart from :mod:`dashpot.physics.laws` so that importing the laws does not import numba:
 this module is loaded the first time the law is evaluated.
