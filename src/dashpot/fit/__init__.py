@@ -36,8 +36,13 @@ others):
 ``scene_fit``              :func:`fit_scene`: every model fitted, and the selection table
 ``joint_fit``              :func:`fit_runs`: each run of a multi-run table fitted on its own,
                            and :func:`fit_joint`: the runs fitted at once sharing ζ and ω0
+``noise_settings``         the noise fits' constants (at the bottom, as ``settings``)
+``noise_results``          NoiseFitResult, and the result of a noise fit that failed
+``noise_likelihood``       a noise fit's parameter layout and −2 ln L of many parameter sets
+                           at once (the law enters only through its registry spec)
+``newton``                 the noise fits' batched damped Newton optimizer
 ``noise_fit``              a law or model fitted under bounce-to-bounce scatter and timing
-                           jitter (:mod:`dashpot.likelihood`)
+                           jitter (:mod:`dashpot.likelihood`): starts, σ_ε, profiles, results
 ``noise_scene``            the law ladder and the models fitted under the noise model, for
                            ``fit_scene(..., noise=True)`` (selection in
                            :mod:`dashpot.noise_selection`)

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene import Scene
-from .noise_fit import _Problem, fit_noise_model
+from .noise_fit import fit_noise_model
+from .noise_likelihood import NoiseProblem
 
 __all__ = ["PredictionCheck", "prediction_band"]
 
@@ -135,7 +136,7 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
     if not fit.success:
         raise ValueError(f"the fit of {law!r} to the first {fitted} impacts failed: "
                          f"{fit.message}")
-    problem = _Problem([head], law, scene, {}, effects=effects)
+    problem = NoiseProblem([head], law, scene, {}, effects=effects)
     rng = np.random.default_rng(seed)
     rows = np.tile(_natural_row(fit, problem), (draws, 1))
     if parameter_uncertainty:

@@ -1,0 +1,524 @@
+"""The likelihood of a noise fit (:mod:`dashpot.fit.noise_fit`): a law's parameters, the flight's
+and the noise's laid out in rows, and −2 ln L of many rows at once.
+
+The likelihood is that of :class:`dashpot.likelihood.TrainModel` (an extended Kalman filter over
+impact time and speed, the start time integrated out), with the law's rebound (and, for a law
+with a contact duration, its contact time) from the registry :data:`dashpot.physics.laws.LAWS`
+and the flight's effects (:func:`dashpot.physics.flight.track_flight`) as columns of the step
+map. The law enters only through its spec: its parameters and bounds, ``rebound``, and the
+hooks ``contact``, ``scene_prior``, ``start`` and ``contact_model``.
+
+Accuracy. The filter needs, at every impact of every parameter set, the step to the next
+impact: duration D(u) = τ(u) + T(R(u)), next impact speed L(R(u)) and their slopes. At the
+"exact" level these are evaluated directly, impact by impact (a numpy loop over the impacts,
+one collision per step for a dashpot model). At "fast" and "standard" the step map of each
+distinct set of law parameters in a batch is tabulated once per likelihood call on a grid of
+speeds (GRID_BELOW to GRID_ABOVE times the speeds the intervals imply, 8 or 32 nodes per
+e-fold, :meth:`dashpot.likelihood.TrainModel.tabulate`; the dashpot models' collisions from
+the certified surrogate tables of that level) and the filter runs over its cubic Hermite
+interpolant in a compiled loop (:class:`dashpot.likelihood.StepTable`); a step the table
+cannot give (off the grid, or next to a speed where the ball is captured) is evaluated directly
+and patched in. Measured by benchmarks/bench_noise.py (every
+law on a 50-impact synthetic train and on the ping-pong recording), the fast level's step
+map is within 5e-7 (relative) of the direct one, its −2 ln L within 3e-4 and its fitted
+parameters within 5e-4 standard errors of the exact level's; the standard level's within
+2e-9, 2e-6 and 1e-5 to 1e-3 (varying from run to run: there the optimizer's own convergence
+dominates). "auto" fits at fast and
+checks at the best fit: where −2 ln L is more than LEVEL_LIKELIHOOD_TOLERANCE = 0.01 from the
+direct evaluation's, or a predicted time more than LEVEL_TIMING_TOLERANCE = 1 % of the
+smallest timing σ, it fits again at the next level (as the deterministic fits' "auto" takes
+the cheapest level that meets what the timing noise needs). A smooth error δ in −2 ln L moves
+the best fit by about δ's slope over the curvature: a δ of 0.01 varying on the scale of a
+standard error moves the parameters by about 0.01 of one. The result records the level
+(``accuracy``), the measured relative error of the step map on the train's speeds at the best
+fit (``error_bound``, 0 at "exact"; ``numerical_tolerance`` is that times the number of
+impacts, as in the deterministic fits), and the differences to the direct evaluation in the
+notes; the innovations, predictions and residuals reported are the direct filter's at the
+best fit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..likelihood import TrainModel
+from ..physics.flight import gravity_flight, track_flight
+from ..physics.laws import LAWS
+from .accuracy import _trains_solver
+from .noise_settings import (
+    DRAG_START,
+    DRAG_UPPER,
+    FILTER_FIELDS,
+    FRICTION_START,
+    FRICTION_UPPER,
+    GRID_ABOVE,
+    GRID_BELOW,
+    GRID_LOG_STEPS,
+    NOISE_PARAMETERS,
+    PATCHES,
+    SIGMA_EPS_FLOOR,
+    SIGMA_J_FLOOR,
+)
+from .start import _flight_ratio_start, _start_values
+
+__all__ = ["NoiseProblem"]
+
+
+class NoiseProblem:
+    """One law fitted to a batch of trains under the noise model: the parameter layout (the
+    law's parameters, the flight's, v0, ln σ_ε, ln σ_j), the objective −2 ln L with priors, at
+    the problem's accuracy level, and the start values. The fit itself is
+    :class:`dashpot.fit.noise_fit._Problem`."""
+
+    def __init__(self, datasets, law, scene, fixed, level="exact", effects=()):
+        self.datasets, self.law_name, self.law = datasets, law, LAWS[law]
+        self.model_name = law + "".join(f"+{effect}" for effect in effects)
+        self.level = level
+        self.accurate = {}  # train -> whether the level met its tolerances at the best fit
+        self.g = float(datasets[0].g)
+        if any(d.g != self.g for d in datasets):
+            raise ValueError("every data set of one batch must have the same g")
+        self.notes = []
+        flight_bounds = self._flight_setup(scene, effects)
+        self.names = self.law.parameter_names + tuple(self.flight_start) + NOISE_PARAMETERS
+        # Columns of the law's and the flight's parameters: the step map's own (with v0 they
+        # are the "mean" parameters).
+        self.law_count = len(self.law.parameters) + len(self.flight_start)
+        unknown = set(fixed) - set(self.names)
+        if unknown:
+            raise ValueError(f"cannot fix {sorted(unknown)[0]!r}: the parameters of law "
+                             f"{law!r} are {', '.join(self.names)}")
+        self.fixed, self.priors = self._known(scene, fixed)
+        self.priors += [p for p in self.flight_priors if p[0] not in fixed]
+        count = max(d.count for d in datasets)
+        # Times on the train's grid: NaN where an impact was missed (or the train is shorter).
+        self.times = np.full((len(datasets), count), np.nan)
+        self.detector = np.zeros((len(datasets), count))
+        for row, d in enumerate(datasets):
+            self.times[row, d.index] = d.times
+            # Without stated uncertainties the jitter is the whole timing noise.
+            self.detector[row, d.index] = d.sigma if d.sigma_known else 0.0
+        # The step map depends on every parameter but v0 and the noise: the rows of a batch
+        # that share these share one tabulated step map.
+        self.step_columns = [i for i, n in enumerate(self.names) if n not in NOISE_PARAMETERS]
+        implied = np.concatenate([0.5 * self.g * np.diff(d.times) / np.diff(d.index)
+                                  for d in datasets])
+        implied = implied[np.isfinite(implied) & (implied > 0.0)]
+        if implied.size == 0:
+            implied = np.array([1.0])
+        self.grid = (GRID_BELOW * float(np.min(implied)), GRID_ABOVE * float(np.max(implied)))
+        bounds = [(p.lower, p.upper) for p in self.law.parameters] + flight_bounds
+        # v0 > 0; ln σ floored (see SIGMA_*_FLOOR), capped at 50 % scatter and 1 s.
+        bounds += [(0.0, math.inf), (math.log(SIGMA_EPS_FLOOR), math.log(0.5)),
+                   (math.log(SIGMA_J_FLOOR), 0.0)]
+        self.lower, self.upper = (np.array(b, float) for b in zip(*bounds))
+        # Columns whose bounds limit the steps only (the objective is defined beyond them).
+        self.soft = (self.index("sigma_eps"), self.index("sigma_j"))
+        # Steps and starts keep a margin inside the law's and v0's bounds, so that the
+        # difference stencil around them is inside too: 1e-3 of a positive lower bound (v* of
+        # the dashpot models, on a log-like scale), else 1e-9 of the span.
+        span = np.where(np.isfinite(self.upper - self.lower), self.upper - self.lower, 0.0)
+        margin = np.where(self.lower > 0.0, 1e-3 * self.lower, 1e-9 * span)
+        soft = np.isin(np.arange(len(self.names)), self.soft)
+        self.step_lower = np.where(soft, self.lower, self.lower + margin)
+        self.step_upper = np.where(soft, self.upper, self.upper - 1e-9 * span)
+
+    # --- layout ---------------------------------------------------------------------------
+
+    def _flight_setup(self, scene, effects):
+        """The flight's fitted parameters: start values (``flight_start``, in column order),
+        priors (``flight_priors``) and fixed values (``flight_fixed``); returns their bounds.
+
+        k_d is a column where the scene models drag (its prior, or fixed where the scene
+        states C_d exactly) or where `effects` asks for drag (free, ≥ 0); g_eff and the
+        friction f where `effects` asks for friction (g_eff the scene's flight acceleration,
+        a prior or fixed). Without any, the flight is gravity's at g."""
+        self.flight_start, self.flight_priors, self.flight_fixed = {}, [], {}
+        bounds = []
+        drag = scene.drag if getattr(scene, "needs_drag", False) else None
+        if drag is not None:
+            known = drag.drag_constant
+            self.flight_start["k_d"] = known.value
+            bounds.append((0.0, max(DRAG_UPPER, 10.0 * known.value)))
+            if known.uncertainty is None:
+                self.flight_fixed["k_d"] = known.value
+                self.notes.append(f"air drag: k_d = {known.value:.4g} 1/m from the scene, "
+                                  f"held fixed; g_eff = {self.g:.5g} m/s²")
+            else:
+                self.flight_priors.append(("k_d", known.value, known.uncertainty))
+                self.notes.append(f"air drag: k_d fitted with the scene's prior "
+                                  f"{known.value:.4g} ± {known.uncertainty:.2g} 1/m (C_d prior); "
+                                  f"g_eff = {self.g:.5g} m/s²")
+        elif "drag" in effects:
+            self.flight_start["k_d"] = DRAG_START
+            bounds.append((0.0, DRAG_UPPER))
+            self.notes.append(
+                "air drag: k_d fitted free (>= 0), the scene gives no mass and diameter; "
+                "without them drag is degenerate with a speed-dependent restitution "
+                "(e = e0 - c v^2 fits about as well): its rung says whether the data need "
+                "either, not which")
+        if "friction" in effects:
+            known = scene.flight_acceleration
+            self.flight_start["g_eff"] = known.value
+            self.flight_start["friction"] = FRICTION_START * known.value
+            bounds += [(0.5 * known.value, 2.0 * known.value),
+                       (0.0, FRICTION_UPPER * known.value)]
+            if known.uncertainty is None:
+                self.flight_fixed["g_eff"] = known.value
+            else:
+                self.flight_priors.append(("g_eff", known.value, known.uncertainty))
+            self.notes.append(
+                "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - "
+                "friction fitted" + (" (g_eff fixed at the scene's)" if known.uncertainty is None
+                                     else " (the scene's g_eff a prior)"))
+        return bounds
+
+    def flight_of(self, rows):
+        """``flight(v) -> Flight`` at the flight parameters of rows (sets, P) (the columns
+        of the step map, or whole rows: the flight's come right after the law's)."""
+        start = len(self.law.parameters)
+        names = list(self.flight_start)
+        if not names:
+            return lambda v: gravity_flight(v, self.g)
+        column = {name: rows[:, start + k] for k, name in enumerate(names)}
+        k_d = column.get("k_d", 0.0)
+        g_eff = column.get("g_eff", self.g)
+        friction = column.get("friction", 0.0)
+        return lambda v: track_flight(v, g_eff + friction, g_eff - friction, k_d)
+
+    def flight(self, v):
+        """The flight at the start values of the flight parameters (for start values)."""
+        row = np.array([[*([0.0] * len(self.law.parameters)), *self.flight_start.values()]])
+        return self.flight_of(row)(v)
+
+    def _known(self, scene, fixed):
+        """Fixed values and Gaussian priors (name, centre, sd) from `fixed` and the scene."""
+        values, priors = {}, []
+        known_v0 = scene.known_impact_speed
+        if known_v0 is not None and "v0" not in fixed:
+            if known_v0.uncertainty is None:
+                values["v0"] = known_v0.value
+                self.notes.append("first impact speed known: v0 fixed")
+            else:
+                priors.append(("v0", known_v0.value, known_v0.uncertainty))
+                self.notes.append("prior on v0 from the scene")
+        # The law's own parameter the scene knows (v* of a dashpot model from a known
+        # stiffness and mass): fixed, or a Gaussian prior.
+        known = (None if self.law.scene_prior is None
+                 else self.law.scene_prior(scene.stiffness, scene.mass, self.g))
+        if known is not None and known[0] not in fixed:
+            name, value, sd, note = known
+            if sd is None:
+                values[name] = value
+            else:
+                priors.append((name, value, sd))
+            self.notes.append(note)
+        for name, value in self.flight_fixed.items():
+            if name not in fixed:
+                values[name] = value
+        for name, value in fixed.items():
+            value = float(value)
+            if name in ("sigma_eps", "sigma_j"):
+                if not value >= 0.0:
+                    raise ValueError(f"{name} must be >= 0; got {value!r}")
+                value = math.log(value) if value > 0.0 else -math.inf
+            values[name] = value
+        return values, priors
+
+    def index(self, name):
+        return self.names.index(name)
+
+    def free(self, *also_fixed):
+        return [i for i, name in enumerate(self.names)
+                if name not in self.fixed and name not in also_fixed]
+
+    # --- the objective ----------------------------------------------------------------------
+
+    def model(self, rows, broken):
+        """TrainModel of parameter rows (sets, P). Rows whose filter reaches a non-finite
+        speed (a train captured by a dashpot model: infinite contact time) are marked in
+        `broken` and carried on at speed 0, so one such row does not stop the batch."""
+        law_params = [rows[:, i] for i in range(len(self.law.parameters))]
+
+        def finite(speed):
+            speed = np.asarray(speed, dtype=float)
+            bad = ~np.isfinite(speed)
+            if bad.any():
+                np.logical_or(broken, bad, out=broken)
+            return np.where(bad, 0.0, speed)
+
+        def rebound(speed):
+            return self.law.rebound(finite(speed), *law_params)
+
+        contact = None
+        if self.law.contact is not None:
+            rebound, contact = self._contact_maps(law_params, finite)
+        flight = self.flight_of(rows)
+        return TrainModel(rebound, lambda v: flight(finite(v)), contact)
+
+    def _contact_maps(self, law_params, finite=lambda speed: speed, level="exact"):
+        """Rebound and contact-time maps of a law with a contact duration (a dashpot model)
+        sharing one evaluation of its ``contact`` per speed array (the filter asks both at
+        the same speeds, one after the other); exact or from the surrogate tables of
+        `level`."""
+        last = {}
+
+        def both(speed):
+            if last.get("speed") is not speed:
+                last["speed"] = speed
+                last["value"] = self.law.contact(finite(speed), *law_params, g=self.g,
+                                                 level=level)
+            return last["value"]
+
+        return (lambda speed: both(speed)[:2]), (lambda speed: both(speed)[2:])
+
+    def step_model(self, law_rows, level="exact"):
+        """TrainModel of rows (sets, len(step_columns)) of the step map's parameters, for
+        tabulation (its callables take speeds of shape (nodes, 1)); a dashpot model's
+        collisions from the surrogate tables of `level` unless it is "exact"."""
+        law_params = [law_rows[:, i] for i in range(len(self.law.parameters))]
+        contact = None
+        if self.law.contact is not None:
+            rebound, contact = self._contact_maps(law_params, level=level)
+        else:
+            def rebound(speed):
+                return self.law.rebound(speed, *law_params)
+        return TrainModel(rebound, self.flight_of(law_rows), contact)
+
+    def run_filter(self, rows, trains, broken=None, level=None):
+        """Kalman filter of parameter rows (sets, P) against the trains at rows `trains`, at
+        accuracy `level` (default the problem's). A step the tabulated map cannot give (off
+        its grid, or next to a captured node) is evaluated directly at its speed and patched
+        into the row's filter; a row that needs more than PATCHES of them is evaluated
+        directly."""
+        level = level or self.level
+        broken = np.zeros(rows.shape[0], bool) if broken is None else broken
+        arguments = self._filter_arguments(rows, trains)
+        if level == "exact":
+            return self.model(rows, broken).filter(self.times[trains], **arguments)
+        table, members = self.table(rows, level)
+        result, off, stop = table.filter(self.times[trains], members=members, **arguments)
+        index = np.flatnonzero(off)
+        patches = [[] for _ in index]
+        direct = []  # rows evaluated directly after all
+        for attempt in range(PATCHES + 1):
+            if not index.size:
+                break
+            # Where the table cannot give the step (next to a node where the ball is
+            # captured, or off the grid), it is evaluated directly at that speed: where it is
+            # not finite (captured) so is the direct filter's and the row is broken; else
+            # the row runs again with that step patched in, up to PATCHES times, and then
+            # directly.
+            speeds = stop[index]
+            usable = np.isfinite(speeds)
+            step = self.step_model(rows[index][:, self.step_columns], level).step(
+                np.where(usable, speeds, 0.0))
+            captured = np.broadcast_to(step[-1], index.shape) & usable
+            broken[index[captured]] = True
+            result.neg2_log_likelihood[index[captured]] = np.inf
+            patch = usable & ~captured & (attempt < PATCHES)
+            direct.append(index[~captured & ~patch])
+            patches = [previous + [(speed, [np.broadcast_to(q, index.shape)[k]
+                                            for q in step[:6]])]
+                       for k, (previous, speed) in enumerate(zip(patches, speeds)) if patch[k]]
+            index = index[patch]
+            if not index.size:
+                break
+            size = max(len(p) for p in patches)
+            patch_speed = np.full((index.size, size), np.nan)
+            patch_step = np.zeros((index.size, size, 6))
+            for k, rows_patches in enumerate(patches):
+                for m, (speed, values) in enumerate(rows_patches):
+                    patch_speed[k, m], patch_step[k, m] = speed, values
+            again, off, again_stop = table.filter(
+                self.times[trains[index]], members=members[index],
+                patches=(patch_speed, patch_step, np.array([len(p) for p in patches])),
+                **self._filter_arguments(rows[index], trains[index]))
+            for name in FILTER_FIELDS:
+                getattr(result, name)[index] = getattr(again, name)
+            stop[index] = again_stop
+            patches = [p for p, still in zip(patches, off) if still]
+            index = index[off]
+        index = np.concatenate(direct + [index]).astype(int)
+        if index.size:
+            part = np.zeros(index.size, bool)
+            exact = self.run_filter(rows[index], trains[index], part, "exact")
+            broken[index] = part
+            for name in FILTER_FIELDS:
+                getattr(result, name)[index] = getattr(exact, name)
+        return result
+
+    def _filter_arguments(self, rows, trains):
+        """The filter's start, noise and detector arguments of parameter rows (sets, P)."""
+        process, jitter = (np.exp(rows[:, self.index(n)]) for n in ("sigma_eps", "sigma_j"))
+        return dict(start_time=None, start_speed=rows[:, self.index("v0")],
+                    process_sigma=process, jitter=jitter, detector_sigma=self.detector[trains])
+
+    def table(self, rows, level):
+        """The step map of the distinct step parameters among `rows`, tabulated at `level`,
+        and which of them each row uses."""
+        keys = np.ascontiguousarray(rows[:, self.step_columns])
+        # Rows as opaque bytes: np.unique of those is several times faster than over axis 0.
+        _, first, members = np.unique(
+            keys.view(np.dtype((np.void, keys.dtype.itemsize * keys.shape[1]))).ravel(),
+            return_index=True, return_inverse=True)
+        table = self.step_model(keys[first], level).tabulate(*self.grid, GRID_LOG_STEPS[level])
+        return table, members.reshape(-1)
+
+    def level_errors(self, row, t):
+        """How far the problem's level is from the direct evaluation at parameter row `row`
+        of train `t`.
+
+        Returns
+        -------
+        relative : float
+            Largest relative error of the tabulated duration to the next impact and of the
+            next impact speed, at the quarter points of the grid intervals holding the
+            train's speeds (where a cubic Hermite interpolant's error peaks).
+        likelihood : float
+            |Δ(−2 ln L)| between the level's filter and the direct one.
+        timing : float
+            Largest |Δ predicted time| in s.
+        direct : TrainFilter
+            The direct filter at the row.
+
+        Notes
+        -----
+        The direct filter evaluates the exact step at each impact, one after the other (for
+        a dashpot model a collision of its own per impact: 15 ms a train). Here the exact
+        step is evaluated once, at every speed the level's filter passed through (and just
+        beyond the extremes), and the filter is run over its Hermite interpolant between
+        those speeds: the direct filter's speeds differ from them by the level's own error
+        (about 1e-9 relative), where the interpolant, exact at the speeds with its slope,
+        is off by the square of that. Where that filter still leaves its speeds it is run
+        directly.
+        """
+        rows, trains = row[None, :], np.array([t])
+        if self.level == "exact":
+            return 0.0, 0.0, 0.0, self.run_filter(rows, trains, level="exact")
+        tabulated = self.run_filter(rows, trains)
+        speeds = tabulated.filtered_speeds[0]
+        speeds = speeds[np.isfinite(speeds) & (speeds > 0.0)]
+        direct = None
+        if speeds.size:
+            nodes = np.unique(np.concatenate([speeds, [speeds.min() * (1.0 - 1e-6),
+                                                       speeds.max() * (1.0 + 1e-6)]]))
+            replay = self.step_model(row[None, self.step_columns]).tabulate_at(nodes)
+            direct, off, _ = replay.filter(self.times[trains], members=np.zeros(1, int),
+                                           **self._filter_arguments(rows, trains))
+            if off[0]:
+                direct = None
+        if direct is None:
+            direct = self.run_filter(rows, trains, level="exact")
+        table, _ = self.table(rows, self.level)
+        inside = ((table.nodes[:-1] <= np.max(speeds, initial=0.0))
+                  & (table.nodes[1:] >= np.min(speeds, initial=np.inf)))
+        left, right = table.nodes[:-1][inside], table.nodes[1:][inside]
+        probes = np.concatenate([left + f * (right - left) for f in (0.25, 0.5, 0.75)])
+        relative = 0.0
+        if probes.size:
+            exact = self.step_model(row[None, self.step_columns]).step(probes[:, None])
+            approx = table.interpolate(probes, 0)
+            for q in (0, 1):
+                value = exact[q][:, 0]
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    error = np.abs(approx[q] - value) / np.abs(value)
+                relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
+        likelihood = abs(float(tabulated.neg2_log_likelihood[0])
+                         - float(direct.neg2_log_likelihood[0]))
+        timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
+                                        - direct.predicted_times[0]), initial=0.0))
+        return relative, likelihood, timing, direct
+
+    def objective(self, rows, trains):
+        """−2 ln L (priors included) of rows (B, R, P) against trains (B,) → (B, R); inf where
+        a row is outside the bounds."""
+        batch, count, size = rows.shape
+        flat = rows.reshape(-1, size)
+        train = np.repeat(trains, count)
+        # The law's parameters and v0 inside their bounds (v0 > 0); ln σ anything but NaN or
+        # +inf (its bounds limit the steps only, so that the stencil may straddle the floor;
+        # −inf is a noise source fixed at 0).
+        bounded = self.law_count + 1
+        inside = flat[:, :bounded]
+        valid = (np.all(np.isfinite(inside), axis=1)
+                 & np.all(inside >= self.lower[:bounded], axis=1)
+                 & np.all(inside <= self.upper[:bounded], axis=1)
+                 & (flat[:, self.index("v0")] > 0.0)
+                 & np.all(np.isfinite(flat[:, bounded:]) | np.isneginf(flat[:, bounded:]),
+                          axis=1))
+        out = np.full(flat.shape[0], np.inf)
+        if valid.any():
+            chosen = flat[valid]
+            broken = np.zeros(chosen.shape[0], bool)
+            with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+                value = self.run_filter(chosen, train[valid], broken).neg2_log_likelihood
+            value = np.where(broken, np.inf, value)
+            for name, centre, sd in self.priors:
+                value = value + ((chosen[:, self.index(name)] - centre) / sd) ** 2
+            out[valid] = np.where(np.isfinite(value), value, np.inf)
+        return out.reshape(batch, count)
+
+    # --- start values -----------------------------------------------------------------------
+
+    def starts(self):
+        """Start rows (trains, P) of the law and v0; the noise columns are set by the caller."""
+        rows = np.zeros((len(self.datasets), len(self.names)))
+        for row, d in enumerate(self.datasets):
+            rows[row] = self._start(d)
+        for name, value in self.fixed.items():
+            rows[:, self.index(name)] = value
+        return rows
+
+    def _start(self, data):
+        intervals = np.diff(data.times) / np.diff(data.index)
+        eps = _flight_ratio_start(intervals, data.interval_flags[: intervals.size])
+        # The rebound after the first impact from its flight: T(v) = first interval, by Newton
+        # steps on the flight law (gravity or drag) from the gravity value.
+        rebound = 0.5 * self.g * intervals[0]
+        for _ in range(8):
+            flight = self.flight(np.array([rebound]))
+            rebound = max(rebound - float(flight.duration[0] - intervals[0])
+                          / float(flight.duration_slope[0]), 1e-6)
+        v0 = self.fixed.get("v0", rebound / eps)
+        typical = v0 * eps ** (0.5 * data.count)
+        start = {p.name: p.start for p in self.law.parameters}
+        name = self.law.contact_model
+        if name is not None:
+            # A dashpot model's: from its deterministic fits.
+            known = self.fixed.get("v_star")
+            # Start values from the deterministic trains, by the fast surrogate trains at the
+            # tabulated levels (a start needs no more).
+            solver = {} if self.level == "exact" else dict(
+                trains_solver=_trains_solver("fast", name)[0])
+            values, how = _start_values(name, data, v0 if "v0" in self.fixed else None,
+                                        None if known is None else self.g / known,
+                                        fit_v0="v0" not in self.fixed, **solver)
+            if values is None:
+                raise ValueError(f"no start values: {how}")
+            start["zeta"], start["v_star"] = values["zeta"], self.g / values["omega0"]
+            v0 = values["v0"]
+        elif self.law.start is not None:
+            # The law's own, from the first flights' restitution and a typical speed.
+            start.update(self.law.start(eps, typical))
+        return ([start[p] for p in self.law.parameter_names] + list(self.flight_start.values())
+                + [v0, 0.0, 0.0])
+
+    def units(self, rows):
+        """Initial coordinate units (about a standard error) of every parameter, per row."""
+        units = np.empty(rows.shape)
+        law_count = len(self.law.parameters)
+        for i in range(law_count):
+            span = self.upper[i] - self.lower[i]
+            units[..., i] = np.where(rows[..., i] != 0.0, 1e-3 * np.abs(rows[..., i]),
+                                     1e-4 * span)
+        # The flight's: k_d about its prior's sd (0.02 1/m for a ping-pong ball), the
+        # accelerations 1e-3 of g_eff.
+        for name in self.flight_start:
+            units[..., self.index(name)] = 1e-2 if name == "k_d" else 1e-3 * self.g
+        law_count = self.law_count
+        units[..., law_count] = 1e-3 * np.abs(rows[..., law_count])
+        units[..., law_count + 1:] = 0.3
+        return units
