@@ -303,15 +303,6 @@ def test_capstone_soft_bumper_every_run_rests_on_its_bumper(tmp_path, seed):
         assert np.all(np.abs(pull_v[np.isfinite(pull_v)]) <= 4.0), (label, pull_v)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured: above 50 Hz the motion reader finds almost nothing: on this cart's Capstone "
-    "export (30 seeds x 3 runs) at 100 Hz with 1 mm noise 8 impacts in all (of 360 timed at "
-    "50 Hz), at 200 Hz with 0.3 mm noise none; its central-difference velocity noise grows "
-    "with the rate (sigma_x/(sqrt(2)*dt)) and a soft contact's turn spans more samples than "
-    "a reversal may (2 + guard). A derivative over ~20 ms, tried, timed them in 83 of 90 runs "
-    "at 100 Hz and 90 of 90 at 200 Hz, but on hard carts at 100 Hz it also found contacts "
-    "while the cart was held (neighbouring differences share their noise, so two samples "
-    "beyond 4 sigma no longer rule out rest noise) and doubled two, so it is not in"))
 @pytest.mark.parametrize(("rate", "noise"), [(100.0, 1e-3), (200.0, 3e-4)])
 def test_capstone_soft_bumper_above_50_hz(tmp_path, rate, noise):
     """The paper's cart sampled at 100 and 200 Hz: in every run the four bounces of 0.36 m/s

@@ -73,6 +73,34 @@ def _bridge_gaps(state, starts, ends, values, max_gap):
     return np.where(np.repeat(fill, lengths), np.repeat(before, lengths), state)
 
 
+_DETECTION_PERIOD = 0.02  # s: contacts are found on one (mean) sample per 20 ms at most
+
+
+def _detection_step(dt):
+    """Samples per detection block for a sampling period `dt` (s): the whole number nearest
+    to _DETECTION_PERIOD/dt, at least 1.
+
+    The reversals, flights and rest are found on a velocity over a time scale, not a sample
+    count: central differences of samples Δt apart have noise σ_x/(√2·Δt), which at 100-400
+    Hz buries a cart's slower bounces, and a soft contact's turn spans more samples than a
+    reversal may. Means of `step` samples have noise σ_x/√step and their differences
+    σ_x/(√(2·step)·step·Δt), so at every rate the detection sees the record as a sensor at
+    about 50 Hz (the rate PASCO's motion sensor and Vernier's record at) with less noise.
+    """
+    return max(1, int(np.floor(_DETECTION_PERIOD / dt + 0.5)))
+
+
+def _block_means(time, values, step):
+    """Means of `values` over blocks of `step` consecutive samples (a trailing partial block
+    left out), with each block's first and last time. With step 1, the values themselves."""
+    if step == 1:
+        return values, time, time
+    blocks = time.size // step
+    shaped = values[: blocks * step].reshape(blocks, step)
+    times = time[: blocks * step].reshape(blocks, step)
+    return shaped.mean(axis=1), times[:, 0], times[:, -1]
+
+
 def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     """Where a fitted parabola meets the bumper position, with 1σ uncertainties.
 
@@ -106,31 +134,52 @@ def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
 def _motion_run(run, bumper_position, notes, legs):
     """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag)."""
     empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
-    time = run.time
+    full_time = run.time
+    full_n = full_time.size
+    if full_n < 12:
+        notes.append(f"run '{run.label or 0}': only {full_n} samples, no impacts looked for")
+        return empty
+    # Contacts, flights and rest are found on means of `step` consecutive samples, one per
+    # detection period (see _detection_step); every sample is fitted.
+    step = _detection_step(float(np.median(np.diff(full_time))))
+    time, block_first, block_last = _block_means(full_time, full_time, step)
     n = time.size
     if n < 12:
-        notes.append(f"run '{run.label or 0}': only {n} samples, no impacts looked for")
+        notes.append(f"run '{run.label or 0}': only {n} samples of {step} at the detection "
+                     f"period, no impacts looked for")
         return empty
+    if step > 1:
+        notes.append(f"run '{run.label or 0}': sampled at {1.0 / np.median(np.diff(full_time)):.4g}"
+                     f" Hz: contacts found on means of {step} consecutive samples (one per "
+                     f"{1e3 * _DETECTION_PERIOD:.0f} ms), flights fitted on every sample")
     dt = float(np.median(np.diff(time)))
     if "position" in run.columns:
-        x, x_res = run.columns["position"]
+        full_x, x_res = run.columns["position"]
+        x = _block_means(full_time, full_x, step)[0]
         # Velocity by central differences of the position: its noise statistics are then
         # known (σ_v = σ_x/(√2·Δt)), unlike a vendor's smoothed derivative. The third
-        # differences of a parabola vanish, so their spread is noise: var(Δ³x) = 20σ_x².
+        # differences of a parabola vanish, so their spread is noise: var(Δ³x) = 20σ_x²
+        # (block means of a parabola are a parabola plus a constant: theirs vanish too).
         w_raw = np.gradient(x, time)
-        sigma_x = max(_mad_sigma(np.diff(x, 3)) / np.sqrt(20.0),
-                      float(np.nanmax(x_res)) / np.sqrt(12.0))
+        floor = float(np.nanmax(x_res)) / np.sqrt(12.0)
+        sigma_x = max(_mad_sigma(np.diff(x, 3)) / np.sqrt(20.0), floor)
+        full_sigma_x = max(_mad_sigma(np.diff(full_x, 3)) / np.sqrt(20.0), floor)
         sigma_w = sigma_x / (np.sqrt(2.0) * dt)
         threshold, guard = 4.0 * sigma_w, 1
     else:
-        v, v_res = run.columns["velocity"]
+        full_v, v_res = run.columns["velocity"]
         # Velocity only: position up to a constant by integrating it (trapezoid rule). The
         # vendor's smoothing is unknown, so the threshold and guard are more generous.
-        x = cumulative_trapezoid(v, time, initial=0.0)
+        full_x = cumulative_trapezoid(full_v, full_time, initial=0.0)
+        x = _block_means(full_time, full_x, step)[0]
+        v = _block_means(full_time, full_v, step)[0]
         w_raw = v
         sigma_w = max(_mad_sigma(np.diff(v, 2)) / np.sqrt(6.0),
                       float(np.nanmax(v_res)) / np.sqrt(12.0))
         sigma_x = sigma_w * dt
+        full_sigma_x = max(_mad_sigma(np.diff(full_v, 2)) / np.sqrt(6.0),
+                           float(np.nanmax(v_res)) / np.sqrt(12.0)) * float(
+                               np.median(np.diff(full_time))) if step > 1 else sigma_x
         threshold, guard = 5.0 * sigma_w, 2
         notes.append(f"run '{run.label or 0}': no position column; position integrated from the "
                      f"velocity (its unknown smoothing leaves the uncertainties about 2x "
@@ -145,7 +194,11 @@ def _motion_run(run, bumper_position, notes, legs):
     orientation = 1.0 if np.median(steps) >= 0 else -1.0
     w, s = orientation * w_raw, orientation * x  # both grow toward the bumper
     # Toward (+1), away (−1) or neither (0, within noise: apex, rest) at each sample.
-    state = np.where(w > threshold, 1, np.where(w < -threshold, -1, 0)).astype(np.int8)
+    # The first and last central differences are one-sided, with twice the noise.
+    band = np.full(n, threshold)
+    if "position" in run.columns:
+        band[[0, -1]] *= 2.0
+    state = np.where(w > band, 1, np.where(w < -band, -1, 0)).astype(np.int8)
     starts, ends, values = _runs_of(state)
     lengths = ends - starts + 1
     count = starts.size
@@ -234,6 +287,12 @@ def _motion_run(run, bumper_position, notes, legs):
     segment = np.searchsorted(segment_lo, index, side="right") - 1
     inside = (segment >= 0) & (index <= segment_hi[np.clip(segment, 0, None)])
     segment = np.where(inside, segment, -1)
+    # The fits use every sample: each carries its block's flight label (samples after the
+    # last whole block, none).
+    full_s = orientation * full_x
+    full_index = np.arange(full_n)
+    full_segment = np.where(full_index < n * step,
+                            segment[np.minimum(full_index // step, n - 1)], -1)
 
     label = run.label or 0
 
@@ -256,11 +315,11 @@ def _motion_run(run, bumper_position, notes, legs):
             column = np.full(impacts + 1, -1)
             column[used] = np.arange(used.size)
             seg = labels[rows]
-            reference = (np.bincount(seg, weights=time[rows], minlength=impacts + 1)
+            reference = (np.bincount(seg, weights=full_time[rows], minlength=impacts + 1)
                          / np.maximum(counts, 1))
             if apex is not None:
                 reference = np.where(np.isfinite(apex), apex, reference)
-            tau = time[rows] - reference[seg]
+            tau = full_time[rows] - reference[seg]
             toward = tau >= 0
             # Two accelerations only where both legs are sampled well enough to tell them apart.
             split = apex is not None and min(int(toward.sum()), int((~toward).sum())) >= 3
@@ -288,10 +347,10 @@ def _motion_run(run, bumper_position, notes, legs):
                                     np.eye(gram.shape[0]), check_finite=False)
             except LinAlgError:  # rank-deficient (a degenerate flight): least norm
                 inverse = np.linalg.pinv(gram)
-            fitted = inverse @ (sparse.T @ s[rows]) if rows.size else np.zeros(design.shape[1])
+            fitted = inverse @ (sparse.T @ full_s[rows]) if rows.size else np.zeros(design.shape[1])
             return dict(rows=rows, usable=usable, column=column, reference=reference,
                         design=design, inverse=inverse, expand=expand, split=split,
-                        theta=expand @ fitted, residual=s[rows] - design @ fitted)
+                        theta=expand @ fitted, residual=full_s[rows] - design @ fitted)
 
         result = solve(labels >= 0)
         if result["rows"].size == 0:
@@ -300,28 +359,28 @@ def _motion_run(run, bumper_position, notes, legs):
         # sample means the flight ran into a contact that showed no clear reversal: the samples
         # after it belong to the next flight, so the flight is cut there (likewise at its
         # start).
-        outliers = np.zeros(n, dtype=bool)
-        outliers[result["rows"]] = np.abs(result["residual"]) > 5.0 * sigma_x
+        outliers = np.zeros(full_n, dtype=bool)
+        outliers[result["rows"]] = np.abs(result["residual"]) > 5.0 * full_sigma_x
         if outliers.any():
             flight = np.clip(labels, 0, None)
-            middle = (np.bincount(labels[labels >= 0], weights=index[labels >= 0],
+            middle = (np.bincount(labels[labels >= 0], weights=full_index[labels >= 0],
                                   minlength=impacts + 1)
                       / np.maximum(np.bincount(labels[labels >= 0], minlength=impacts + 1), 1))
-            late = outliers & (index > middle[flight])
-            early = outliers & (index < middle[flight])
-            cut_hi = np.full(impacts + 1, n)
+            late = outliers & (full_index > middle[flight])
+            early = outliers & (full_index < middle[flight])
+            cut_hi = np.full(impacts + 1, full_n)
             cut_lo = np.full(impacts + 1, -1)
-            np.minimum.at(cut_hi, flight[late], index[late])
-            np.maximum.at(cut_lo, flight[early], index[early])
-            selected = ((labels >= 0) & ~outliers & (index < cut_hi[flight])
-                        & (index > cut_lo[flight]))
+            np.minimum.at(cut_hi, flight[late], full_index[late])
+            np.maximum.at(cut_lo, flight[early], full_index[early])
+            selected = ((labels >= 0) & ~outliers & (full_index < cut_hi[flight])
+                        & (full_index > cut_lo[flight]))
             outliers = (labels >= 0) & ~selected
             result = solve(selected)
             if not result["usable"].any():
                 return None  # every flight cut below two samples: nothing left to fit
         rows, design, residual = result["rows"], result["design"], result["residual"]
         dof = rows.size - design.shape[1]
-        result["variance"] = float(residual @ residual / dof) if dof >= 3 else sigma_x ** 2
+        result["variance"] = float(residual @ residual / dof) if dof >= 3 else full_sigma_x ** 2
         # Correlated noise (a vendor's smoothing, an integrated velocity) makes s²(AᵀA)⁻¹ too
         # small: scale it by the long-run variance ratio 1 + 2Σρ_k of the residuals, lags 1-3
         # within a flight [6]_ (≈ 1 for white noise).
@@ -339,8 +398,8 @@ def _motion_run(run, bumper_position, notes, legs):
         result["samples"] = np.bincount(seg, minlength=impacts + 1)
         result["first"] = np.full(impacts + 1, np.nan)
         result["last"] = np.full(impacts + 1, np.nan)
-        np.fmin.at(result["first"], seg, time[rows])
-        np.fmax.at(result["last"], seg, time[rows])
+        np.fmin.at(result["first"], seg, full_time[rows])
+        np.fmax.at(result["last"], seg, full_time[rows])
         return result
 
     def apexes(result):
@@ -437,7 +496,7 @@ def _motion_run(run, bumper_position, notes, legs):
             result = legs
         return result
 
-    first = fit_legs(segment)
+    first = fit_legs(full_segment)
     if first is None:
         notes.append(f"run '{label}': no free motion between the impacts to fit")
         return empty
@@ -455,6 +514,8 @@ def _motion_run(run, bumper_position, notes, legs):
         # velocity drifts; there the stretch is the final one with no velocity beyond the
         # threshold, single-sample excursions (the one-sided derivative at the end doubles
         # the noise) not counting as motion.
+        # Found on the detection blocks: a 4σ excursion of one sample among the many of a
+        # fast record's tail is noise, not motion.
         if "position" in run.columns:
             settled = np.median(s[-min(20, n):])
             moved = np.flatnonzero(np.abs(s - settled) > 4.0 * sigma_x)
@@ -463,11 +524,23 @@ def _motion_run(run, bumper_position, notes, legs):
             calm = np.where(np.repeat(lengths == 1, lengths), 0, state)
             calm_starts, _, calm_values = _runs_of(calm)
             rest_start = calm_starts[-1] if calm_values[-1] == 0 else n
-        rest_start = max(rest_start, last_end + guard + 1)
-        tail = index >= rest_start + (n - rest_start) // 2
-        if tail.sum() >= 5 and np.median(s[tail]) > np.max(s[first["rows"]]) - 3.0 * sigma_x:
-            bumper = float(np.median(s[tail]))
-            var_bumper = (_MEDIAN_EFFICIENCY * sigma_x) ** 2 / tail.sum()
+        rest_start = step * max(rest_start, last_end + guard + 1)
+        tail = full_index >= rest_start + (full_n - rest_start) // 2
+        # The rest is at the bumper if no flight sample passes it by more than the noise
+        # would: the largest of N samples of Gaussian noise exceeds its mean by about
+        # σ·√(2·ln N) (extreme-value asymptotics), so the margin is that plus 3σ. On detection
+        # blocks the first and last of each flight may straddle a contact: only the flights'
+        # inner blocks are compared.
+        if step == 1:
+            compared = s[first["rows"]]
+        else:
+            inner = ((segment >= 0) & (np.roll(segment, 1) == segment)
+                     & (np.roll(segment, -1) == segment))
+            compared = s[inner] if inner.any() else s[segment >= 0]
+        margin = (3.0 + np.sqrt(2.0 * np.log(max(compared.size, 2)))) * sigma_x
+        if tail.sum() >= 5 and np.median(full_s[tail]) > np.max(compared) - margin:
+            bumper = float(np.median(full_s[tail]))
+            var_bumper = (_MEDIAN_EFFICIENCY * full_sigma_x) ** 2 / tail.sum()
             source = "rest"
             notes.append(f"run '{label}': bumper position {orientation * bumper:.5g} m from the "
                          f"resting tail ({tail.sum()} samples; a soft bumper's static "
@@ -502,22 +575,23 @@ def _motion_run(run, bumper_position, notes, legs):
     # Without a position column (integrated from a vendor's smoothed velocity) the samples
     # next to a contact are smeared: no cut moves more than a sample past the first pass's.
     reach = (guard + 1) * dt if "position" in run.columns else dt
-    turn_lo = np.fmax(time[np.clip(np.concatenate([[segment_lo[0]], troughs]), 0, n - 1)],
-                      time[np.clip(segment_lo, 0, n - 1)] - reach) - 1e-9
-    turn_hi = np.fmin(time[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
-                      time[np.clip(segment_hi, 0, n - 1)] + reach) + 1e-9
+    turn_lo = np.fmax(
+        block_first[np.clip(np.concatenate([[segment_lo[0]], troughs]), 0, n - 1)],
+        block_first[np.clip(segment_lo, 0, n - 1)] - reach) - 1e-9
+    turn_hi = np.fmin(block_last[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
+                      block_last[np.clip(segment_hi, 0, n - 1)] + reach) + 1e-9
     if "position" in run.columns:
         # The last flight runs until the cart is back at rest (its apex mirrored, when fitted):
         # its return may be too slow to pass the velocity threshold.
-        turn_hi[-1] = max(turn_hi[-1], time[np.clip(resting_from - 1, 0, n - 1)] + 1e-9)
+        turn_hi[-1] = max(turn_hi[-1], block_last[np.clip(resting_from - 1, 0, n - 1)] + 1e-9)
     lo_time = np.where(np.isfinite(lo_time), np.fmax(lo_time, turn_lo), turn_lo)
     hi_time = np.where(np.isfinite(hi_time), np.fmin(hi_time, turn_hi), turn_hi)
     lo_time = np.maximum.accumulate(lo_time)
-    refined = np.searchsorted(lo_time, time, side="right") - 1
-    keep = (refined >= 0) & (time > lo_time[np.clip(refined, 0, None)]) \
-        & (time < hi_time[np.clip(refined, 0, None)])
+    refined = np.searchsorted(lo_time, full_time, side="right") - 1
+    keep = (refined >= 0) & (full_time > lo_time[np.clip(refined, 0, None)]) \
+        & (full_time < hi_time[np.clip(refined, 0, None)])
     if "position" in run.columns:
-        keep &= s < bumper - 3.0 * np.sqrt(sigma_x ** 2 + var_bumper)
+        keep &= full_s < bumper - 3.0 * np.sqrt(full_sigma_x ** 2 + var_bumper)
         # One flight is one excursion from the bumper: where a cut spans several (bounces too
         # small to show a reversal), only its longest run of off-bumper samples is kept.
         same = np.concatenate([[False], keep[:-1] & keep[1:] & (refined[:-1] == refined[1:])])
@@ -590,7 +664,7 @@ def _motion_run(run, bumper_position, notes, legs):
     if "position" in run.columns and found[0].size and result["split"]:
         # The last bounces: too slow for a velocity reversal beyond the noise, but each still
         # an excursion from the bumper of two samples or more.
-        tail = _tail_excursions(time, s, bumper, var_bumper, sigma_x, result,
+        tail = _tail_excursions(full_time, full_s, bumper, var_bumper, full_sigma_x, result,
                                 float(found[0][-1]))
         if tail[0].size:
             notes.append(f"run '{label}': {tail[0].size} later contact(s) between excursions "
@@ -673,6 +747,14 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
     off = (s < bumper - margin) & (time > after)
     starts, ends, values = _runs_of(off.astype(np.int8))
     starts, ends = starts[values == 1], ends[values == 1]
+    # A single sample beyond the margin a sample or two from an excursion is its edge
+    # flickering with the noise (at 100 Hz and more an edge has many samples near the margin),
+    # not an excursion of its own: it is left out rather than ending the train.
+    single = ends == starts
+    near_before = np.concatenate([[False], (starts[1:] - ends[:-1] <= 2) & ~single[:-1]])
+    near_after = np.concatenate([(starts[1:] - ends[:-1] <= 2) & ~single[1:], [False]])
+    flicker = single & (near_before | near_after)
+    starts, ends = starts[~flicker], ends[~flicker]
     a_away, a_toward = fitted["theta"][:2]
 
     def fit(starts, ends):
@@ -844,6 +926,12 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     A sensor sampling at 20-50 Hz has one or two points near each hit, and those are smeared
     by the contact and by the derivative. They are not used. Instead:
 
+    0. Rate: steps 1-4 (and the resting tail of step 7) work on one reading per ~20 ms: a
+       record sampled faster (100-400 Hz) is read there as means of the nearest whole number
+       of consecutive samples (2 at 100 Hz, 4 at 200 Hz), whose central differences have
+       noise σ_x/(√(2k)·k·Δt) rather than σ_x/(√2·Δt), and on which a soft contact's turn
+       spans as many readings as at 50 Hz. The fits (steps 5-8) and the excursions below use
+       every sample, cut at times, not at blocks.
     1. Velocity: central differences of the position (noise σ_v = σ_x/(√2·Δt), with σ_x
        from the third differences, which vanish for free motion [4]_, and no smaller than the
        column's resolution over √12, the resolution being the smallest change between
