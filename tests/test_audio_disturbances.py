@@ -19,8 +19,9 @@ import pytest
 import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_faint_between, _fill_impacts, _move_to_causes,
-                                  _robust_trend, _shift_to_causes, _trim_growing_end)
+from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
+                                  _fill_impacts, _move_to_causes, _robust_trend,
+                                  _secondary_levels, _shift_to_causes, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -259,3 +260,50 @@ def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([1.3e-3]), probe, timed[-1] + 1.0)
     assert not retimed
+
+
+def test_a_spanning_last_interval_does_not_license_a_longer_one_after_it():
+    # Bounces shrinking by 0.9 down to 11 ms; the next impact is heard three bounces later
+    # (two missed in between), then a click 1.7 times that interval after it. Stepping the
+    # trend on from the spanning interval took the click for two more bounces.
+    times = np.cumsum(np.concatenate([[0.0], 0.1 * 0.9 ** np.arange(22)]))
+    bounce = times[-1] - times[-2]
+    times = np.append(times, times[-1] + bounce * (0.9 + 0.9**2 + 0.9**3))
+    times = np.append(times, times[-1] + 1.7 * (times[-1] - times[-2]))
+    sigma = np.full(times.size, 20e-6)
+    assert _trim_growing_end(times, sigma, 0.02) == times.size - 1
+
+
+def test_the_train_does_not_end_on_a_secondary_of_its_last_impacts():
+    # Bounces shrinking by 0.9, each followed 6.4 ms later by a ring burst at 0.8 of its
+    # loudness; the last burst is left, 0.9 times the last interval after the last impact.
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(20))
+    loudness = 0.5 * 0.93 ** np.arange(20)
+    delay = 0.9 * (impacts[-1] - impacts[-2])
+    times = np.append(impacts, impacts[-1] + delay)
+    amplitudes = np.append(loudness, 0.8 * loudness[-1])
+    kept = _drop_trailing_secondaries(times, amplitudes, np.array([delay]), np.array([0.8]))
+    assert kept == impacts.size
+    # A last bounce as loud as the impacts before it stays, whatever its delay: the sums of
+    # the last intervals come close to any delay.
+    louder = np.append(loudness, 0.93 * loudness[-1])
+    assert _drop_trailing_secondaries(times, louder, np.array([delay]),
+                                      np.array([0.3])) == times.size
+    # ... and so does a sound at no recurring delay.
+    assert _drop_trailing_secondaries(times, amplitudes, np.array([delay + 1e-3]),
+                                      np.array([0.8])) == times.size
+
+
+def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact():
+    # Impacts fading by 7 % per bounce, each with a ring 12 ms later at 0.35 of its loudness
+    # and, on every other impact, a click at 0.9 of it 30 ms later.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(12))
+    loudness = 0.5 * 0.93 ** np.arange(12)
+    times = np.concatenate([impacts, impacts + 12e-3, impacts[::2] + 30e-3])
+    amplitude = np.concatenate([loudness, 0.35 * loudness, 0.9 * loudness[::2]])
+    order = np.argsort(times)
+    chain = np.searchsorted(times[order], impacts)
+    levels = _secondary_levels(times[order], amplitude[order], chain,
+                               np.array([12e-3, 30e-3, 50e-3]))
+    np.testing.assert_allclose(levels[:2], [0.35, 0.9])
+    assert np.isnan(levels[2])  # no sound recurs at 50 ms

@@ -39,6 +39,9 @@ runs them over the file.
    echo since its start (:func:`_fill_impacts`); an impact whose onset does not rise out of
    that ring or echo is left out (a gap the fit flags as a missed impact), never placed where
    the trend predicts it: that would be circular evidence for the fit that follows.
+   The train then ends before its intervals grow (:func:`_trim_growing_end`) and does not
+   end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
+   that is no louder than such a secondary (:func:`_drop_trailing_secondaries`).
    There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
@@ -72,8 +75,9 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_fill_impacts, _fixed_delays, _louder_between, _probe, _robust_trend,
-                    _secondary_delays, _select_bounces, _trim_growing_end)
+from .chain import (_drop_trailing_secondaries, _fill_impacts, _fixed_delays, _louder_between,
+                    _probe, _robust_trend, _secondary_delays, _secondary_levels,
+                    _select_bounces, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
                        _process, _Settings, _Stream)
@@ -284,16 +288,17 @@ def _impact_table(path, stream, sample_rate, duration):
     if problem:
         raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     filled, retimed = [], {}
+
+    def probe(moment, tolerance, not_before=None):
+        return _probe(path, stream, moment, tolerance, timing, not_before)
+
     if chain.size >= 4:
         # The last impacts may have no trigger of their own: look for them in the file where
         # the trend, fitted on the timed impacts, puts them.
+        delays = _secondary_delays(rough, chain)
         coefficients, scatter = _robust_trend(times[order])
         filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients,
-                                        scatter, _secondary_delays(rough, chain),
-                                        lambda moment, tolerance, not_before=None: _probe(
-                                            path, stream, moment, tolerance, timing,
-                                            not_before),
-                                        duration)
+                                        scatter, delays, probe, duration)
         for position, result in retimed.items():
             if result is None:  # no onset of its own: left out below, a gap in the train
                 continue
@@ -317,11 +322,14 @@ def _impact_table(path, stream, sample_rate, duration):
     order = np.argsort(times)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
     clipped_flags = [clipped_flags[k] for k in order]
-    dropped_end = 0
+    dropped_end = dropped_secondaries = 0
     if times.size >= 5:
         _, scatter = _robust_trend(times)
-        kept = _trim_growing_end(times, sigmas, scatter)
-        dropped_end = times.size - kept
+        grown = _trim_growing_end(times, sigmas, scatter)
+        delays = _secondary_delays(rough, chain)
+        kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays,
+                                          _secondary_levels(rough, amplitude, chain, delays))
+        dropped_end, dropped_secondaries = times.size - grown, grown - kept
         times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
         clipped_flags = clipped_flags[:kept]
     table = pd.DataFrame({
@@ -371,6 +379,10 @@ def _impact_table(path, stream, sample_rate, duration):
         notes.append(f"{dropped_end} transients after the last impact left out: the interval "
                      f"before them grew beyond the timing noise and the ratios' scatter (a "
                      f"ball coming to rest bounces ever more often)")
+    if dropped_secondaries:
+        notes.append(f"{dropped_secondaries} transients at the end left out: they come at the "
+                     f"delay at which a ring's burst, a ring or an echo recurs after the impacts, "
+                     f"no louder than such a secondary")
     clipped = [i for i, flag in enumerate(clipped_flags) if flag]
     if clipped:
         notes.append(f"{len(clipped)} impacts clipped (flat tops): their amplitude is a lower "

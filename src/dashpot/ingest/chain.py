@@ -51,6 +51,7 @@ _CAUSE_FRACTION = 0.8  # a cause lies within this fraction of the interval befor
 _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this different
 _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
 # pulled early by up to the jitter (a ring or echo before them)
+_SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 
 
@@ -884,20 +885,78 @@ def _trim_growing_end(times, sigmas, scatter):
     return keep
 
 
+def _secondary_levels(times, amplitude, chain, delays):
+    """Loudness of the secondaries recurring at `delays` (s) after the impacts of `chain`,
+    relative to their impact: per delay, the median ratio of the amplitude of the loudest
+    transient within 1 ms of that delay after each impact (left out of the chain) to the
+    impact's amplitude; NaN where none is found."""
+    levels = np.full(delays.size, np.nan)
+    others = np.setdiff1d(np.arange(times.size), chain)
+    if others.size == 0:
+        return levels
+    impacts = times[chain]
+    for k, delay in enumerate(delays):
+        ratios = []
+        for member, moment in zip(chain, impacts):
+            lo, hi = np.searchsorted(times[others], [moment + delay - 1e-3,
+                                                     moment + delay + 1e-3])
+            if hi > lo:
+                ratios.append(amplitude[others[lo:hi]].max() / amplitude[member])
+        if ratios:
+            levels[k] = float(np.median(ratios))
+    return levels
+
+
+def _drop_trailing_secondaries(times, amplitudes, delays, levels):
+    """Number of impacts to keep: the train does not end on rings, bursts or echoes.
+
+    Past its last impact a ball's train falls silent, but the secondaries of the last impacts
+    (a ring's burst 5-8 ms after its impact, a ring, an echo) come on at the delays at which
+    they recur after every impact (`delays`, s, :func:`_secondary_delays`), where the last
+    intervals, a few ms long, make them look like the next bounces. The last member is
+    dropped while it lies within 0.3 ms of such a delay after an earlier member and is no
+    louder than twice what that secondary is after its impact (`levels`, the median
+    ratio, :func:`_secondary_levels`): the sums of the last intervals span the delays
+    closely, so the delay alone would take true last impacts too, but those are about as
+    loud as the impacts before them. At most a quarter of the impacts go.
+    """
+    keep = times.size
+    usable = np.isfinite(levels)
+    delays, levels = delays[usable], levels[usable]
+    if delays.size == 0:
+        return keep
+    while keep > max(4, int(0.75 * times.size)):
+        offsets = times[keep - 1] - times[:keep - 1, None] - delays[None, :]
+        expected = _SECONDARY_MARGIN * amplitudes[:keep - 1, None] * levels[None, :]
+        if not np.any((np.abs(offsets) < _PROBE_SECONDARY_SECONDS)
+                      & (amplitudes[keep - 1] <= expected)):
+            break
+        keep -= 1
+    return keep
+
+
 def _spans_missed_bounces(times, interval, allowed):
     """Whether `interval` (s) after `times` is two or three bounces of their trend.
 
     An impact lost under the ring of the one before (the last bounces barely rise over it)
     leaves an interval of two bounces, about twice the last one: not a growing interval.
-    The trend of the impacts before (:func:`_robust_trend`) steps the last interval on by
-    two and by three bounces; `interval` must match one of the sums to within `allowed`
+    The trend of the impacts before (:func:`_robust_trend`) steps the last bounce (the
+    shortest of the last three intervals, stepped on to the end) on by two and by three
+    bounces; `interval` must match one of the sums to within `allowed`
     (in log).
     """
     if times.size < 5:
         return False
     coefficients, _ = _robust_trend(times)
     step = _trend_step(coefficients, np.diff(times).min())
-    bounce, total = float(times[-1] - times[-2]), 0.0
+    # Stepped on from the shortest of the last three intervals, a single bounce: the last one
+    # may itself span missed bounces (or end on a ring), and stepping on from it would accept
+    # ever longer intervals after it.
+    recent = np.diff(times[-4:])
+    back = recent.size - 1 - int(np.argmin(recent))
+    bounce, total = float(recent.min()), 0.0
+    for _ in range(back):
+        bounce = step(bounce)
     for count in range(1, 4):
         bounce = step(bounce)
         total += bounce
