@@ -12,7 +12,9 @@ figures are off by default (``--plots`` draws them too); real data are off.
 
 ``make bench-batch`` runs 20 and 200 scenes at 2 cores (a few minutes);
 ``python benchmarks/bench_batch.py --scenes 1000`` the 1,000-scene row (minutes),
-``--scenes 20 --cores 1 2`` a quick look at both core counts.
+``--scenes 20 --cores 1 2`` a quick look at both core counts, and ``--slurm`` the same scenes
+through the SLURM profile on the local test cluster of ``make cluster-test`` (started by
+cluster/start.sh, root only; stopped again if this run started it), counting the SLURM jobs.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ WORKFLOW_FILES = ("Snakefile", "config", "workflow")
 # Issue 16's baseline: (scenes, cores) -> wall seconds before chunking, and the targets.
 BASELINE = {(20, 2): 57.0, (200, 2): 859.0, (1000, 2): 45 * 60.0}
 TARGETS = {20: "<= 10 s", 1000: "<= 180 s"}
+SLURM_TARGETS = {1000: "<= 300 s, <= 50 jobs"}
 NO_OP_TARGET = 10.0  # s, for 1,000 scenes
 MEMORY_TARGET = 1024.0  # MB, any job
 
@@ -80,7 +83,9 @@ def prepare(folder, config):
 
 
 def snapshot_package(folder):
-    """A copy of the dashpot sources, so that edits made during a long run cannot break it."""
+    """A copy of the dashpot sources, so that edits made during a long run cannot break it,
+    with its compiled kernels warmed by one small scene fitted with every model (numba caches
+    them beside the copy), so that no row pays for compiling them."""
     shutil.copytree(ROOT / "src" / "dashpot", folder / "dashpot",
                     ignore=shutil.ignore_patterns("__pycache__"))
     environment = {**os.environ, "PYTHONPATH": os.pathsep.join(
@@ -93,7 +98,7 @@ def snapshot_package(folder):
              " g=9.81, v0=1.5, n_max=6)\n"
              "    scene = workflow_scene('check', scene_file=write_synthetic_scene(d, spec,"
              " name='check'))\n"
-             "    analyze(scene.recording, scene, models=['IIb'])\n")
+             "    analyze(scene.recording, scene)\n")
     subprocess.run([sys.executable, "-c", check], env=environment, check=True)
     return environment
 
@@ -103,25 +108,58 @@ def _children_cpu():
     return usage.ru_utime + usage.ru_stime
 
 
-def run(folder, cores, environment=None, cpu=None):
-    """Run the workflow in `folder` on `cores` cores, echoing progress; returns wall seconds
-    (and appends the CPU seconds of the run and its jobs to the list `cpu`)."""
+def run(folder, cores, environment=None, cpu=None, slurm=False):
+    """Run the workflow in `folder` on `cores` cores (or through the SLURM profile), echoing
+    progress; returns wall seconds and the number of SLURM jobs submitted (and appends the
+    CPU seconds of the run and its local jobs to the list `cpu`)."""
     cpu_start = _children_cpu()
+    if slurm:
+        # As cluster/test.sh submits: squeue for the status (the test cluster keeps no
+        # accounting), first checked 2 s after submission.
+        options = ["--profile", str(folder / "workflow" / "profiles" / "slurm"),
+                   "--slurm-status-command", "squeue",
+                   "--slurm-init-seconds-before-status-checks", "2"]
+    else:
+        # As `make run` runs it: with the default profile (its scheduler), on `cores` cores.
+        options = ["--profile", str(folder / "workflow" / "profiles" / "default"),
+                   "--cores", str(cores)]
     command = [str(SNAKEMAKE), "--snakefile", str(folder / "Snakefile"), "--directory",
-               str(folder), "--cores", str(cores), "--quiet", "rules"]
+               str(folder), *options, "--quiet", "rules"]
+    label = "slurm" if slurm else f"{cores} core{'s' if cores > 1 else ''}"
+    submitted = 0
     start = time.perf_counter()
     with subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, env=environment,
                           stderr=subprocess.STDOUT, text=True) as process:
         for line in process.stdout:
+            submitted += "has been submitted with SLURM jobid" in line
             if "steps (" in line or "Error" in line:
-                print(f"  [{cores} core{'s' if cores > 1 else ''}] {line.strip()}", flush=True)
+                print(f"  [{label}] {line.strip()}", flush=True)
         status = process.wait()
     elapsed = time.perf_counter() - start
     if cpu is not None:
         cpu.append(_children_cpu() - cpu_start)
     if status != 0:
-        raise SystemExit(f"bench_batch: the workflow failed at {cores} core(s) (exit {status})")
-    return elapsed
+        raise SystemExit(f"bench_batch: the workflow failed ({label}, exit {status})")
+    return elapsed, submitted
+
+
+def slurm_environment(environment):
+    """Start the local test cluster (cluster/start.sh); its environment for the workflow and
+    whether this call started it (then :func:`stop_cluster` stops it)."""
+    cluster = ROOT / "cluster"
+    started = subprocess.run(["bash", str(cluster / "start.sh")], check=True, text=True,
+                             stdout=subprocess.PIPE).stdout.strip() == "started"
+    settings = subprocess.run(["bash", "-c", f"source {cluster / 'env.sh'} && "
+                               "printf '%s\\n%s' \"$CLUSTER_DIR\" \"$SLURM_CONF\""],
+                              check=True, text=True, stdout=subprocess.PIPE).stdout.split("\n")
+    cluster_dir, slurm_conf = settings[0], settings[1]
+    path = os.pathsep.join([f"{cluster_dir}/bin", str(SNAKEMAKE.parent),
+                            environment.get("PATH", os.environ["PATH"])])
+    return {**environment, "PATH": path, "SLURM_CONF": slurm_conf}, started
+
+
+def stop_cluster():
+    subprocess.run(["bash", str(ROOT / "cluster" / "stop.sh")], check=False)
 
 
 def peak_memory(folder):
@@ -145,25 +183,38 @@ def main(argv=None):
                         help="core counts to time (2)")
     parser.add_argument("--chunk-size", default="auto", help="config chunk_size (auto)")
     parser.add_argument("--plots", action="store_true", help="also draw per-scene figures")
+    parser.add_argument("--slurm", action="store_true",
+                        help="run through the SLURM profile on the local test cluster")
     args = parser.parse_args(argv)
     chunk_size = args.chunk_size if args.chunk_size == "auto" else int(args.chunk_size)
     rows = []
+    started = False
     with tempfile.TemporaryDirectory(prefix="dashpot-bench-batch-") as temporary:
         environment = snapshot_package(Path(temporary) / "src")
-        for count in args.scenes:
-            config = batch_config(count, plots=args.plots, chunk_size=chunk_size)
-            for cores in args.cores:
-                folder = prepare(Path(temporary) / f"scenes{count}-cores{cores}", config)
-                print(f"bench_batch: {count} scenes, {cores} core(s) in {folder}", flush=True)
-                cpu = []
-                seconds = run(folder, cores, environment, cpu)
-                rerun = run(folder, cores, environment)
-                chunks = len(list((folder / "results" / "benchmarks" / "fit_chunk")
-                                  .glob("*.tsv")))
-                rows.append((count, cores, seconds, cpu[0], rerun, chunks, peak_memory(folder)))
-                print(f"bench_batch: {count} scenes, {cores} core(s): {seconds:.1f} s, "
-                      f"no-op rerun {rerun:.1f} s", flush=True)
-                shutil.rmtree(folder, ignore_errors=True)
+        if args.slurm:
+            environment, started = slurm_environment(environment)
+        try:
+            for count in args.scenes:
+                config = batch_config(count, plots=args.plots, chunk_size=chunk_size)
+                for cores in [None] if args.slurm else args.cores:
+                    folder = prepare(Path(temporary) / f"scenes{count}-cores{cores}", config)
+                    print(f"bench_batch: {count} scenes in {folder}", flush=True)
+                    cpu = []
+                    seconds, submitted = run(folder, cores, environment, cpu, args.slurm)
+                    rerun, _ = run(folder, cores, environment, slurm=args.slurm)
+                    chunks = len(list((folder / "results" / "benchmarks" / "fit_chunk")
+                                      .glob("*.tsv")))
+                    rows.append((count, cores, seconds, cpu[0], rerun, chunks,
+                                 peak_memory(folder), submitted))
+                    print(f"bench_batch: {count} scenes: {seconds:.1f} s, "
+                          f"no-op rerun {rerun:.1f} s", flush=True)
+                    shutil.rmtree(folder, ignore_errors=True)
+        finally:
+            if started:
+                stop_cluster()
+    if args.slurm:
+        print_slurm_table(rows)
+        return 0
     print(f"\nWorkflow on small synthetic scenes (simulate + fit 5 models + summary"
           f"{' + figures' if args.plots else ''}; theory included), chunk_size {args.chunk_size},"
           f" {os.cpu_count()} CPUs available. Baseline: the workflow before chunking (one job "
@@ -173,7 +224,7 @@ def main(argv=None):
     print("| scenes | cores | fit chunks | wall (s) | CPU (s) | per scene (s) | baseline (s) | "
           "baseline / now | target | no-op rerun (s) | peak job memory (MB) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    for count, cores, seconds, cpu_seconds, rerun, chunks, memory in rows:
+    for count, cores, seconds, cpu_seconds, rerun, chunks, memory, _ in rows:
         baseline = BASELINE.get((count, cores))
         print(f"| {count} | {cores} | {chunks} | {seconds:.1f} | {cpu_seconds:.0f} | "
               f"{seconds / count:.3f} | "
@@ -183,6 +234,17 @@ def main(argv=None):
     print(f"\nTargets (issue 16): no-op rerun of 1,000 scenes <= {NO_OP_TARGET:.0f} s; peak "
           f"memory of any job <= {MEMORY_TARGET:.0f} MB.")
     return 0
+
+
+def print_slurm_table(rows):
+    print("\nWorkflow on small synthetic scenes through the SLURM profile on the local test "
+          "cluster (one node, the CPUs of this machine); SLURM jobs counted as submitted.\n")
+    print("| scenes | fit chunks | SLURM jobs | wall (s) | per scene (s) | target | "
+          "no-op rerun (s) | peak job memory (MB) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for count, _, seconds, _, rerun, chunks, memory, submitted in rows:
+        print(f"| {count} | {chunks} | {submitted} | {seconds:.1f} | {seconds / count:.3f} | "
+              f"{SLURM_TARGETS.get(count, '-')} | {rerun:.1f} | {memory:.0f} |")
 
 
 if __name__ == "__main__":

@@ -49,7 +49,7 @@ def test_help_constants_are_the_librarys():
 def test_adding_a_scene_moves_no_other_scene():
     names = [f"scene-{i:04d}" for i in range(1000)]
     size = auto_chunk_size(len(names))
-    assert size == 50
+    assert size == 150
     before = chunks(names, size)
     assert len(before) <= 50  # at most 50 jobs for 1,000 scenes
     after = chunks([*names, "one-more"], size)
@@ -60,7 +60,7 @@ def test_adding_a_scene_moves_no_other_scene():
 
 
 def test_automatic_sizes():
-    assert [auto_chunk_size(n) for n in (1, 8, 9, 20, 200, 10_000)] == [1, 1, 5, 10, 50, 50]
+    assert [auto_chunk_size(n) for n in (1, 8, 9, 20, 200, 10_000)] == [1, 1, 5, 10, 100, 150]
     assert chunks(["a", "b"], 1) == {"scene-a": ["a"], "scene-b": ["b"]}
     assert plots_wanted("auto", 100) and not plots_wanted("auto", 101)
     assert plots_wanted(True, 10_000) and not plots_wanted(False, 1)

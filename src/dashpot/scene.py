@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields, replace
+from functools import lru_cache
 from importlib.resources import files
 from pathlib import Path
 
@@ -346,10 +347,17 @@ _KNOWN_KEYS = ("mass", "stiffness", "first_impact_speed", "drop_height",
                "contact_time") + _DRAG_KEYS
 
 
-def _schema():
+@lru_cache(maxsize=1)
+def _validator():
+    """The scene schema's validator, built once per process: loading the schema and checking
+    it cost ten times a scene's validation, and a chunk of the workflow reads many scenes."""
+    import jsonschema
     import yaml
 
-    return yaml.safe_load(files("dashpot").joinpath("scene.schema.yaml").read_text())
+    schema = yaml.safe_load(files("dashpot").joinpath("scene.schema.yaml").read_text())
+    validator_class = jsonschema.validators.validator_for(schema)
+    validator_class.check_schema(schema)
+    return validator_class(schema)
 
 
 def _non_finite(value, where=()):
@@ -387,12 +395,12 @@ def scene_from_mapping(mapping, *, source="scene", base=None):
         The mapping does not follow the schema (which also bounds every number to a
         physically sensible range), or its values are inconsistent.
     """
-    import jsonschema
+    from jsonschema.exceptions import best_match
 
     mapping = dict(mapping or {})
-    try:
-        jsonschema.validate(mapping, _schema())
-    except jsonschema.ValidationError as error:
+    # As jsonschema.validate reports it: the most relevant of the errors.
+    error = best_match(_validator().iter_errors(mapping))
+    if error is not None:
         where = "/".join(str(part) for part in error.absolute_path) or "top level"
         message = error.message
         if len(message) > 200:  # the schema quotes the value: a 5000-digit number, a list

@@ -158,15 +158,16 @@ def _table(parent, name, table, units, dtypes=None):
     group = parent.create_group(name, track_order=True)
     group.attrs["columns"] = list(map(str, table.columns))
     dtypes = dtypes or {}
-    for column in table.columns:
-        _dataset(group, str(column), table[column].to_numpy(), units.get(column, "1"),
-                 dtypes.get(column))
-    scale = TABLE_SCALES.get(name)
-    if scale in group:
-        group[scale].make_scale(scale)
-        for column in group.attrs["columns"]:
-            if column != scale:
-                group[column].dims[0].attach_scale(group[scale])
+    # Kept by name: looking a dataset up in its group again costs more than writing it.
+    datasets = {str(column): _dataset(group, str(column), table[column].to_numpy(),
+                                      units.get(column, "1"), dtypes.get(column))
+                for column in table.columns}
+    scale = datasets.get(TABLE_SCALES.get(name))
+    if scale is not None:
+        scale.make_scale(TABLE_SCALES[name])
+        for column, dataset in datasets.items():
+            if column != TABLE_SCALES[name]:
+                dataset.dims[0].attach_scale(scale)
     return group
 
 

@@ -19,6 +19,9 @@ rule fit_chunk:
         "results/benchmarks/fit_chunk/{chunk}.tsv"
     wildcard_constraints:
         chunk=_names_pattern(CHUNKS),
+    # Fits first: the theory job, which nothing waits for, then runs beside the summary
+    # instead of holding a core while chunks wait.
+    priority: 10
     conda:
         "../envs/dashpot.yaml"
     script:

@@ -19,7 +19,6 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..physics import bounce_sequence
-from .audio import impact_sound, write_audio
 from .tables import (
     write_motion_sensor,
     write_phyphox_stopwatch,
@@ -108,6 +107,9 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
     directory.mkdir(parents=True, exist_ok=True)
     recording = directory / RECORDING_NAMES[kind]
     if kind == "audio":
+        # Imported here: the sound synthesis pulls in scipy.signal, which no other kind needs.
+        from .audio import impact_sound, write_audio
+
         sample_rate = options.pop("sample_rate", 44100)
         samples, onsets = impact_sound(sequence.impact_times, sequence.impact_speeds,
                                        sample_rate=sample_rate, seed=seed, **options)
