@@ -1,14 +1,16 @@
 """Wall time of the whole workflow on batches of small synthetic scenes (issue 16's table).
 
-Writes a config with N small synthetic scenes (timestamp tables of 8 impacts, parameters
-spread over a range of damping and stiffness, all five models fitted) into a temporary copy
-of the workflow, runs it per scene count and core count in a fresh copy (Snakemake's progress
-lines are shown), then runs it again (a no-op rerun: nothing to do), and prints a table: wall
-time, per scene, the no-op rerun, the fit chunks (jobs) and the peak memory of any job (max
-RSS from Snakemake's benchmark files), against the baseline: the workflow before chunking
-(one job per scene, commit 2ec3d7b), measured with this script on this machine (issue 16:
-20 scenes 57 s and 200 scenes 859 s at 2 cores; 1,000 extrapolated, 45 min). Per-scene
-figures are off by default (``--plots`` draws them too); real data are off.
+Writes a config with N small synthetic scenes (timestamp tables of 8 to 40 impacts,
+parameters spread over a range of damping and stiffness, all five models fitted, the noise
+model and the restitution-law ladder where a scene's fits need it, or on every scene with
+``--noise``) into a temporary copy of the workflow, runs it per scene count and core count in
+a fresh copy (Snakemake's progress lines are shown), then runs it again (a no-op rerun:
+nothing to do), and prints a table: wall time, per scene, the no-op rerun, the fit chunks
+(jobs) and the peak memory of any job (max RSS from Snakemake's benchmark files), against the
+baseline: the workflow before chunking (one job per scene, commit 2ec3d7b), measured with this
+script on this machine on scenes of 8 impacts, the cheapest here (issue 16: 20 scenes 57 s
+and 200 scenes 859 s at 2 cores; 1,000 extrapolated, 45 min). Per-scene figures are off by
+default (``--plots`` draws them too); real data are off.
 
 ``make bench-batch`` runs 20 and 200 scenes at 2 cores (a few minutes);
 ``python benchmarks/bench_batch.py --scenes 1000`` the 1,000-scene row (minutes),
@@ -46,8 +48,11 @@ NO_OP_TARGET = 10.0  # s, for 1,000 scenes
 MEMORY_TARGET = 1024.0  # MB, any job
 
 
-def batch_config(count, *, plots=False, chunk_size="auto"):
-    """The workflow config of `count` small synthetic scenes (deterministic)."""
+def batch_config(count, *, plots=False, chunk_size="auto", noise=False):
+    """The workflow config of `count` small synthetic scenes (deterministic): 8 to 40
+    impacts, the five dashpot models fitted; the noise model with the restitution-law ladder
+    where a scene's fits need it (the scenes' default, ``noise: auto``), or on every scene
+    (`noise` true, the config key)."""
     config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))
     models = ("Ib", "IIb", "hybrid")
     scenes = {}
@@ -58,13 +63,13 @@ def batch_config(count, *, plots=False, chunk_size="auto"):
         scenes[f"batch-{i:03d}"] = {
             "kind": "timestamps", "model": models[i % len(models)],
             "beta": round(zeta * omega0, 6), "omega0": round(omega0, 6), "g": 9.80665,
-            "v0": round(1.0 + 0.5 * math.sin(i), 6), "n_max": 8, "seed": i,
+            "v0": round(1.0 + 0.5 * math.sin(i), 6), "n_max": 8 + (13 * i) % 33, "seed": i,
             "options": {"uncertainty": 2.0e-5},
             "scene": {"apparatus": {"gravity": 9.80665}},
         }
     config.update({"synthetic": scenes, "real_data": False, "scenes": {},
                    "scene_plots": bool(plots), "scenes_dir": "no-scene-folders",
-                   "chunk_size": chunk_size})
+                   "chunk_size": chunk_size, "noise": bool(noise)})
     return config
 
 
@@ -183,6 +188,9 @@ def main(argv=None):
                         help="core counts to time (2)")
     parser.add_argument("--chunk-size", default="auto", help="config chunk_size (auto)")
     parser.add_argument("--plots", action="store_true", help="also draw per-scene figures")
+    parser.add_argument("--noise", action="store_true",
+                        help="fit the noise model and the restitution-law ladder on every "
+                             "scene (config noise: true), not only where a scene needs it")
     parser.add_argument("--slurm", action="store_true",
                         help="run through the SLURM profile on the local test cluster")
     args = parser.parse_args(argv)
@@ -195,7 +203,8 @@ def main(argv=None):
             environment, started = slurm_environment(environment)
         try:
             for count in args.scenes:
-                config = batch_config(count, plots=args.plots, chunk_size=chunk_size)
+                config = batch_config(count, plots=args.plots, chunk_size=chunk_size,
+                                      noise=args.noise)
                 for cores in [None] if args.slurm else args.cores:
                     folder = prepare(Path(temporary) / f"scenes{count}-cores{cores}", config)
                     print(f"bench_batch: {count} scenes in {folder}", flush=True)
@@ -215,7 +224,8 @@ def main(argv=None):
     if args.slurm:
         print_slurm_table(rows)
         return 0
-    print(f"\nWorkflow on small synthetic scenes (simulate + fit 5 models + summary"
+    ladder = "the ladder on every scene" if args.noise else "the ladder where needed"
+    print(f"\nWorkflow on small synthetic scenes (simulate + fit 5 models, {ladder} + summary"
           f"{' + figures' if args.plots else ''}; theory included), chunk_size {args.chunk_size},"
           f" {os.cpu_count()} CPUs available. Baseline: the workflow before chunking (one job "
           f"per scene, commit 2ec3d7b), issue 16's figures on this machine.\n")
