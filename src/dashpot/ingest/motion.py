@@ -101,6 +101,26 @@ def _block_means(time, values, step):
     return shaped.mean(axis=1), times[:, 0], times[:, -1]
 
 
+def _rest_start(s, sigma_x):
+    """Index where the final rest begins: after the last sample that has moved from where the
+    record ends (the median of its last 20 samples).
+
+    A sample has moved if it lies more than 4σ from there with a neighbour more than 3σ on
+    the same side, or more than 5.5σ alone: one sample of a resting cart's Gaussian noise
+    beyond 4σ is a 1-in-16 000 event, which a long resting tail meets one run in a hundred,
+    while beyond 5.5σ it is 1 in 26 million (and a neighbour beyond 3σ too, 1 in 10⁷).
+    """
+    offset = (s - np.median(s[-min(20, s.size):])) / sigma_x
+    near = np.zeros(s.size, dtype=bool)  # a neighbour beyond 3σ on the same side
+    same_high = (offset[1:] > 3.0) & (offset[:-1] > 3.0)
+    same_low = (offset[1:] < -3.0) & (offset[:-1] < -3.0)
+    both = same_high | same_low
+    near[1:] |= both
+    near[:-1] |= both
+    moved = np.flatnonzero(((np.abs(offset) > 4.0) & near) | (np.abs(offset) > 5.5))
+    return int(moved[-1]) + 1 if moved.size else 0
+
+
 def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     """Where a fitted parabola meets the bumper position, with 1σ uncertainties.
 
@@ -227,8 +247,7 @@ def _motion_run(run, bumper_position, notes, legs):
     # position stays within 4σ of where the record ends, the cart rests and a reversal there
     # would be noise.
     if "position" in run.columns:
-        moved_at_all = np.flatnonzero(np.abs(s - np.median(s[-min(20, n):])) > 4.0 * sigma_x)
-        resting_from = moved_at_all[-1] + 1 if moved_at_all.size else 0
+        resting_from = _rest_start(s, sigma_x)
     else:
         resting_from = 0
     keep = reversal & ((i <= i[resolved][-1]) | (ends[np.minimum(i + 1, count - 1)]
@@ -517,28 +536,32 @@ def _motion_run(run, bumper_position, notes, legs):
         # Found on the detection blocks: a 4σ excursion of one sample among the many of a
         # fast record's tail is noise, not motion.
         if "position" in run.columns:
-            settled = np.median(s[-min(20, n):])
-            moved = np.flatnonzero(np.abs(s - settled) > 4.0 * sigma_x)
-            rest_start = moved[-1] + 1 if moved.size else 0
+            rest_start = _rest_start(s, sigma_x)
         else:
             calm = np.where(np.repeat(lengths == 1, lengths), 0, state)
             calm_starts, _, calm_values = _runs_of(calm)
             rest_start = calm_starts[-1] if calm_values[-1] == 0 else n
         rest_start = step * max(rest_start, last_end + guard + 1)
         tail = full_index >= rest_start + (full_n - rest_start) // 2
-        # The rest is at the bumper if no flight sample passes it by more than the noise
-        # would: the largest of N samples of Gaussian noise exceeds its mean by about
-        # σ·√(2·ln N) (extreme-value asymptotics), so the margin is that plus 3σ. On detection
-        # blocks the first and last of each flight may straddle a contact: only the flights'
-        # inner blocks are compared.
+        # The rest is at the bumper if it is no farther from it than the flights come: than
+        # the median over flights of each one's sample nearest the bumper (a median, as a
+        # flight of the first pass may hold a contact's samples), less the noise of the
+        # largest of N samples, about σ·√(2·ln N) (extreme-value asymptotics), and 3σ. On
+        # detection blocks the first and last of each flight may straddle a contact: only the
+        # flights' inner blocks are compared.
         if step == 1:
-            compared = s[first["rows"]]
+            compared, owner = s[first["rows"]], full_segment[first["rows"]]
         else:
             inner = ((segment >= 0) & (np.roll(segment, 1) == segment)
                      & (np.roll(segment, -1) == segment))
-            compared = s[inner] if inner.any() else s[segment >= 0]
-        margin = (3.0 + np.sqrt(2.0 * np.log(max(compared.size, 2)))) * sigma_x
-        if tail.sum() >= 5 and np.median(full_s[tail]) > np.max(compared) - margin:
+            inner = inner if inner.any() else segment >= 0
+            compared, owner = s[inner], segment[inner]
+        nearest = np.full(impacts + 1, -np.inf)
+        np.maximum.at(nearest, owner, compared)
+        flights_reach = np.median(nearest[np.isfinite(nearest)])
+        per_flight = compared.size / max(np.isfinite(nearest).sum(), 1)
+        margin = (3.0 + np.sqrt(2.0 * np.log(max(per_flight, 2.0)))) * sigma_x
+        if tail.sum() >= 5 and np.median(full_s[tail]) > flights_reach - margin:
             bumper = float(np.median(full_s[tail]))
             var_bumper = (_MEDIAN_EFFICIENCY * full_sigma_x) ** 2 / tail.sum()
             source = "rest"
@@ -570,8 +593,11 @@ def _motion_run(run, bumper_position, notes, legs):
     # No cut moves past the samples where the velocity turned (the contact lies between
     # them); where a fit is missing, the cut is there, or the first pass's mirrored apex. A
     # flight of a few samples then keeps the samples next to its contacts, which the first
-    # pass's guard left out: with a position column, a sample more than 3σ short of the
-    # bumper is off it, so those count as free flight.
+    # pass's guard left out. The turn is where the velocity changes sign inside the contact,
+    # not where it peaks beside it: the peak is chosen by the noise of the samples next to
+    # the contact (a last free sample read short of the bumper makes the next difference
+    # peak), and a cut there would keep those samples more often when they read short, so
+    # impacts would be timed late and slow.
     # Without a position column (integrated from a vendor's smoothed velocity) the samples
     # next to a contact are smeared: no cut moves more than a sample past the first pass's.
     reach = (guard + 1) * dt if "position" in run.columns else dt
@@ -581,9 +607,19 @@ def _motion_run(run, bumper_position, notes, legs):
     turn_hi = np.fmin(block_last[np.clip(np.concatenate([peaks, [segment_hi[-1]]]), 0, n - 1)],
                       block_last[np.clip(segment_hi, 0, n - 1)] + reach) + 1e-9
     if "position" in run.columns:
+        away, toward = np.flatnonzero(w <= 0), np.flatnonzero(w >= 0)
+        if away.size:  # the first sample at or after each peak not moving toward the bumper
+            sign_in = away[np.minimum(np.searchsorted(away, peaks), away.size - 1)]
+            turn_hi[:-1] = block_last[np.where(sign_in >= peaks, sign_in, peaks)] + 1e-9
+        if toward.size:  # the last sample at or before each trough not moving away from it
+            sign_out = toward[np.maximum(np.searchsorted(toward, troughs, side="right") - 1, 0)]
+            turn_lo[1:] = block_first[np.where(sign_out <= troughs, sign_out, troughs)] - 1e-9
         # The last flight runs until the cart is back at rest (its apex mirrored, when fitted):
         # its return may be too slow to pass the velocity threshold.
         turn_hi[-1] = max(turn_hi[-1], block_last[np.clip(resting_from - 1, 0, n - 1)] + 1e-9)
+    # Cuts at a fitted contact time (or mirrored apex), not at the turn of the velocity.
+    lo_fitted = np.isfinite(lo_time) & (lo_time > turn_lo)
+    hi_fitted = np.isfinite(hi_time) & (hi_time < turn_hi)
     lo_time = np.where(np.isfinite(lo_time), np.fmax(lo_time, turn_lo), turn_lo)
     hi_time = np.where(np.isfinite(hi_time), np.fmin(hi_time, turn_hi), turn_hi)
     lo_time = np.maximum.accumulate(lo_time)
@@ -591,17 +627,31 @@ def _motion_run(run, bumper_position, notes, legs):
     keep = (refined >= 0) & (full_time > lo_time[np.clip(refined, 0, None)]) \
         & (full_time < hi_time[np.clip(refined, 0, None)])
     if "position" in run.columns:
-        keep &= full_s < bumper - 3.0 * np.sqrt(full_sigma_x ** 2 + var_bumper)
         # One flight is one excursion from the bumper: where a cut spans several (bounces too
-        # small to show a reversal), only its longest run of off-bumper samples is kept.
-        same = np.concatenate([[False], keep[:-1] & keep[1:] & (refined[:-1] == refined[1:])])
-        excursion = np.where(keep, np.cumsum(keep & ~same), 0)
+        # small to show a reversal), only its longest run of samples more than 3σ short of
+        # the bumper is kept, with the sample on each side of it: whether a sample is kept
+        # then never depends on its own noise (a sample kept only when it reads short of the
+        # bumper would time impacts late and slow), unless it reads 3σ past the bumper.
+        margin = 3.0 * np.sqrt(full_sigma_x ** 2 + var_bumper)
+        off = keep & (full_s < bumper - margin)
+        same = np.concatenate([[False], off[:-1] & off[1:] & (refined[:-1] == refined[1:])])
+        excursion = np.where(off, np.cumsum(off & ~same), 0)
         if excursion.max() > 0:
             length = np.bincount(excursion)[1:]
-            owner = refined[np.flatnonzero(keep & ~same)]
+            owner = refined[np.flatnonzero(off & ~same)]
             order = np.lexsort((-length, owner))
             longest = order[np.concatenate([[True], owner[order][1:] != owner[order][:-1]])]
-            keep &= np.isin(excursion, longest + 1)
+            chosen = np.isin(excursion, longest + 1)
+            same_flight = refined[1:] == refined[:-1]
+            # Only where the flight is cut at a fitted contact time: a cut at the turn of the
+            # velocity lies inside the contact.
+            flight = np.clip(refined, 0, None)
+            before = np.concatenate([chosen[1:] & same_flight, [False]]) & lo_fitted[flight]
+            after = np.concatenate([[False], chosen[:-1] & same_flight]) & hi_fitted[flight]
+            chosen = chosen | before | after
+            keep &= chosen & (full_s < bumper + margin)
+        else:
+            keep &= off
     second = fit_legs(np.where(keep, refined, -1))
     result = second if second is not None else first
     if source == "meet":
@@ -964,8 +1014,12 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
        (a contact the reversals missed). Covariance s²(AᵀA)⁻¹, scaled by the residuals'
        long-run variance ratio 1 + 2Σρ_k when the noise is correlated [6]_.
     6. Second pass: each flight is cut again at the *fitted* contact times (and the fitted
-       release), never past the samples where the velocity turned, keeping the samples next
-       to a contact whose position is more than 3σ short of the bumper (off it), and refitted.
+       release), never past the sample where the velocity changes sign inside the contact,
+       and refitted. Of the samples between the cuts, a flight keeps its longest run of
+       samples more than 3σ short of the bumper and the sample on either side of it (unless
+       3σ past the bumper): no sample is kept or left out for its own noise, which would time
+       impacts late and slow (a sample near a contact kept only when it reads short of the
+       bumper; the velocity's peak next to a contact is chosen by that noise too).
     7. Impact time: where the incoming parabola reaches the bumper position, i.e. the start
        of contact (the convention of :func:`dashpot.bounce_sequence`); the outgoing parabola
        leaves it at the end of contact. The bumper position is the ``bumper_position``
