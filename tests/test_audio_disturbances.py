@@ -307,3 +307,33 @@ def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact()
                                np.array([12e-3, 30e-3, 50e-3]))
     np.testing.assert_allclose(levels[:2], [0.35, 0.9])
     assert np.isnan(levels[2])  # no sound recurs at 50 ms
+
+
+def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onset():
+    # Impacts shrinking by 0.9; the ring of impact 10 recurs at a delay that puts it 0.9 ms
+    # before impact 12, whose onset was taken at the ring's start: on the trend (to well
+    # within its tolerance), but not the impact's own onset.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    delay = impacts[12] - impacts[10] - 0.9e-3
+    timed = impacts.copy()
+    timed[12] -= 0.9e-3
+    coefficients, scatter = _robust_trend(impacts)
+
+    def probe(predicted, tolerance, not_before=None):
+        # The file holds the impacts' onsets; past a ring's start only a later onset counts.
+        later = impacts[impacts > (not_before if not_before is not None else -np.inf)]
+        nearest = later[np.abs(later - predicted).argmin()]
+        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([delay]), probe, impacts[-1] + 1.0)
+    assert sorted(retimed) == [12] and not added
+    assert retimed[12][0] == impacts[12]
+
+    # Where no onset of its own rises out of the ring, the impact stays as timed.
+    def ring_only(predicted, tolerance, not_before=None):
+        return None if not_before is not None else probe(predicted, tolerance)
+
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([delay]), ring_only, impacts[-1] + 1.0)
+    assert not retimed

@@ -1004,7 +1004,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     began just before it: it is probed again at the predicted time, past that start, and past
     each further secondary the probe finds (an echo may be followed by a ring before the
     impact rises out of them); where no onset of its own rises out of them, the impact is
-    reported missing (a gap), not placed at the predicted time. A probed onset must lie within
+    reported missing (a gap), not placed at the predicted time. An impact within the tolerance
+    whose onset is that of such a secondary (the sound began less than the tolerance before
+    it) is timed again on an onset of its own rising out of it, where there is one, and kept
+    as timed where there is none. A probed onset must lie within
     the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
     not itself come at a secondary's delay after an earlier impact (an onset there is probed
     past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
@@ -1079,6 +1082,15 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
                 # anchor for the next ones.
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
+            elif (origin[i + 1] >= 0 and following < predicted < before
+                    and secondary(following, i)):
+                # On the trend, but its onset is that of a ring or an echo of an earlier
+                # impact beginning within the tolerance before it: timed again where an onset
+                # of its own rises out of that sound; kept as timed where none does.
+                result = peel(predicted, tolerance, following, before)
+                if result is not None:
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = result[0]
             elif (origin[i + 1] >= 0 and following - predicted > tolerance
                     and (secondary(following, i) or np.any(
                         (delays >= _CAUSE_DELAY_SECONDS[0])
