@@ -329,10 +329,11 @@ def test_capstone_soft_bumper_above_50_hz(tmp_path, rate, noise):
     "(its first impact timed 1.75 ms, 2.7 sigma, early), joint k = 250.9 +- 2.3 N/m 1.7 sigma "
     "below. The reader's impact-time bias is gone (600 runs of fresh seeds 20270125+: mean "
     "time pull +0.12 -> -0.02 +- 0.03, speed pull +0.02 -> +0.09 +- 0.04), but the joint "
-    "fit's pulls are not centred either way (80 fresh seeds 20269125+: k -0.00 -> +0.33 +- "
-    "0.14, beta -0.12 -> +0.16 +- 0.11; their spread 1.2-1.3, 85 % within 2 sigma: the "
-    "impacts of a run share the bumper position and leg accelerations, and their timing "
-    "errors are correlated, which the impact table does not carry)"))
+    "fit's pulls are not centred either way (240 fresh seeds, 20265125+, 20269125+, "
+    "20275125+: k -0.09 -> +0.26 +- 0.08, beta -0.19 -> +0.10 +- 0.06, spread 1.1-1.3 for "
+    "k: the impacts of a run share the bumper position and leg accelerations, and a flight "
+    "gives both the rebound speed before it and the impact speed after it, so their errors "
+    "are correlated, which the impact table does not carry)"))
 def test_capstone_three_runs_recover_the_truth(capstone_analysis):
     record = read_fit(capstone_analysis / "cart.h5")
     truth = {"beta": CART["beta"], "k": CART["mass"] * CART["omega0"] ** 2}
