@@ -42,6 +42,9 @@ _EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact tim
 _TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak transients too
 _EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
 _PROBE_WARMUP_SECONDS = 0.05  # high-pass settling before a probed stretch of the file
+_PROBE_RING_JUMP = 1.5  # a probed impact's power rises this much (1.8 dB) over a ring or echo
+# it starts inside: an impact about as loud as the sound it lands on adds as much again (3 dB),
+# a fainter one less; the stream's separation of sounds (3 dB) stays stricter
 _PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
 _CAUSE_DELAY_SECONDS = (_BACK_SEARCH_SECONDS, 0.2)  # of a ring's burst or an echo after its
 # impact; closer ones are the impact's own first arrival, which the rough onset looks back for
@@ -760,7 +763,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
         Channel on which the onset is fitted.
     not_before : float, optional
         Onset (s) of a ring or an echo that captured the impact's onset before: the onset is
-        looked for after it, as a sound of its own, whose power jumps 3 dB over the mean
+        looked for after it, as a sound of its own, whose power jumps 1.8 dB over the mean
         power since `not_before`.
 
     Returns
@@ -807,11 +810,11 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     min_jump = settings.min_jump / _WEAK_JUMP_FACTOR
     if not_before is not None:
         # Past the start of a ring or an echo, the level to jump over is that sound's, the
-        # mean power since it started, and by the 3 dB that tell a sound of its own.
+        # mean power since it started, and by the 1.8 dB that tell a sound of its own.
         since = max(int(np.ceil(not_before * sample_rate)) - offset, 0)
         quietest = np.maximum(quietest, (cumulative[triggers] - cumulative[since])
                               / (triggers - since))
-        min_jump = _RING_JUMP
+        min_jump = _PROBE_RING_JUMP
     jump = sta / np.maximum(quietest, 1.0)
     usable = (sta >= settings.min_power) & (jump >= min_jump)
     if not usable.any():
@@ -824,9 +827,9 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     rough = search + int(_onset_picks(power[search:trigger + settings.sta][None, :],
                                       np.zeros(1, dtype=np.int64), gap, settings.sta)[0])
     if not_before is not None:
-        # A sound of its own: its power jumps 3 dB over that of the sound since `not_before`.
+        # A sound of its own: its power jumps 1.8 dB over that of the sound since `not_before`.
         after = (cumulative[rough + settings.sta] - cumulative[rough]) / settings.sta
-        if rough - since < _AIC_MARGIN or after < _RING_JUMP * (
+        if rough - since < _AIC_MARGIN or after < _PROBE_RING_JUMP * (
                 cumulative[rough] - cumulative[since]) / (rough - since):
             return None
     # As in the stream, the fit window sits on the timing channel's own rough onset (the
