@@ -1,7 +1,9 @@
 """Selection among the fits under the noise model, by nested steps: which effects do the data
 require?
 
-Every law or model of the noise fits adds one effect to a simpler rung:
+Every law or model of the noise fits adds one effect to a simpler rung (the laws' and models'
+from their registry entries, :data:`dashpot.physics.laws.LAWS`; the flight effects' rungs from
+theirs, :data:`dashpot.physics.effects.FLIGHT_EFFECTS`, each with the note its verdict carries):
 
 ===========================================  ==================  =========================
 fit                                          effect              simpler rung
@@ -39,9 +41,11 @@ References
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
+from .physics.effects import FLIGHT_EFFECTS
 from .physics.laws import LAWS
 from .select import SELECTION_COLUMNS, _misfit_scale, selection_table
 
@@ -50,12 +54,35 @@ __all__ = ["noise_selection_table", "NOISE_SELECTION_COLUMNS", "NESTED_STEP_BIC"
 
 NESTED_STEP_BIC = 6.0
 BASE = "constant"
-# The laws' and models' rungs are their registry entries' (RestitutionLaw.simpler, .effect).
-SIMPLER = {**{name: law.simpler for name, law in LAWS.items() if law.simpler is not None},
-           "constant+drag": BASE, "constant+friction": BASE}
+
+
+class _Ladder(Mapping):
+    """``name -> value`` of every rung, read live from the registries: `law_field` of each
+    law or model with a simpler rung (RestitutionLaw.simpler, .effect), `effect_field` of each
+    flight effect's rung (FlightEffect.extends, .name)."""
+
+    def __init__(self, law_field, effect_field):
+        self._law_field, self._effect_field = law_field, effect_field
+
+    def _items(self):
+        return {**{name: getattr(law, self._law_field) for name, law in LAWS.items()
+                   if law.simpler is not None},
+                **{effect.rung: getattr(effect, self._effect_field)
+                   for effect in FLIGHT_EFFECTS.values()}}
+
+    def __getitem__(self, name):
+        return self._items()[name]
+
+    def __iter__(self):
+        return iter(self._items())
+
+    def __len__(self):
+        return len(self._items())
+
+
+SIMPLER = _Ladder("simpler", "extends")
 """The simpler rung of each law or model (see the module notes)."""
-EFFECTS = {**{name: law.effect for name, law in LAWS.items() if law.simpler is not None},
-           "constant+drag": "drag", "constant+friction": "friction"}
+EFFECTS = _Ladder("effect", "name")
 """The effect each law or model adds to its simpler rung."""
 NOISE_SELECTION_COLUMNS = SELECTION_COLUMNS + (
     "neg2_log_likelihood", "sigma_eps", "sigma_j", "effect", "simpler", "bic_gain", "kept",
@@ -185,15 +212,13 @@ def _verdict(results, table, chosen, base_ok, c_hat):
                                           "no effect beyond a constant restitution"))
     if not_required:
         parts.append(f"not required (ΔBIC < {NESTED_STEP_BIC:g}): " + ", ".join(not_required))
-    if "drag" in set(table["effect"]):
-        parts.append("drag without the ball's mass and diameter is degenerate with a "
-                     "speed-dependent restitution (e = e0 - c v^2 fits about as well)")
-    if "friction" in set(table["effect"]):
-        parts.append("friction from impact times alone is nearly degenerate with the "
-                     "restitution (both scale each flight's speed); the scene's prior on g_eff "
-                     "and a known first impact speed are what separate them")
-    k_d = fit.estimates.get("k_d")
-    if k_d is not None and k_d.status == "prior":
-        parts.append(f"air drag in every fit with the scene's C_d prior (k_d = "
-                     f"{k_d.value:.3g} ± {k_d.stderr:.2g} 1/m in {chosen})")
+    # Each flight effect's caveat where its rung was tried, then what the selected fit
+    # carries from the scene (drag with the scene's C_d prior).
+    tried = set(table["effect"])
+    parts += [effect.caveat for effect in FLIGHT_EFFECTS.values()
+              if effect.name in tried and effect.caveat]
+    for effect in FLIGHT_EFFECTS.values():
+        note = effect.carried(fit, chosen) if effect.carried is not None else None
+        if note:
+            parts.append(note)
     return "; ".join(parts)

@@ -6,10 +6,13 @@ deterministic fits and their selection are made as without it, and these fits ar
 them. Their criteria (AIC = −2 ln L + 2K, BIC = −2 ln L + K ln n) compare the noise fits among
 themselves only, never with the deterministic fits' χ²-based ones.
 
-Flight effects as rungs of the ladder (:mod:`dashpot.noise_selection`): where the scene gives no
-mass and diameter, ``constant+drag`` (the constant law with a free drag constant k_d ≥ 0) is
-fitted beside the constant law; with them every fit carries k_d with the scene's C_d prior and
-there is no drag rung. On cart and incline scenes (:attr:`dashpot.scene.Scene.tries_friction`)
+Flight effects as rungs of the ladder (:mod:`dashpot.noise_selection`): each effect of the
+registry :data:`dashpot.physics.effects.FLIGHT_EFFECTS` that the scene does not put in every
+fit and whose ``tried`` accepts the scene is fitted as a rung on the law it ``extends`` (the
+constant law), right after that law. Where the scene gives no mass and diameter,
+``constant+drag`` (the constant law with a free drag constant k_d ≥ 0) is fitted beside the
+constant law; with them every fit carries k_d with the scene's C_d prior and there is no drag
+rung. On cart and incline scenes (:attr:`dashpot.scene.Scene.tries_friction`)
 ``constant+friction`` adds the friction deceleration of the flights (a_away = g_eff + f,
 a_toward = g_eff − f, g_eff with the scene's prior), as the deterministic fits do.
 """
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..physics.effects import FLIGHT_EFFECTS
 from ..physics.laws import LAWS
 from .noise_fit import failed_noise_fit, fit_noise_model
 from .settings import NOISE_LAWS
@@ -50,10 +54,10 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None, accu
     Returns
     -------
     results : dict of str -> NoiseFitResult
-        Laws first (the flight's rungs ``constant+friction`` and ``constant+drag`` right after
-        the constant law, where fitted), then the models, each once. A fit that cannot be made (no start values,
-        a singular system) is kept with ``success`` false and its reason, as in the
-        deterministic fits.
+        Laws first (the flight effects' rungs right after the law they extend, the last
+        registered first: ``constant+friction``, ``constant+drag``), then the models, each
+        once. A fit that cannot be made (no start values, a singular system) is kept with
+        ``success`` false and its reason, as in the deterministic fits.
     table : pandas.DataFrame
     verdict : str
         Of :func:`dashpot.noise_selection.noise_selection_table`.
@@ -70,12 +74,12 @@ def fit_noise_scene(data, scene, models, laws=NOISE_LAWS, *, progress=None, accu
         raise ValueError(f"unknown restitution law or model {unknown[0]!r}; use "
                          f"{', '.join(LAWS)}")
     fits = [(law, law, ()) for law in dict.fromkeys(tuple(laws) + tuple(models))]
-    if "constant" in laws:
-        # The flight's effects as rungs on the constant law (module notes).
-        if not getattr(scene, "needs_drag", False):
-            fits.insert(1, ("constant+drag", "constant", ("drag",)))
-        if getattr(scene, "tries_friction", False):
-            fits.insert(1, ("constant+friction", "constant", ("friction",)))
+    # The flight's effects as rungs right after the law each extends (module notes): each
+    # inserted in front of the rungs before it.
+    for effect in FLIGHT_EFFECTS.values():
+        if effect.extends in laws and effect.has_rung(scene):
+            at = 1 + [name for name, _, _ in fits].index(effect.extends)
+            fits.insert(at, (effect.rung, effect.extends, (effect.name,)))
     results = {}
     for name, law, effects in fits:
         try:

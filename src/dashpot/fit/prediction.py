@@ -109,9 +109,10 @@ def prediction_band(data, law, scene=None, *, fitted_fraction=2.0 / 3.0, level=0
         below 0 is a continuation without that noise.
     seed : int
         Seed of the simulation.
-    effects : tuple of {"drag", "friction"}
-        Flight effects fitted beside the law, as in :func:`fit_noise_model` (a ladder rung
-        such as ``constant+drag`` is the law "constant" with ``effects=("drag",)``); the
+    effects : tuple of str
+        Flight effects of :data:`dashpot.physics.effects.FLIGHT_EFFECTS` fitted beside the law,
+        as in :func:`fit_noise_model` (a ladder rung such as ``constant+drag`` is the law
+        ``FlightEffect.extends`` with ``effects=(FlightEffect.name,)``); the
         continuations fly with the fitted (and, with `parameter_uncertainty`, drawn) ones.
 
     Returns

@@ -14,7 +14,9 @@ incline      −a_up away, +a_down back         u/a_up + u/√(a_up a_down)  u·
 track        −a_up ∓ k_d·v|v| away, back      see :func:`track_flight`   see there
 ===========  ===============================  =========================  ====================
 
-with w = u/v_t and v_t = √(g_eff/k_d) the terminal speed (in the drag row g is g_eff).
+with w = u/v_t and v_t = √(g_eff/k_d) the terminal speed (in the drag row g is g_eff). The
+fits' flight is the track law with the effects of :mod:`dashpot.physics.effects` entered into
+its coefficients (one module per effect, a registry of them).
 
 Drag: a sphere of mass m and volume V in air of density ρ feels its weight, the buoyancy ρVg,
 and the quadratic drag ½ρC_d A v², and moves the air around it, which adds C_m ρV to its

@@ -1,0 +1,170 @@
+"""Effects on the flight between impacts beyond gravity, as entries of a registry.
+
+Each effect changes the coefficients of the closed-form flight law
+:func:`dashpot.physics.flight.track_flight` (deceleration a_up away from the surface,
+acceleration a_down back, quadratic drag k_d; :class:`Track`), and the flight of a fit is that
+law with every effect it carries entered in the registry's order (:func:`flight_map`; gravity's
+flight where it carries none). The registry :data:`FLIGHT_EFFECTS` lists every effect with its
+parameters, how a scene sets them up in a fit, and its rung on the selection ladder.
+
+========  =====================================  ===================  ====================
+effect    acceleration it adds                   parameters           rung
+========  =====================================  ===================  ====================
+drag      −k_d·v|v|                              k_d (1/m)            ``constant+drag``
+friction  −f away, +f back; g_eff fitted         g_eff, f (m/s²)      ``constant+friction``
+========  =====================================  ===================  ====================
+
+Layout: one module per effect, each defining its effects as :class:`FlightEffect` specs in a
+tuple ``EFFECT_SPECS``; :data:`FLIGHT_EFFECTS` is built from the modules listed in
+``_MODULES`` (:mod:`.base` holds the types and knows no effect).
+
+A new effect is one new module here that defines ``EFFECT_SPECS = (FlightEffect(...),)`` (its
+name, the acceleration it adds, its parameters with units and default bounds and start, the
+vectorized ``enter(track, *params) -> Track``, a reference; where it needs them the ``setup``
+of its columns from scene keys (start, bounds, a prior or a fixed value, the fit's note),
+``in_scene`` where a scene puts it in every fit, ``tried`` where only some scenes' ladders try
+its rung, the law its rung ``extends`` and the verdict's ``caveat``), plus its module's name in
+``_MODULES``. The noise fits (:func:`dashpot.fit.fit_noise_model`, ``effects=(name,)``) then
+fit its parameters as columns of the step map, every scene's noise fits
+(:func:`dashpot.fit.noise_scene.fit_noise_scene`) fit its rung, and the noise selection
+(:mod:`dashpot.noise_selection`) compares the rung with the law it extends.
+:func:`register` adds an effect at run time, and all of those see it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from ..flight import gravity_flight, track_flight
+from . import drag as _drag
+from . import friction as _friction
+from .base import Column, EffectParameter, EffectSetup, FlightEffect, Track
+
+__all__ = ["FLIGHT_EFFECTS", "EFFECT_PARAMETERS", "Column", "EffectParameter", "EffectSetup",
+           "FlightEffect", "Track", "flight_map", "register", "unregister"]
+
+_MODULES = (_drag, _friction)
+"""The modules whose ``EFFECT_SPECS`` make the registry, in its order (the order of the fit's
+columns where a fit carries several)."""
+
+
+def _check(effect, known):
+    """ValueError where `effect` cannot join a registry holding the effects `known`."""
+    if not isinstance(effect, FlightEffect):
+        raise ValueError(f"a flight effect must be a FlightEffect; got {effect!r}")
+    if effect.name in known:
+        raise ValueError(f"flight effect {effect.name!r} is already registered")
+    if "+" in effect.name or not effect.name:
+        raise ValueError(f"flight effect name {effect.name!r} must be non-empty, without '+'")
+    if not effect.parameters or not callable(effect.enter):
+        raise ValueError(f"flight effect {effect.name!r} needs parameters and an enter function")
+    taken = {p for other in known.values() for p in other.parameter_names}
+    for p in effect.parameters:
+        if p.name in taken:
+            raise ValueError(f"flight effect {effect.name!r}: parameter {p.name!r} is another "
+                             f"effect's")
+        if not p.lower <= p.start <= p.upper:
+            raise ValueError(f"flight effect {effect.name!r}: start of {p.name} outside its "
+                             f"bounds [{p.lower}, {p.upper}]")
+    return effect
+
+
+def _registry(modules):
+    effects = {}
+    for module in modules:
+        for effect in module.EFFECT_SPECS:
+            effects[effect.name] = _check(effect, effects)
+    return effects
+
+
+FLIGHT_EFFECTS = _registry(_MODULES)
+"""Every flight effect by name, in the order a fit's columns take them."""
+
+
+class _Parameters(Mapping):
+    """Unit and meaning of every registered effect's parameters, by name (read live)."""
+
+    def _items(self):
+        return {p.name: (p.unit, p.description)
+                for effect in FLIGHT_EFFECTS.values() for p in effect.parameters}
+
+    def __getitem__(self, name):
+        return self._items()[name]
+
+    def __iter__(self):
+        return iter(self._items())
+
+    def __len__(self):
+        return len(self._items())
+
+
+EFFECT_PARAMETERS = _Parameters()
+"""``name -> (unit, description)`` of every registered effect's parameters."""
+
+
+def register(effect):
+    """Add `effect` to :data:`FLIGHT_EFFECTS` at run time (an effect of its own module joins at
+    import).
+
+    Parameters
+    ----------
+    effect : FlightEffect
+        A name not yet registered, parameters no other effect has, start values inside their
+        bounds.
+
+    Returns
+    -------
+    FlightEffect
+        `effect`, now ``FLIGHT_EFFECTS[effect.name]``: the noise fits, the scenes' ladders and
+        the noise selection see it from now on.
+
+    Raises
+    ------
+    ValueError
+        A name already taken or an incomplete effect.
+    """
+    FLIGHT_EFFECTS[effect.name] = _check(effect, FLIGHT_EFFECTS)
+    return effect
+
+
+def unregister(name):
+    """Remove an effect added by :func:`register`; the modules' effects stay.
+
+    Raises
+    ------
+    ValueError
+        `name` is not registered, or is one of the modules' effects.
+    """
+    if name not in FLIGHT_EFFECTS:
+        raise ValueError(f"no flight effect {name!r} is registered")
+    if any(name == effect.name for module in _MODULES for effect in module.EFFECT_SPECS):
+        raise ValueError(f"flight effect {name!r} is one of the built-in effects")
+    del FLIGHT_EFFECTS[name]
+
+
+def flight_map(effects, g, columns):
+    """The flight of a fit: ``flight(v) -> Flight`` with `effects` entered in order.
+
+    Parameters
+    ----------
+    effects : sequence of FlightEffect
+        The effects the fit carries, in the registry's order.
+    g : float
+        Acceleration towards the surface without them, in m/s².
+    columns : dict of str -> float or ndarray
+        Every effect's parameters by name (arrays: one value per parameter set).
+
+    Returns
+    -------
+    callable
+        ``flight(v)`` of launch speeds v in m/s: :func:`~dashpot.physics.flight.gravity_flight`
+        at g without effects, else :func:`~dashpot.physics.flight.track_flight` at the
+        coefficients the effects give.
+    """
+    if not effects:
+        return lambda v: gravity_flight(v, g)
+    track = Track(g)
+    for effect in effects:
+        track = effect.enter(track, *(columns[name] for name in effect.parameter_names))
+    up, down, drag = track.up, track.down, track.drag
+    return lambda v: track_flight(v, up, down, drag)

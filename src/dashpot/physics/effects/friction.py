@@ -1,0 +1,54 @@
+"""Rolling friction in flight on an incline: a cart decelerates at a_away = g_eff + f moving
+away from the bumper and accelerates at a_toward = g_eff − f on its way back.
+
+Both g_eff (the mean acceleration of the flights: g·sin θ on an incline, with the scene's prior
+from the stated angle, or held at a stated g_eff) and the friction deceleration f ≥ 0 are
+fitted; the rung ``constant+friction`` is tried on cart and incline scenes
+(:attr:`dashpot.scene.Scene.tries_friction`). From impact times alone f is nearly degenerate
+with the restitution (both scale each flight's speed): the prior on g_eff and a known first
+impact speed separate them. Flight law: :func:`dashpot.physics.flight.track_flight` (the
+incline row of :mod:`dashpot.physics.flight`, S. P. Bartz).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from .base import Column, EffectParameter, EffectSetup, FlightEffect
+
+__all__ = ["EFFECT_SPECS", "FRICTION_START", "FRICTION_UPPER"]
+
+FRICTION_START, FRICTION_UPPER = 1e-3, 0.5
+"""Start of f and its upper bound, as fractions of g_eff (a_toward = g_eff − f > 0)."""
+
+
+def _enter(track, g_eff, friction):
+    return dataclasses.replace(track, gravity=g_eff, away=track.away + friction,
+                               toward=track.toward + friction)
+
+
+def _setup(scene, g, requested):
+    if not requested:
+        return None
+    known = scene.flight_acceleration
+    exact = known.uncertainty is None
+    return EffectSetup(
+        (Column("g_eff", known.value, 0.5 * known.value, 2.0 * known.value,
+                prior=known.uncertainty, fixed=exact),
+         Column("friction", FRICTION_START * known.value, 0.0, FRICTION_UPPER * known.value)),
+        "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - friction "
+        "fitted" + (" (g_eff fixed at the scene's)" if exact else " (the scene's g_eff a prior)"))
+
+
+EFFECT_SPECS = (FlightEffect(
+    "friction", "∓f against the motion, g_eff fitted (rolling friction on an incline)",
+    (EffectParameter("g_eff", "m/s^2", "mean acceleration of the flights"),
+     EffectParameter("friction", "m/s^2", "friction deceleration of the flights")),
+    _enter,
+    "S. P. Bartz, \"Coefficient of restitution of a linear dashpot on a rigid surface\", "
+    "section \"Modeling experimental data\"",
+    setup=_setup,
+    tried=lambda scene: bool(getattr(scene, "tries_friction", False)),
+    caveat="friction from impact times alone is nearly degenerate with the restitution (both "
+           "scale each flight's speed); the scene's prior on g_eff and a known first impact "
+           "speed are what separate them"),)
