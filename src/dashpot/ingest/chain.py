@@ -20,7 +20,7 @@ from ..plausibility import ratio_trend
 from . import envelope as _envelope
 from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
-                       _MERGE_SECONDS, _RING_GAP_SECONDS, _RING_JUMP, _WEAK_JUMP_FACTOR,
+                       _MERGE_SECONDS, _RING_GAP_SECONDS, _WEAK_JUMP_FACTOR,
                        _onset_picks)
 from .onset import _onset_posterior
 

@@ -77,8 +77,8 @@ def _onset_posterior(windows, n_pre, sample_rate):
     likelihood of t0 is evaluated on a grid of quarter samples within 0.1 ms of the rough
     onset (and before the end of the rising edge, a quarter period of Ω, at most 0.25 ms)
     under a flat prior, and on a grid of 1/32 sample within a sample of its maximum. The
-    result does not depend on a template of the sound: only on the edge being smooth on the scale of the
-    transient's own frequencies.
+    result does not depend on a template of the sound: only on the edge being smooth on the
+    scale of the transient's own frequencies.
 
     Calibration: the residual variance gets a floor of (0.003·S)², since the polynomial
     follows a real edge only to a fraction of its peak (without it, onsets at 50-70 dB SNR
