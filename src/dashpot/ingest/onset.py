@@ -86,8 +86,13 @@ def _onset_posterior(windows, n_pre, sample_rate):
     quadrature to the 1σ (the posterior mean of synthetic modal onsets errs by a few
     hundredths of a sample, mostly late, which the posterior does not see). Both were set on
     synthetic trains other than those of the tests: 69-71 % of the true errors within 1σ,
-    93 % within 2σ; the 2σ coverage is capped by the ~4 % of faint impacts whose rough
-    onset a ring or an echo starting < 1.5 ms before them captured (errors of 0.04-1 ms).
+    93 % within 2σ. With the grid refined near the maximum (an onset just before a sample
+    was timed up to a sample early, 3-4 % of the impacts of disturbed trains), 100 disturbed
+    trains of a development block (seeds 20261125-20261224, :mod:`dashpot.synth.audio` with
+    apex clicks, rest tails, rings with bursts and echoes) have 92 % within 1σ and 96 % within
+    2σ: the posterior is wide on the sharp edges of synthetic modal sounds, and ~3 % of the
+    impacts, whose onset a ring, burst or echo starting < 1.5 ms before them captured, err by
+    0.06-1 ms.
     """
     n_windows, width = windows.shape
     back = max(4, int(np.ceil(_ONSET_BACK_SECONDS * sample_rate)))
