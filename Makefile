@@ -37,7 +37,8 @@ clean:
 
 # The whole workflow on 20 and 200 small synthetic scenes at 2 cores, each run and then
 # rerun (nothing to do), against the workflow before chunking (a few minutes); the 1,000
-# scene row: .venv/bin/python benchmarks/bench_batch.py --scenes 1000.
+# scene row: .venv/bin/python benchmarks/bench_batch.py --scenes 1000, and through SLURM on
+# the local test cluster (root): .venv/bin/python benchmarks/bench_batch.py --scenes 1000 --slurm.
 .PHONY: bench-batch
 bench-batch: $(STAMP)
 	$(BIN)/python benchmarks/bench_batch.py
