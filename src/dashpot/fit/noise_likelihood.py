@@ -40,19 +40,17 @@ best fit.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..likelihood import TrainModel
+from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed
+from ..physics.effects import FLIGHT_EFFECTS, flight_map
 from ..physics.flight import gravity_flight, track_flight
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
 from .noise_settings import (
-    DRAG_START,
-    DRAG_UPPER,
     FILTER_FIELDS,
-    FRICTION_START,
-    FRICTION_UPPER,
     GRID_ABOVE,
     GRID_BELOW,
     GRID_LOG_STEPS,
@@ -100,6 +98,26 @@ class NoiseProblem:
             self.times[row, d.index] = d.times
             # Without stated uncertainties the jitter is the whole timing noise.
             self.detector[row, d.index] = d.sigma if d.sigma_known else 0.0
+        # Measured impact and rebound speeds (a motion sensor's), on the same grid, with their
+        # variances: observations of the filter's state where a train has them
+        # (:func:`_speed_filter`); without any the filter sees the times alone.
+        self.impact_speed = np.full((len(datasets), count), np.nan)
+        self.rebound_speed = np.full((len(datasets), count), np.nan)
+        self.speed_variance = np.full((len(datasets), count), np.nan)
+        for row, d in enumerate(datasets):
+            self.impact_speed[row, d.index] = d.impact_speed
+            self.rebound_speed[row, d.index] = d.rebound_speed
+            self.speed_variance[row, d.index] = np.asarray(d.speed_sigma, float) ** 2
+        measured = np.isfinite(self.speed_variance) & (self.speed_variance > 0.0)
+        self.impact_speed[~measured] = np.nan
+        self.rebound_speed[~measured] = np.nan
+        self.has_speeds = bool(np.any(np.isfinite(self.impact_speed))
+                               or np.any(np.isfinite(self.rebound_speed)))
+        if self.has_speeds:
+            self.notes.append(
+                "measured impact and rebound speeds used as observations of the filter's "
+                "state, each with its stated sigma (taken as independent of the times and of "
+                "each other)")
         # The step map depends on every parameter but v0 and the noise: the rows of a batch
         # that share these share one tabulated step map.
         self.step_columns = [i for i, n in enumerate(self.names) if n not in NOISE_PARAMETERS]
@@ -131,48 +149,36 @@ class NoiseProblem:
         """The flight's fitted parameters: start values (``flight_start``, in column order),
         priors (``flight_priors``) and fixed values (``flight_fixed``); returns their bounds.
 
-        k_d is a column where the scene models drag (its prior, or fixed where the scene
-        states C_d exactly) or where `effects` asks for drag (free, ≥ 0); g_eff and the
-        friction f where `effects` asks for friction (g_eff the scene's flight acceleration,
-        a prior or fixed). Without any, the flight is gravity's at g."""
+        Each effect of the registry :data:`dashpot.physics.effects.FLIGHT_EFFECTS` that the
+        scene puts in every fit (drag where it gives the ball's mass and diameter) or that
+        `effects` asks for sets its columns up from the scene (its ``setup``: start, bounds, a
+        prior or a fixed value, and a note), in the registry's order (``flight_effects``).
+        Without any, the flight is gravity's at g.
+
+        ``flight_of`` is set here to the registry's flight map of those effects
+        (:func:`dashpot.physics.effects.flight_map`)."""
         self.flight_start, self.flight_priors, self.flight_fixed = {}, [], {}
+        self.flight_effects = []
         bounds = []
-        drag = scene.drag if getattr(scene, "needs_drag", False) else None
-        if drag is not None:
-            known = drag.drag_constant
-            self.flight_start["k_d"] = known.value
-            bounds.append((0.0, max(DRAG_UPPER, 10.0 * known.value)))
-            if known.uncertainty is None:
-                self.flight_fixed["k_d"] = known.value
-                self.notes.append(f"air drag: k_d = {known.value:.4g} 1/m from the scene, "
-                                  f"held fixed; g_eff = {self.g:.5g} m/s²")
-            else:
-                self.flight_priors.append(("k_d", known.value, known.uncertainty))
-                self.notes.append(f"air drag: k_d fitted with the scene's prior "
-                                  f"{known.value:.4g} ± {known.uncertainty:.2g} 1/m (C_d prior); "
-                                  f"g_eff = {self.g:.5g} m/s²")
-        elif "drag" in effects:
-            self.flight_start["k_d"] = DRAG_START
-            bounds.append((0.0, DRAG_UPPER))
-            self.notes.append(
-                "air drag: k_d fitted free (>= 0), the scene gives no mass and diameter; "
-                "without them drag is degenerate with a speed-dependent restitution "
-                "(e = e0 - c v^2 fits about as well): its rung says whether the data need "
-                "either, not which")
-        if "friction" in effects:
-            known = scene.flight_acceleration
-            self.flight_start["g_eff"] = known.value
-            self.flight_start["friction"] = FRICTION_START * known.value
-            bounds += [(0.5 * known.value, 2.0 * known.value),
-                       (0.0, FRICTION_UPPER * known.value)]
-            if known.uncertainty is None:
-                self.flight_fixed["g_eff"] = known.value
-            else:
-                self.flight_priors.append(("g_eff", known.value, known.uncertainty))
-            self.notes.append(
-                "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - "
-                "friction fitted" + (" (g_eff fixed at the scene's)" if known.uncertainty is None
-                                     else " (the scene's g_eff a prior)"))
+        for effect in FLIGHT_EFFECTS.values():
+            setup = effect.columns(scene, self.g, effect.name in effects)
+            if setup is None:
+                continue
+            self.flight_effects.append(effect)
+            for column in setup.columns:
+                self.flight_start[column.name] = column.start
+                bounds.append((column.lower, column.upper))
+                if column.fixed:
+                    self.flight_fixed[column.name] = column.start
+                elif column.prior is not None:
+                    self.flight_priors.append((column.name, column.start, column.prior))
+            self.notes.append(setup.note)
+        # The flight map from the registry (an instance attribute in front of the method
+        # below, which knows drag and friction by name only).
+        start, names = len(self.law.parameters), list(self.flight_start)
+        self.flight_of = lambda rows: flight_map(
+            self.flight_effects, self.g,
+            {name: rows[:, start + k] for k, name in enumerate(names)})
         return bounds
 
     def flight_of(self, rows):
@@ -236,10 +242,11 @@ class NoiseProblem:
 
     # --- the objective ----------------------------------------------------------------------
 
-    def model(self, rows, broken):
+    def model(self, rows, broken, level="exact"):
         """TrainModel of parameter rows (sets, P). Rows whose filter reaches a non-finite
         speed (a train captured by a dashpot model: infinite contact time) are marked in
-        `broken` and carried on at speed 0, so one such row does not stop the batch."""
+        `broken` and carried on at speed 0, so one such row does not stop the batch. A
+        dashpot model's collisions are exact, or from the surrogate tables of `level`."""
         law_params = [rows[:, i] for i in range(len(self.law.parameters))]
 
         def finite(speed):
@@ -254,7 +261,7 @@ class NoiseProblem:
 
         contact = None
         if self.law.contact is not None:
-            rebound, contact = self._contact_maps(law_params, finite)
+            rebound, contact = self._contact_maps(law_params, finite, level)
         flight = self.flight_of(rows)
         return TrainModel(rebound, lambda v: flight(finite(v)), contact)
 
@@ -295,6 +302,8 @@ class NoiseProblem:
         directly."""
         level = level or self.level
         broken = np.zeros(rows.shape[0], bool) if broken is None else broken
+        if self.has_speeds:
+            return self._run_speed_filter(rows, trains, broken, level)
         arguments = self._filter_arguments(rows, trains)
         if level == "exact":
             return self.model(rows, broken).filter(self.times[trains], **arguments)
@@ -350,6 +359,17 @@ class NoiseProblem:
                 getattr(result, name)[index] = getattr(exact, name)
         return result
 
+    def _run_speed_filter(self, rows, trains, broken, level):
+        """The filter of :func:`_speed_filter` (times and measured speeds) of parameter rows
+        (sets, P) against the trains at rows `trains`: the law and flight evaluated at every
+        step, a dashpot model's collisions exact or from the surrogate tables of `level`."""
+        process, jitter = (np.exp(rows[:, self.index(n)]) for n in ("sigma_eps", "sigma_j"))
+        timing_variance = self.detector[trains] ** 2 + jitter[:, None] ** 2
+        return _speed_filter(self.model(rows, broken, level), self.times[trains],
+                             timing_variance, self.impact_speed[trains],
+                             self.rebound_speed[trains], self.speed_variance[trains],
+                             rows[:, self.index("v0")], process)
+
     def _filter_arguments(self, rows, trains):
         """The filter's start, noise and detector arguments of parameter rows (sets, P)."""
         process, jitter = (np.exp(rows[:, self.index(n)]) for n in ("sigma_eps", "sigma_j"))
@@ -398,6 +418,8 @@ class NoiseProblem:
         rows, trains = row[None, :], np.array([t])
         if self.level == "exact":
             return 0.0, 0.0, 0.0, self.run_filter(rows, trains, level="exact")
+        if self.has_speeds:
+            return self._speed_level_errors(rows, trains)
         tabulated = self.run_filter(rows, trains)
         speeds = tabulated.filtered_speeds[0]
         speeds = speeds[np.isfinite(speeds) & (speeds > 0.0)]
@@ -425,6 +447,32 @@ class NoiseProblem:
                 value = exact[q][:, 0]
                 with np.errstate(invalid="ignore", divide="ignore"):
                     error = np.abs(approx[q] - value) / np.abs(value)
+                relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
+        likelihood = abs(float(tabulated.neg2_log_likelihood[0])
+                         - float(direct.neg2_log_likelihood[0]))
+        timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
+                                        - direct.predicted_times[0]), initial=0.0))
+        return relative, likelihood, timing, direct
+
+    def _speed_level_errors(self, rows, trains):
+        """:meth:`level_errors` of the filter with measured speeds, which evaluates the law
+        and flight at every step: only a dashpot model's collisions depend on the level
+        (its surrogate tables); the relative error is theirs (rebound speed and contact
+        time) at the filtered speeds."""
+        tabulated = self.run_filter(rows, trains)
+        if self.law.contact is None:
+            return 0.0, 0.0, 0.0, tabulated
+        direct = self.run_filter(rows, trains, level="exact")
+        speeds = direct.filtered_speeds[0]
+        speeds = speeds[np.isfinite(speeds) & (speeds > 0.0)]
+        relative = 0.0
+        if speeds.size:
+            law_params = [rows[:, i] for i in range(len(self.law.parameters))]
+            exact = self.law.contact(speeds, *law_params, g=self.g, level="exact")
+            approx = self.law.contact(speeds, *law_params, g=self.g, level=self.level)
+            for q in (0, 2):
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    error = np.abs(approx[q] - exact[q]) / np.abs(exact[q])
                 relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
         likelihood = abs(float(tabulated.neg2_log_likelihood[0])
                          - float(direct.neg2_log_likelihood[0]))
@@ -475,13 +523,24 @@ class NoiseProblem:
     def _start(self, data):
         intervals = np.diff(data.times) / np.diff(data.index)
         eps = _flight_ratio_start(intervals, data.interval_flags[: intervals.size])
+        flight_start, flight = dict(self.flight_start), self.flight
+        measured = self._friction_from_speeds(data) if self.has_speeds else None
+        if measured is not None:
+            # The flights' two accelerations from the measured speeds; the interval ratio is
+            # ε times the flight's speed ratio √(a_toward/a_away).
+            flight_start.update(measured)
+            row = np.array([[*([0.0] * len(self.law.parameters)), *flight_start.values()]])
+            flight = self.flight_of(row)
+            ratio = math.sqrt((measured["g_eff"] - measured["friction"])
+                              / (measured["g_eff"] + measured["friction"]))
+            eps = float(np.clip(eps / ratio, 1e-3, 1.0 - 1e-9))
         # The rebound after the first impact from its flight: T(v) = first interval, by Newton
         # steps on the flight law (gravity or drag) from the gravity value.
         rebound = 0.5 * self.g * intervals[0]
         for _ in range(8):
-            flight = self.flight(np.array([rebound]))
-            rebound = max(rebound - float(flight.duration[0] - intervals[0])
-                          / float(flight.duration_slope[0]), 1e-6)
+            flight_now = flight(np.array([rebound]))
+            rebound = max(rebound - float(flight_now.duration[0] - intervals[0])
+                          / float(flight_now.duration_slope[0]), 1e-6)
         v0 = self.fixed.get("v0", rebound / eps)
         typical = v0 * eps ** (0.5 * data.count)
         start = {p.name: p.start for p in self.law.parameters}
@@ -503,8 +562,45 @@ class NoiseProblem:
         elif self.law.start is not None:
             # The law's own, from the first flights' restitution and a typical speed.
             start.update(self.law.start(eps, typical))
-        return ([start[p] for p in self.law.parameter_names] + list(self.flight_start.values())
+        return ([start[p] for p in self.law.parameter_names] + list(flight_start.values())
                 + [v0, 0.0, 0.0])
+
+    def _friction_from_speeds(self, data):
+        """Start values of g_eff and the friction f of a train with measured speeds (None
+        without friction in the fit, or without two flights whose both ends are measured).
+
+        A flight after rebound speed v_n (decelerating at a_away = g_eff + f) returns at
+        u_{n+1} = ρ·v_n, ρ = √(a_toward/a_away), and lasts T_n = v_n/a_away + u_{n+1}/a_toward
+        = v_n(1 + ρ)/(ρ·a_away) (:func:`dashpot.physics.flight.track_flight` without drag): ρ
+        and K = T_n/v_n by least squares through the origin over the flights, then
+        a_away = (1 + ρ)/(ρK), g_eff = a_away(1 + ρ²)/2 and f = a_away(1 − ρ²)/2, f kept
+        between its own start value and half its upper bound (the fit starts inside them).
+        Where the flight has drag too, None."""
+        if "friction" not in self.flight_start or "k_d" in self.flight_start:
+            return None
+        flights = np.flatnonzero(np.diff(data.index) == 1)
+        launch, landing = data.rebound_speed[flights], data.impact_speed[flights + 1]
+        duration = np.diff(data.times)[flights]
+        usable = (np.isfinite(launch) & np.isfinite(landing) & (launch > 0.0)
+                  & (landing > 0.0) & (duration > 0.0))
+        if np.sum(usable) < 2:
+            return None
+        launch, landing, duration = launch[usable], landing[usable], duration[usable]
+        ratio = float(np.sum(landing * launch) / np.sum(launch * launch))
+        per_speed = float(np.sum(duration * launch) / np.sum(launch * launch))
+        if not (0.0 < ratio and per_speed > 0.0):
+            return None
+        ratio = min(ratio, 1.0)
+        away = (1.0 + ratio) / (ratio * per_speed)
+        g_eff = 0.5 * away * (1.0 + ratio * ratio)
+        low, high = self.lower[self.index("g_eff")], self.upper[self.index("g_eff")]
+        if not low < g_eff < high:
+            return None
+        # Inside f's bounds, no lower than its own start and at most half its upper bound.
+        friction = float(np.clip(0.5 * away * (1.0 - ratio * ratio),
+                                 self.flight_start["friction"],
+                                 0.5 * self.upper[self.index("friction")]))
+        return {"g_eff": g_eff, "friction": friction}
 
     def units(self, rows):
         """Initial coordinate units (about a standard error) of every parameter, per row."""
@@ -522,3 +618,197 @@ class NoiseProblem:
         units[..., law_count] = 1e-3 * np.abs(rows[..., law_count])
         units[..., law_count + 1:] = 0.3
         return units
+
+
+@dataclass(frozen=True)
+class SpeedTrainFilter(TrainFilter):
+    """Output of :func:`_speed_filter`: that of :class:`dashpot.likelihood.TrainFilter` (the
+    impact times' innovations; ``neg2_log_likelihood`` of times and speeds together) and the
+    measured speeds' innovations.
+
+    Attributes
+    ----------
+    speed_innovations : ndarray, shape (batch, impacts, 2)
+        Measured less predicted impact speed u_n and rebound speed v_n (m/s), each predicted
+        from everything observed before it; NaN where not measured.
+    speed_variance : ndarray, shape (batch, impacts, 2)
+        Their predicted variances (m²/s²): the state's plus the measurement's.
+    speed_scored : ndarray of bool, shape (batch, impacts, 2)
+        Where a speed was measured (and scored).
+    """
+
+    speed_innovations: np.ndarray = None
+    speed_variance: np.ndarray = None
+    speed_scored: np.ndarray = None
+
+    @property
+    def speed_standardized(self):
+        """Speed innovations over their predicted σ, NaN where not measured."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.speed_innovations / np.sqrt(self.speed_variance)
+
+
+def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, speed_variance,
+                  start_speed, process):
+    """Extended Kalman filter of impact trains over their impact times and measured speeds.
+
+    The model is that of :class:`dashpot.likelihood.TrainModel` (bounce v_n = R(u_n)(1 + η_n),
+    η_n ~ N(0, σ_ε²); flight t_{n+1} = t_n + τ(u_n) + T(v_n), u_{n+1} = L(v_n); timing
+    noise on each t_n), with two more observations of each impact, as a motion sensor gives
+    them: the impact speed u_n and the rebound speed v_n, each with Gaussian noise of
+    variance σ_v,n². The step is therefore split at the bounce: after the updates of impact
+    n (its time, then its impact speed) the state (t_n, u_n) is carried through the contact
+    and the bounce to (s_n, v_n), s_n = t_n + τ(u_n) the end of the contact, the process
+    noise entering there (var v_n gains (R σ_ε)²); it is updated with the rebound speed and
+    carried through the flight to (t_{n+1}, u_{n+1}). Each step is linearized about the
+    current estimate (the extended filter [1]_ §10.2), and the observations of one impact,
+    with independent noises, are taken one at a time (sequential processing [1]_ §6.4).
+    Without a rebound speed the two halves compose to the step of
+    :meth:`dashpot.likelihood.TrainModel.filter`. The flight between a rebound and the next
+    impact is where friction and drag act: v_n and u_{n+1}, both measured, differ by L, which
+    is what lets the speeds see them apart from ε.
+
+    The start time is integrated out (flat prior: the first observed time anchors it and
+    scores nothing), the start speed u_0 is a parameter (variance 0).
+
+    Parameters
+    ----------
+    model : TrainModel
+        Rebound, flight and contact time of each row (its callables broadcast over rows).
+    times : ndarray, shape (batch, impacts)
+        Measured impact times in s; NaN where missed.
+    timing_variance : ndarray, shape (batch, impacts)
+        Variance of each time's noise in s².
+    impact_speed, rebound_speed : ndarray, shape (batch, impacts)
+        Measured speeds in m/s; NaN where not measured.
+    speed_variance : ndarray, shape (batch, impacts)
+        σ_v,n² in m²/s² of both speeds of impact n.
+    start_speed, process : ndarray, shape (batch,)
+        u_0 in m/s and σ_ε.
+
+    Returns
+    -------
+    SpeedTrainFilter
+        −2 ln L = Σ [r²/S + ln(2π S)] over every scored time and speed; inf for a row whose
+        train left the finite numbers.
+
+    References
+    ----------
+    .. [1] J. Durbin and S. J. Koopman, *Time Series Analysis by State Space Methods*, 2nd
+       ed., Oxford University Press (2012).
+    """
+    batch, count = times.shape
+    t = np.full(batch, np.nan)
+    u = np.asarray(start_speed, float).copy()
+    process = np.asarray(process, float)
+    anchored = np.zeros(batch, bool)
+    p_tt, p_tu, p_uu = np.zeros(batch), np.zeros(batch), np.zeros(batch)
+    total = np.zeros(batch)
+    broken = np.zeros(batch, bool)
+    names = ("innovations", "variance", "times", "speeds", "filtered", "scored")
+    out = {name: np.full((batch, count), np.nan) for name in names}
+    out["scored"] = np.zeros((batch, count), bool)
+    speed_out = {name: np.full((batch, count, 2), np.nan) for name in ("r", "S")}
+    speed_scored = np.zeros((batch, count, 2), bool)
+    for n in range(count):
+        # Impact n: its time, as in TrainModel.filter.
+        y = times[:, n]
+        observation = np.isfinite(y)
+        anchor, seen = observation & ~anchored, observation & anchored
+        anchored = anchored | observation
+        timing = timing_variance[:, n]
+        variance = np.where(seen, p_tt + timing, np.nan)
+        innovation = np.where(seen, y - t, np.nan)
+        out["times"][:, n], out["speeds"][:, n] = t, u
+        out["innovations"][:, n], out["variance"][:, n] = innovation, variance
+        out["scored"][:, n] = seen
+        positive = seen & (variance > 0.0)
+        safe = np.where(positive, variance, 1.0)
+        r = np.where(seen, innovation, 0.0)
+        total += np.where(seen, np.where(positive, r * r / safe + np.log(safe) + LOG_TWO_PI,
+                                         np.inf), 0.0)
+        gain_t = np.where(positive, p_tt / safe, 0.0)
+        gain_u = np.where(positive, p_tu / safe, 0.0)
+        t, u = t + gain_t * r, u + gain_u * r
+        keep = np.where(positive, timing / safe, 1.0)
+        p_uu = np.maximum(p_uu - gain_u * p_tu, 0.0)
+        p_tt, p_tu = p_tt * keep, p_tu * keep
+        t = np.where(anchor, y, t)
+        p_tt = np.where(anchor, timing, p_tt)
+        p_tu = np.where(anchor, 0.0, p_tu)
+        # Its impact speed: a direct observation of u_n.
+        u, p_uu, p_tu, p_tt, t, total = _observe(
+            impact_speed[:, n], speed_variance[:, n], u, p_uu, p_tu, p_tt, t, total,
+            speed_out, speed_scored, n, 0)
+        out["filtered"][:, n] = u
+        # The contact and the bounce: (t, u) -> (s, v), the process noise entering v.
+        speed, bad = _finite_speed(np.maximum(u, 0.0))
+        rebound, rebound_slope = model.rebound(speed)
+        contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
+            model.contact_time(speed)
+        rebound, worse = _finite_speed(np.broadcast_to(rebound, (batch,)))
+        rebound_slope = np.broadcast_to(rebound_slope, (batch,))
+        contact = np.broadcast_to(contact, (batch,))
+        contact_slope = np.broadcast_to(contact_slope, (batch,))
+        bad = bad | worse | ~np.isfinite(rebound_slope) | ~np.isfinite(contact) \
+            | ~np.isfinite(contact_slope)
+        broken |= bad
+        rebound_slope, contact, contact_slope = (np.where(bad, 0.0, a) for a in (
+            rebound_slope, contact, contact_slope))
+        kick = rebound * process
+        t = t + contact
+        p_tt, p_tu, p_uu = (p_tt + 2.0 * contact_slope * p_tu + contact_slope ** 2 * p_uu,
+                            rebound_slope * (p_tu + contact_slope * p_uu),
+                            rebound_slope ** 2 * p_uu + kick * kick)
+        # Its rebound speed: a direct observation of v_n.
+        v, p_vv, p_tv, p_tt, t, total = _observe(
+            rebound_speed[:, n], speed_variance[:, n], rebound, p_uu, p_tu, p_tt, t, total,
+            speed_out, speed_scored, n, 1)
+        if n == count - 1:
+            break
+        # The flight to impact n + 1.
+        flight = model.flight(np.maximum(v, 0.0))
+        duration, landing, d_slope, l_slope = (
+            np.broadcast_to(a, (batch,)) for a in (flight.duration, flight.landing_speed,
+                                                  flight.duration_slope, flight.landing_slope))
+        bad = ~(np.isfinite(duration) & np.isfinite(landing) & np.isfinite(d_slope)
+                & np.isfinite(l_slope))
+        broken |= bad
+        duration, landing, d_slope, l_slope = (np.where(bad, 0.0, a) for a in (
+            duration, landing, d_slope, l_slope))
+        p_tt, p_tu, p_uu = (p_tt + 2.0 * d_slope * p_tv + d_slope * d_slope * p_vv,
+                            l_slope * (p_tv + d_slope * p_vv),
+                            l_slope * l_slope * p_vv)
+        t, u = t + duration, landing
+    total = np.where(broken | np.isnan(total), np.inf, total)
+    return SpeedTrainFilter(
+        neg2_log_likelihood=total, innovations=out["innovations"],
+        innovation_variance=out["variance"], predicted_times=out["times"],
+        predicted_speeds=out["speeds"], filtered_speeds=out["filtered"], scored=out["scored"],
+        speed_innovations=speed_out["r"], speed_variance=speed_out["S"],
+        speed_scored=speed_scored)
+
+
+def _observe(measured, noise_variance, x, p_xx, p_xo, p_oo, o, total, speed_out, speed_scored,
+             n, column):
+    """Update a state (x, o) (a speed and the time) with a measurement of x (a speed),
+    where `measured` is finite: the innovation and its variance recorded in column `column`
+    of impact n, its −2 ln L term added to `total`. Written so that nothing cancels in the
+    measured component's variance (P_xx·R/S); the time's is clipped at 0.
+
+    Returns (x, P_xx, P_xo, P_oo, o, total) updated."""
+    seen = np.isfinite(measured)
+    variance = p_xx + np.where(seen, noise_variance, 0.0)
+    positive = seen & (variance > 0.0)
+    safe = np.where(positive, variance, 1.0)
+    r = np.where(seen, measured - x, 0.0)
+    speed_out["r"][:, n, column] = np.where(seen, r, np.nan)
+    speed_out["S"][:, n, column] = np.where(seen, variance, np.nan)
+    speed_scored[:, n, column] = seen
+    total = total + np.where(seen, np.where(positive, r * r / safe + np.log(safe) + LOG_TWO_PI,
+                                            np.inf), 0.0)
+    gain_x = np.where(positive, p_xx / safe, 0.0)
+    gain_o = np.where(positive, p_xo / safe, 0.0)
+    keep = np.where(positive, np.where(seen, noise_variance, 0.0) / safe, 1.0)
+    p_oo = np.maximum(p_oo - gain_o * p_xo, 0.0)
+    return x + gain_x * r, p_xx * keep, p_xo * keep, p_oo, o + gain_o * r, total

@@ -3,27 +3,22 @@ noise and flight parameters, the optimizer's steps and tolerances, the profile g
 accuracy levels' step-map tables.
 
 They sit at the bottom of the noise fit's imports (this module imports none of the fit's
-modules), so that the likelihood, the optimizer and the fit driver share them without importing
-each other in a circle.
+modules; the flight effects come from their registry, :mod:`dashpot.physics.effects`), so that
+the likelihood, the optimizer and the fit driver share them without importing each other in a
+circle.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..physics.effects import EFFECT_PARAMETERS, FLIGHT_EFFECTS  # noqa: F401
+
 NOISE_PARAMETERS = ("v0", "sigma_eps", "sigma_j")
-FLIGHT_EFFECTS = ("drag", "friction")
-"""Effects of the flight a fit may add (``effects`` of
-:func:`dashpot.fit.noise_fit.fit_noise_model`)."""
-# Flight parameters: unit, meaning. k_d free (the drag rung) lies in [0, DRAG_UPPER] 1/m (a
-# terminal speed of 1 m/s at g) and starts at DRAG_START (a stencil needs room above the bound).
-FLIGHT_PARAMETERS = {"k_d": ("1/m", "quadratic drag constant of the flight (k_d v^2)"),
-                     "g_eff": ("m/s^2", "mean acceleration of the flights"),
-                     "friction": ("m/s^2", "friction deceleration of the flights")}
-DRAG_UPPER, DRAG_START = 10.0, 0.05
-# Friction f starts at this fraction of g_eff and stays below FRICTION_UPPER of it (a_toward
-# = g_eff − f > 0).
-FRICTION_START, FRICTION_UPPER = 1e-3, 0.5
+# FLIGHT_EFFECTS: the flight effects a fit may add (``effects`` of
+# :func:`dashpot.fit.noise_fit.fit_noise_model`), the registry of :mod:`dashpot.physics.effects`;
+# FLIGHT_PARAMETERS = EFFECT_PARAMETERS: unit and meaning of their parameters, by name.
+FLIGHT_PARAMETERS = EFFECT_PARAMETERS
 OUTLIER_Z = 4.0  # standardized innovations beyond this are flagged in the notes
 # Floors of the fitted ln σ: below them a noise source is indistinguishable from none.
 SIGMA_EPS_FLOOR, SIGMA_J_FLOOR = 1e-7, 1e-9
