@@ -601,6 +601,13 @@ class _Problem(NoiseProblem):
                             and timing <= LEVEL_TIMING_TOLERANCE * timing_floor)
         if self.level == "exact":
             notes.append("accuracy exact: the law and flight evaluated at every step")
+        elif self.has_speeds:
+            notes.append(
+                f"accuracy {self.level}: with measured speeds the law and flight are evaluated "
+                f"at every step" + ("" if self.law.contact is None else
+                                    f" (the collisions from the {self.level} surrogate tables, "
+                                    f"relative error {relative:.1e}; at the best fit -2 ln L "
+                                    f"within {likelihood:.1e} of the exact collisions)"))
         else:
             notes.append(
                 f"accuracy {self.level}: step map tabulated {1.0 / GRID_LOG_STEPS[self.level]:g} "
@@ -614,6 +621,17 @@ class _Problem(NoiseProblem):
         innovations = run.innovations[0, observed]
         chisqr = float(np.sum(z[scored] ** 2))
         ndata = int(scored.sum())
+        if self.has_speeds:
+            # The measured speeds' standardized innovations count as data too.
+            speed_z = run.speed_standardized[0, observed]
+            speed_scored = run.speed_scored[0, observed]
+            chisqr += float(np.sum(speed_z[speed_scored] ** 2))
+            ndata += int(speed_scored.sum())
+            far = np.argwhere(speed_scored & (np.abs(np.nan_to_num(speed_z)) > OUTLIER_Z))
+            if far.size:
+                notes.append(f"{far.shape[0]} speed innovation(s) with |z| > {OUTLIER_Z:g}: "
+                             + ", ".join(f"{('impact', 'rebound')[k]} speed of impact {n}"
+                                         for n, k in far) + " (kept in the fit)")
         # Degrees of freedom of Σz² at the adjusted σ_ε: n less the fitted mean parameters
         # the data determine (module notes, *Goodness of fit*).
         dof = max(ndata - sum(1 for f in fit_free if f <= self.index("v0")
