@@ -110,14 +110,16 @@ widths 0.58-0.77.
 
 Goodness of fit: the standardized innovations z_n = r_n/√S_n are independent N(0, 1) under the
 model; ``chisqr`` is Σz² over the n scored innovations (the first impact anchors the train
-and scores none) and ``redchi`` Σz²/(n − K_m), K_m the fitted law's (and flight's) parameters
-and v0 the data determine: at the adjusted σ_ε, as at a REML variance, Σz² ≈ n − K_m (at the
-maximum-likelihood noise it would be ≈ n). Measured over the coverage test's trains: mean
-``redchi`` 0.998 for 40 impacts of the constant law and 1.02 for 15 of model Ib (Σz²/n: 0.95
-and 0.80). |z| > 4 are flagged in the notes by impact and kept.
-AIC = −2 ln L + 2K and BIC = −2 ln L + K ln n with K the fitted parameters (the integrated start
-time is not one); these are comparable between laws under this noise model, not with the
-deterministic fit's χ²-based criteria.
+and scores none; where the table carries measured speeds, their standardized innovations
+count too, :mod:`dashpot.fit.noise_likelihood`) and ``redchi`` Σz²/(n − K_m), K_m the fitted
+law's (and flight's) parameters and v0 the data determine: at the adjusted σ_ε, as at a
+REML variance, Σz² ≈ n − K_m (at the maximum-likelihood noise it would be ≈ n). Measured
+over the coverage test's trains: mean ``redchi`` 0.998 for 40 impacts of the constant law and
+1.02 for 15 of model Ib (Σz²/n: 0.95 and 0.80). |z| > 4 are flagged in the notes by impact
+and kept.
+AIC = −2 ln L + 2K and BIC = −2 ln L + K ln n (n the scored times and speeds) with K the
+fitted parameters (the integrated start time is not one); these are comparable between laws
+under this noise model, not with the deterministic fit's χ²-based criteria.
 
 References
 ----------

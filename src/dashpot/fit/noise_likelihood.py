@@ -35,6 +35,20 @@ fit (``error_bound``, 0 at "exact"; ``numerical_tolerance`` is that times the nu
 impacts, as in the deterministic fits), and the differences to the direct evaluation in the
 notes; the innovations, predictions and residuals reported are the direct filter's at the
 best fit.
+
+Measured speeds. Where the impact table carries a motion sensor's impact and rebound speeds
+with their 1σ (``impact_speed``, ``rebound_speed``, ``speed_uncertainty`` of
+:func:`dashpot.fit.prepare_data`), they are observations of the filter's state beside the
+times (:func:`_speed_filter`): the step is split at the bounce, so that the rebound speed v_n
+observes the state after the bounce and the impact speed u_{n+1} the state after the flight.
+From the times alone friction (or drag) is degenerate with ε and v0, both making the
+intervals geometric; v_n and u_{n+1}, measured on either side of one flight, differ by the
+flight's loss alone. Each speed is taken at its stated σ and independent of the times and
+of the other speeds (a motion reader's impact time and the speeds on either side of a flight
+come from fits of the same samples, so they are in fact correlated; the table does not carry
+that). Such a filter evaluates the law and flight at every step (a dashpot model's collisions
+from the surrogate tables of the level) in a compiled loop per step: no step map is
+tabulated, and a scene without speeds takes the times-only filter above, unchanged.
 """
 
 from __future__ import annotations
@@ -42,6 +56,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed
@@ -698,117 +713,156 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
        ed., Oxford University Press (2012).
     """
     batch, count = times.shape
-    t = np.full(batch, np.nan)
-    u = np.asarray(start_speed, float).copy()
-    process = np.asarray(process, float)
-    anchored = np.zeros(batch, bool)
-    p_tt, p_tu, p_uu = np.zeros(batch), np.zeros(batch), np.zeros(batch)
+    # The state of every row: t, u (or s, v after the bounce), P_tt, P_tu, P_uu.
+    state = np.zeros((5, batch))
+    state[0] = np.nan
+    state[1] = start_speed
+    process = np.ascontiguousarray(np.broadcast_to(np.asarray(process, float), (batch,)))
+    anchored = np.zeros(batch, np.bool_)
     total = np.zeros(batch)
-    broken = np.zeros(batch, bool)
-    names = ("innovations", "variance", "times", "speeds", "filtered", "scored")
-    out = {name: np.full((batch, count), np.nan) for name in names}
-    out["scored"] = np.zeros((batch, count), bool)
-    speed_out = {name: np.full((batch, count, 2), np.nan) for name in ("r", "S")}
-    speed_scored = np.zeros((batch, count, 2), bool)
+    broken = np.zeros(batch, np.bool_)
+    # Innovations, their variances, predicted times and speeds, filtered speeds.
+    out = np.full((5, batch, count), np.nan)
+    scored = np.zeros((batch, count), np.bool_)
+    speed_out = np.full((2, batch, count, 2), np.nan)
+    speed_scored = np.zeros((batch, count, 2), np.bool_)
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (
+        times, timing_variance, impact_speed, rebound_speed, speed_variance)]
+    times, timing_variance, impact_speed, rebound_speed, speed_variance = arrays
     for n in range(count):
-        # Impact n: its time, as in TrainModel.filter.
-        y = times[:, n]
-        observation = np.isfinite(y)
-        anchor, seen = observation & ~anchored, observation & anchored
-        anchored = anchored | observation
-        timing = timing_variance[:, n]
-        variance = np.where(seen, p_tt + timing, np.nan)
-        innovation = np.where(seen, y - t, np.nan)
-        out["times"][:, n], out["speeds"][:, n] = t, u
-        out["innovations"][:, n], out["variance"][:, n] = innovation, variance
-        out["scored"][:, n] = seen
-        positive = seen & (variance > 0.0)
-        safe = np.where(positive, variance, 1.0)
-        r = np.where(seen, innovation, 0.0)
-        total += np.where(seen, np.where(positive, r * r / safe + np.log(safe) + LOG_TWO_PI,
-                                         np.inf), 0.0)
-        gain_t = np.where(positive, p_tt / safe, 0.0)
-        gain_u = np.where(positive, p_tu / safe, 0.0)
-        t, u = t + gain_t * r, u + gain_u * r
-        keep = np.where(positive, timing / safe, 1.0)
-        p_uu = np.maximum(p_uu - gain_u * p_tu, 0.0)
-        p_tt, p_tu = p_tt * keep, p_tu * keep
-        t = np.where(anchor, y, t)
-        p_tt = np.where(anchor, timing, p_tt)
-        p_tu = np.where(anchor, 0.0, p_tu)
-        # Its impact speed: a direct observation of u_n.
-        u, p_uu, p_tu, p_tt, t, total = _observe(
-            impact_speed[:, n], speed_variance[:, n], u, p_uu, p_tu, p_tt, t, total,
-            speed_out, speed_scored, n, 0)
-        out["filtered"][:, n] = u
-        # The contact and the bounce: (t, u) -> (s, v), the process noise entering v.
-        speed, bad = _finite_speed(np.maximum(u, 0.0))
+        # Impact n: its time (as in TrainModel.filter), then its impact speed.
+        _impact_update(n, state, anchored, times, timing_variance, impact_speed,
+                       speed_variance, total, out, scored, speed_out, speed_scored)
+        # The contact and the bounce at the filtered speed, then the rebound speed.
+        speed, _ = _finite_speed(np.maximum(state[1], 0.0))
         rebound, rebound_slope = model.rebound(speed)
         contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
             model.contact_time(speed)
-        rebound, worse = _finite_speed(np.broadcast_to(rebound, (batch,)))
-        rebound_slope = np.broadcast_to(rebound_slope, (batch,))
-        contact = np.broadcast_to(contact, (batch,))
-        contact_slope = np.broadcast_to(contact_slope, (batch,))
-        bad = bad | worse | ~np.isfinite(rebound_slope) | ~np.isfinite(contact) \
-            | ~np.isfinite(contact_slope)
-        broken |= bad
-        rebound_slope, contact, contact_slope = (np.where(bad, 0.0, a) for a in (
-            rebound_slope, contact, contact_slope))
-        kick = rebound * process
-        t = t + contact
-        p_tt, p_tu, p_uu = (p_tt + 2.0 * contact_slope * p_tu + contact_slope ** 2 * p_uu,
-                            rebound_slope * (p_tu + contact_slope * p_uu),
-                            rebound_slope ** 2 * p_uu + kick * kick)
-        # Its rebound speed: a direct observation of v_n.
-        v, p_vv, p_tv, p_tt, t, total = _observe(
-            rebound_speed[:, n], speed_variance[:, n], rebound, p_uu, p_tu, p_tt, t, total,
-            speed_out, speed_scored, n, 1)
+        columns = np.empty((4, batch))
+        columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
+                                                          contact_slope)
+        _bounce_update(n, state, columns, process, rebound_speed, speed_variance, total,
+                       broken, speed_out, speed_scored)
         if n == count - 1:
             break
         # The flight to impact n + 1.
-        flight = model.flight(np.maximum(v, 0.0))
-        duration, landing, d_slope, l_slope = (
-            np.broadcast_to(a, (batch,)) for a in (flight.duration, flight.landing_speed,
-                                                  flight.duration_slope, flight.landing_slope))
-        bad = ~(np.isfinite(duration) & np.isfinite(landing) & np.isfinite(d_slope)
-                & np.isfinite(l_slope))
-        broken |= bad
-        duration, landing, d_slope, l_slope = (np.where(bad, 0.0, a) for a in (
-            duration, landing, d_slope, l_slope))
-        p_tt, p_tu, p_uu = (p_tt + 2.0 * d_slope * p_tv + d_slope * d_slope * p_vv,
-                            l_slope * (p_tv + d_slope * p_vv),
-                            l_slope * l_slope * p_vv)
-        t, u = t + duration, landing
+        flight = model.flight(np.maximum(state[1], 0.0))
+        columns = np.empty((4, batch))
+        columns[0], columns[1], columns[2], columns[3] = (
+            flight.duration, flight.landing_speed, flight.duration_slope, flight.landing_slope)
+        _flight_predict(state, columns, broken)
     total = np.where(broken | np.isnan(total), np.inf, total)
     return SpeedTrainFilter(
-        neg2_log_likelihood=total, innovations=out["innovations"],
-        innovation_variance=out["variance"], predicted_times=out["times"],
-        predicted_speeds=out["speeds"], filtered_speeds=out["filtered"], scored=out["scored"],
-        speed_innovations=speed_out["r"], speed_variance=speed_out["S"],
+        neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
+        predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
+        scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
         speed_scored=speed_scored)
 
 
-def _observe(measured, noise_variance, x, p_xx, p_xo, p_oo, o, total, speed_out, speed_scored,
-             n, column):
-    """Update a state (x, o) (a speed and the time) with a measurement of x (a speed),
-    where `measured` is finite: the innovation and its variance recorded in column `column`
-    of impact n, its −2 ln L term added to `total`. Written so that nothing cancels in the
-    measured component's variance (P_xx·R/S); the time's is clipped at 0.
+@numba.njit(cache=True, inline="always")
+def _observe_speed(x, p_xx, p_xo, p_oo, o, measured, noise):
+    """Scalar update of a state (x, o) with a measurement of x (a speed) of variance `noise`:
+    (x, P_xx, P_xo, P_oo, o, innovation, its variance, −2 ln L term). Written so that
+    nothing cancels in the measured component's variance (P_xx·R/S); the other's is
+    clipped at 0."""
+    variance = p_xx + noise
+    r = measured - x
+    if not variance > 0.0:
+        return x, p_xx, p_xo, p_oo, o, r, variance, math.inf
+    term = r * r / variance + math.log(variance) + LOG_TWO_PI
+    gain_x, gain_o = p_xx / variance, p_xo / variance
+    keep = noise / variance
+    p_oo = max(p_oo - gain_o * p_xo, 0.0)
+    return x + gain_x * r, p_xx * keep, p_xo * keep, p_oo, o + gain_o * r, r, variance, term
 
-    Returns (x, P_xx, P_xo, P_oo, o, total) updated."""
-    seen = np.isfinite(measured)
-    variance = p_xx + np.where(seen, noise_variance, 0.0)
-    positive = seen & (variance > 0.0)
-    safe = np.where(positive, variance, 1.0)
-    r = np.where(seen, measured - x, 0.0)
-    speed_out["r"][:, n, column] = np.where(seen, r, np.nan)
-    speed_out["S"][:, n, column] = np.where(seen, variance, np.nan)
-    speed_scored[:, n, column] = seen
-    total = total + np.where(seen, np.where(positive, r * r / safe + np.log(safe) + LOG_TWO_PI,
-                                            np.inf), 0.0)
-    gain_x = np.where(positive, p_xx / safe, 0.0)
-    gain_o = np.where(positive, p_xo / safe, 0.0)
-    keep = np.where(positive, np.where(seen, noise_variance, 0.0) / safe, 1.0)
-    p_oo = np.maximum(p_oo - gain_o * p_xo, 0.0)
-    return x + gain_x * r, p_xx * keep, p_xo * keep, p_oo, o + gain_o * r, total
+
+@numba.njit(cache=True)
+def _impact_update(n, state, anchored, times, timing_variance, impact_speed, speed_variance,
+                   total, out, scored, speed_out, speed_scored):
+    """Impact n of every row of :func:`_speed_filter`: its time (the arithmetic of
+    :meth:`dashpot.likelihood.TrainModel.filter`, a diffuse start time anchored by the first
+    observed one), then its measured impact speed; the outputs recorded."""
+    for b in range(state.shape[1]):
+        t, u, p_tt, p_tu, p_uu = state[0, b], state[1, b], state[2, b], state[3, b], state[4, b]
+        y, timing = times[b, n], timing_variance[b, n]
+        observation = math.isfinite(y)
+        anchor = observation and not anchored[b]
+        seen = observation and anchored[b]
+        anchored[b] = anchored[b] or observation
+        out[2, b, n], out[3, b, n] = t, u
+        scored[b, n] = seen
+        if seen:
+            variance = p_tt + timing
+            innovation = y - t
+            out[0, b, n], out[1, b, n] = innovation, variance
+            if variance > 0.0:
+                total[b] += innovation * innovation / variance + math.log(variance) + LOG_TWO_PI
+                gain_t, gain_u = p_tt / variance, p_tu / variance
+                t, u = t + gain_t * innovation, u + gain_u * innovation
+                keep = timing / variance
+                p_uu = max(p_uu - gain_u * p_tu, 0.0)
+                p_tt, p_tu = p_tt * keep, p_tu * keep
+            else:
+                total[b] = math.inf
+        if anchor:
+            t, p_tt, p_tu = y, timing, 0.0
+        measured, noise = impact_speed[b, n], speed_variance[b, n]
+        if math.isfinite(measured) and math.isfinite(noise):
+            u, p_uu, p_tu, p_tt, t, r, variance, term = _observe_speed(
+                u, p_uu, p_tu, p_tt, t, measured, noise)
+            speed_out[0, b, n, 0], speed_out[1, b, n, 0] = r, variance
+            speed_scored[b, n, 0] = True
+            total[b] += term
+        out[4, b, n] = u
+        state[0, b], state[1, b], state[2, b], state[3, b], state[4, b] = t, u, p_tt, p_tu, p_uu
+
+
+@numba.njit(cache=True)
+def _bounce_update(n, state, columns, process, rebound_speed, speed_variance, total, broken,
+                   speed_out, speed_scored):
+    """The contact and bounce of impact n of every row of :func:`_speed_filter`, linearized:
+    (t, u) → (s, v) with s = t + τ(u), v = R(u)(1 + η), `columns` holding R, dR/du, τ, dτ/du
+    at the filtered speeds; then the update with the measured rebound speed. A row whose
+    step is not finite is marked broken and carried on with the step put at 0."""
+    for b in range(state.shape[1]):
+        t, p_tt, p_tu, p_uu = state[0, b], state[2, b], state[3, b], state[4, b]
+        rebound, slope, contact, contact_slope = (columns[0, b], columns[1, b], columns[2, b],
+                                                  columns[3, b])
+        if not (math.isfinite(state[1, b]) and math.isfinite(rebound)
+                and math.isfinite(slope) and math.isfinite(contact)
+                and math.isfinite(contact_slope)):
+            broken[b] = True
+            rebound = slope = contact = contact_slope = 0.0
+        kick = rebound * process[b]
+        t = t + contact
+        p_tt, p_tu, p_uu = (p_tt + 2.0 * contact_slope * p_tu + contact_slope * contact_slope
+                            * p_uu, slope * (p_tu + contact_slope * p_uu),
+                            slope * slope * p_uu + kick * kick)
+        v = rebound
+        measured, noise = rebound_speed[b, n], speed_variance[b, n]
+        if math.isfinite(measured) and math.isfinite(noise):
+            v, p_uu, p_tu, p_tt, t, r, variance, term = _observe_speed(
+                v, p_uu, p_tu, p_tt, t, measured, noise)
+            speed_out[0, b, n, 1], speed_out[1, b, n, 1] = r, variance
+            speed_scored[b, n, 1] = True
+            total[b] += term
+        state[0, b], state[1, b], state[2, b], state[3, b], state[4, b] = t, v, p_tt, p_tu, p_uu
+
+
+@numba.njit(cache=True)
+def _flight_predict(state, columns, broken):
+    """The flight of every row of :func:`_speed_filter` from (s, v) to the next impact
+    (t, u), `columns` holding T, L, dT/dv, dL/dv at the rebound speeds; linearized."""
+    for b in range(state.shape[1]):
+        duration, landing, d_slope, l_slope = (columns[0, b], columns[1, b], columns[2, b],
+                                               columns[3, b])
+        if not (math.isfinite(duration) and math.isfinite(landing) and math.isfinite(d_slope)
+                and math.isfinite(l_slope)):
+            broken[b] = True
+            duration = landing = d_slope = l_slope = 0.0
+        p_tt, p_tv, p_vv = state[2, b], state[3, b], state[4, b]
+        state[2, b] = p_tt + 2.0 * d_slope * p_tv + d_slope * d_slope * p_vv
+        state[3, b] = l_slope * (p_tv + d_slope * p_vv)
+        state[4, b] = l_slope * l_slope * p_vv
+        state[0, b] += duration
+        state[1, b] = landing
