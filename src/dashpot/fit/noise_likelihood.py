@@ -61,7 +61,6 @@ import numpy as np
 
 from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed
 from ..physics.effects import FLIGHT_EFFECTS, flight_map
-from ..physics.flight import gravity_flight, track_flight
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
 from .noise_settings import (
@@ -168,10 +167,7 @@ class NoiseProblem:
         scene puts in every fit (drag where it gives the ball's mass and diameter) or that
         `effects` asks for sets its columns up from the scene (its ``setup``: start, bounds, a
         prior or a fixed value, and a note), in the registry's order (``flight_effects``).
-        Without any, the flight is gravity's at g.
-
-        ``flight_of`` is set here to the registry's flight map of those effects
-        (:func:`dashpot.physics.effects.flight_map`)."""
+        Without any, the flight is gravity's at g."""
         self.flight_start, self.flight_priors, self.flight_fixed = {}, [], {}
         self.flight_effects = []
         bounds = []
@@ -188,26 +184,16 @@ class NoiseProblem:
                 elif column.prior is not None:
                     self.flight_priors.append((column.name, column.start, column.prior))
             self.notes.append(setup.note)
-        # The flight map from the registry (an instance attribute in front of the method
-        # below, which knows drag and friction by name only).
-        start, names = len(self.law.parameters), list(self.flight_start)
-        self.flight_of = lambda rows: flight_map(
-            self.flight_effects, self.g,
-            {name: rows[:, start + k] for k, name in enumerate(names)})
         return bounds
 
     def flight_of(self, rows):
         """``flight(v) -> Flight`` at the flight parameters of rows (sets, P) (the columns
-        of the step map, or whole rows: the flight's come right after the law's)."""
+        of the step map, or whole rows: the flight's come right after the law's), the
+        registry's flight map of the fit's effects
+        (:func:`dashpot.physics.effects.flight_map`)."""
         start = len(self.law.parameters)
-        names = list(self.flight_start)
-        if not names:
-            return lambda v: gravity_flight(v, self.g)
-        column = {name: rows[:, start + k] for k, name in enumerate(names)}
-        k_d = column.get("k_d", 0.0)
-        g_eff = column.get("g_eff", self.g)
-        friction = column.get("friction", 0.0)
-        return lambda v: track_flight(v, g_eff + friction, g_eff - friction, k_d)
+        return flight_map(self.flight_effects, self.g,
+                          {name: rows[:, start + k] for k, name in enumerate(self.flight_start)})
 
     def flight(self, v):
         """The flight at the start values of the flight parameters (for start values)."""
