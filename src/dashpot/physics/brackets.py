@@ -84,7 +84,10 @@ def _ib_solve(zeta, vtilde, *, solve=True):
     ξ(t) = (C − 1) + (ζ − ṽ)S is evaluated with C − 1 kept to its digits: near the critical
     speed ξ returns to ~0 at C ≈ 1, and that decides capture at |ṽ/ṽc − 1| ~ 1e-9. Where the
     ball rebounds (and `solve`), the return time is found in the bracket by Halley's iteration
-    (see :func:`_iib_release`), starting from Ia's end time π/ω at high speed.
+    (see :func:`_iib_release`); above ṽ = 20 its first step is taken in closed form from Ia's
+    end time π/ω, where ξ = −(1 + ε_Ia), ξ' = ṽε_Ia (a lower bound of the root), and the
+    rebound is decided without evaluating ξ(t_max) where ṽ(ṽ − 2ζ)ε_Ia⁴ > 2, sufficient for
+    ṽ above the critical speed (see :func:`dashpot.physics.models._ib_phase_mismatch`).
 
     Returns
     -------
@@ -145,7 +148,10 @@ def _iib_release(zeta, vtilde, *, solve=True):
     at e^{2st} = −λf³b/(λs³a), which needs a and b of opposite signs.
 
     The release time is the root of f in [t_lo, t_hi], found by Halley's iteration. At high
-    speed gravity is an O(1/ṽ) correction and it starts from IIa's closed-form end time;
+    speed (ṽ > 20) gravity is an O(1/ṽ) correction and it starts from IIa's end time 2φ/ω,
+    where f = 1 + ε_IIa and f' = −ṽε_IIa in closed form, so that the first step costs no
+    evaluation (below ζ = MODAL_ZETA); there a bound on f'' after 2φ/ω decides most releases
+    without evaluating f(t_hi) (see :func:`dashpot.physics.exact_kernels._iib_point`);
     otherwise, between consecutive extrema f is close to a half cosine wave, and with end values
     a and b it starts at the fraction arccos((a + b)/(b − a))/π of the bracket. With slope and
     curvature in closed form Halley converges cubically (typically 2 evaluations, against ~17

@@ -38,7 +38,7 @@ from .._validation import check_model, check_nonnegative, check_positive
 # GRAVITY_MODELS is defined with the brackets (the ode method needs it too) and kept importable
 # from here.
 from .brackets import (GRAVITY_MODELS, _iia_contact_time, _ib_bracket,  # noqa: F401
-                       _ib_solve, _iib_bracket, _iib_release)
+                       _iib_bracket, _kernels)
 from .contact import Damping
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
@@ -104,42 +104,6 @@ def _find_root(func, lower, upper, args):
     return result.x
 
 
-def _from_invariant(eps, vtilde):
-    """Where the restitution from the decay of the invariant beats the rebound slope ξ'(τ)."""
-    return (eps > 0.5) | (vtilde * eps < 4.0 / vtilde)
-
-
-def _invariant_roots(zeta, vtilde, tau):
-    """Restitution from the decay of the quadratic invariant over the contact.
-
-    With Y = X/ṽ² = (1 − 2ζ/ṽ)e^{−2ζτ} + expm1(−2ζτ)/ṽ² and a = ζ/ṽ, the rebound state solves
-    ε² − 2σaε = Y. For the models ending at ξ = 0 (σ = −1, Ib) ε = Y/(a + √(a² + Y)); for a
-    release at F = 0 (σ = +1, IIb), where the invariant is vf² − 2ζvf + 1, ε = a + √(a² + Y),
-    or, where Y < 0 leaves two positive roots, possibly the smaller −Y/(a + √(a² + Y)).
-    Written without cancellation except the one inherent in Y near capture.
-
-    Returns
-    -------
-    y : ndarray
-        Y.
-    small, large : ndarray
-        Y/(a + √(a² + Y)) and a + √(a² + Y).
-    """
-    decay = np.exp(-2.0 * zeta * tau)
-    ratio = zeta / vtilde
-    y = (1.0 - 2.0 * ratio) * decay + np.expm1(-2.0 * zeta * tau) / vtilde / vtilde
-    root = np.sqrt(np.maximum(ratio * ratio + y, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        small = np.where(ratio + root > 0.0, y / (ratio + root), 0.0)
-    return y, small, ratio + root
-
-
-def _stable_p0_over_v(zeta, omega2, vtilde):
-    """(ṽ² − 2ζṽ + 1)/ṽ = ((ṽ − ζ)² + 1 − ζ²)/ṽ, without overflow or cancellation."""
-    shifted = vtilde - zeta
-    return shifted * (shifted / vtilde) + omega2 / vtilde
-
-
 # --- model Ia and IIa: closed forms, gravity-free -------------------------------------------
 
 def _model_ia(zeta, vtilde):
@@ -165,91 +129,25 @@ def _model_iia(zeta, vtilde):
                 release_speed=release_speed)
 
 
-# --- model Ib: ξ returns to zero, with gravity ----------------------------------------------
+# --- models Ib, IIb and hybrid: with gravity, compiled ---------------------------------------
+
+_FIELDS = ("eps", "one_minus_eps", "contact_time", "captured", "release_depth", "release_speed")
+
 
 def _model_ib(zeta, vtilde):
-    # Bracket, capture and return time by the compiled Halley iteration (brackets._ib_solve).
-    _, _, xi_max, tau, rebound_ratio = _ib_solve(zeta, vtilde)
-    rebound = xi_max > 0.0
-    eps = np.zeros(zeta.shape)
-    one_minus = np.ones(zeta.shape)
-    z, v, t = zeta[rebound], vtilde[rebound], tau[rebound]
-    # ε = ξ'(τ)/ṽ with ξ' = −ṽC + (ζṽ − 1)S; clip the last ulp of a near-tangent return.
-    direct = np.maximum(rebound_ratio[rebound], 0.0)
-    # The quadratic invariant P = η'² + 2ζηη' + η² of the homogeneous part η = ξ + 1 decays as
-    # P(τ) = P(0)e^{−2ζτ}. With η = 1 at both ends, w = ṽε solves w² + 2ζw = X with
-    # X = ṽ(ṽ − 2ζ)e^{−2ζτ} + expm1(−2ζτ): hardly sensitive to the last ulp of τ, unlike
-    # ξ'(τ), whose error |ξ''|·δτ with δτ ~ ulp/ξ'(τ) is ~ulp/(ṽ²ε²) relative. Taken where
-    # ε > ½ or ṽ²ε < 4 (slow impacts); scaled by ṽ² so that nothing overflows.
-    e = np.where(_from_invariant(direct, v), np.maximum(_invariant_roots(z, v, t)[1], 0.0),
-                 direct)
-    # 1 − ε from the same decay: ṽ(1 − ε) = 2ζ + P(0)(1 − e^{−2ζτ})/(ṽ(1 + ε)). All terms
-    # are positive: no cancellation for nearly elastic balls.
-    dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    deficit = (2.0 * z + dissipated / (1.0 + e)) / v
-    eps[rebound] = e
-    one_minus[rebound] = deficit
-    return dict(eps=eps, one_minus_eps=one_minus, contact_time=tau, captured=~rebound,
-                release_depth=np.where(rebound, 0.0, -1.0), release_speed=eps * vtilde)
-
-
-# --- model IIb: force returns to zero, with gravity -----------------------------------------
-
-def _release_state(zeta, vtilde):
-    """IIb's release: (released mask, τ, release speed vf, 1 − vf/ṽ), vf = ξ'(τ) at F = 0."""
-    _, _, force_min, tau, release_slope = _iib_release(zeta, vtilde)
-    released = force_min < 0.0
-    z, v, t = zeta[released], vtilde[released], tau[released]
-    # At F = 0, ξ = −2ζξ' makes the invariant P(τ) = vf² − 2ζvf + 1: vf follows from its decay
-    # where that beats ξ'(τ) (see _model_ib), and (ṽ − vf)(ṽ + vf − 2ζ) = P(0)(1 − e^{−2ζτ})
-    # gives 1 − ε where the second factor keeps its digits. Where the invariant has a single
-    # positive root in the range where it is the better estimate, ξ'(τ) is not needed at all.
-    y, small, large = _invariant_roots(z, v, t)
-    vf = v * large
-    check = np.flatnonzero(~((y >= 0.0) & _from_invariant(large, v)))
-    direct = release_slope[released][check]
-    invariant = np.where((y[check] >= 0.0) | (direct > z[check]), large[check], -small[check])
-    vf[check] = np.where(_from_invariant(direct / v[check], v[check]), v[check] * invariant,
-                         direct)
-    dissipated = _stable_p0_over_v(z, (1.0 - z) * (1.0 + z), v) * (-np.expm1(-2.0 * z * t))
-    # Halved (exactly) so that ṽ + vf cannot overflow near the float maximum.
-    half_sum = 0.5 * v + 0.5 * vf
-    denominator = half_sum - z
-    usable = denominator > 0.5 * half_sum
-    relative = (0.5 * dissipated) / np.where(usable, denominator, 1.0)
-    deficit_ = np.where(usable, relative, 1.0 - vf / v)
-    speed = np.zeros(zeta.shape)
-    speed[released] = vf
-    deficit = np.full(zeta.shape, np.nan)
-    deficit[released] = deficit_
-    return released, tau, speed, deficit
+    # Bracket, capture, return time and the rebound state from the decay of the invariant, in
+    # one compiled pass (exact_kernels.ib_collide; the iteration is described in
+    # brackets._ib_solve).
+    return dict(zip(_FIELDS, _kernels().ib_collide(zeta, vtilde)))
 
 
 def _model_iib(zeta, vtilde):
-    released, tau, vf, deficit = _release_state(zeta, vtilde)
-    eps = np.where(released, vf / vtilde, 0.0)
-    one_minus = np.where(released, deficit, 1.0)
-    return dict(eps=eps, one_minus_eps=one_minus, contact_time=tau, captured=~released,
-                release_depth=np.where(released, -2.0 * (zeta * vf), -1.0), release_speed=vf)
+    return dict(zip(_FIELDS, _kernels().iib_collide(zeta, vtilde, False)))
 
 
 def _model_hybrid(zeta, vtilde):
-    released, tau_force, vf, deficit = _release_state(zeta, vtilde)
-    # Climbing |ξ_f| = 2ζvf under gravity: v1² = vf² − 4ζvf; rebound only if vf > 4ζ.
-    rebound = released & (vf > 4.0 * zeta)
-    v1 = vf * np.sqrt(np.where(rebound, 1.0 - 4.0 * zeta / np.where(rebound, vf, 1.0), 0.0))
-    # Climb time (vf − v1)/g rationalised: 4ζvf/(vf + v1), no cancellation at large ṽ; the
-    # sum halved so that it cannot overflow.
-    climb = np.where(rebound, 2.0 * zeta * (vf / np.where(rebound, 0.5 * vf + 0.5 * v1, 1.0)),
-                     0.0)
-    eps = v1 / vtilde
-    # 1 − ε = ((ṽ − vf) + (vf − v1))/ṽ: both terms >= 0 where ṽ >= vf; elsewhere ε is far from 1.
-    summed = deficit + climb / vtilde
-    one_minus = np.where(rebound & (deficit >= 0.0), summed, 1.0 - eps)
-    one_minus = np.where(rebound, one_minus, 1.0)
-    return dict(eps=eps, one_minus_eps=one_minus,
-                contact_time=np.where(rebound, tau_force + climb, np.inf), captured=~rebound,
-                release_depth=np.where(released, -2.0 * (zeta * vf), -1.0), release_speed=vf)
+    # IIb's release, then the climb back to z = R: v1² = vf² − 4ζvf, rebound only if vf > 4ζ.
+    return dict(zip(_FIELDS, _kernels().iib_collide(zeta, vtilde, True)))
 
 
 _EXACT = {"Ia": _model_ia, "Ib": _model_ib, "IIa": _model_iia, "IIb": _model_iib,
@@ -377,8 +275,9 @@ def _iib_margin(log_v, zeta):
 
 def _hybrid_margin(log_v, zeta):
     """Release speed minus the 4ζ needed to climb back to z = R (> 0: hybrid rebounds)."""
-    released, _, vf, _ = _release_state(zeta, np.exp(log_v))
-    return np.where(released, vf - 4.0 * zeta, -4.0 * zeta)
+    fields = _model_iib(np.ascontiguousarray(zeta, dtype=float),
+                        np.ascontiguousarray(np.exp(log_v), dtype=float))
+    return np.where(fields["captured"], -4.0 * zeta, fields["release_speed"] - 4.0 * zeta)
 
 
 def _solve_in_log_speed(margin, zeta, log_start, log_min):
