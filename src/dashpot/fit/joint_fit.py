@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import lmfit
 import numpy as np
 
+from ..physics.effects import FLIGHT_EFFECTS
 from ..scene import Scene
 from .accuracy import choose_accuracy
 from .covariance import (_interval_row, _linear_estimate, _misfit_bound, _propagated_sd,
@@ -128,9 +129,12 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
 
     Notes
     -----
-    Where the scene models air drag the runs share the drag constant k_d (with the scene's
-    prior, or fixed where exact; ``estimates`` adds ``k_d``, 1/m). Rolling friction, which the
-    single-run fits of cart scenes try, is left out (a note says so).
+    The runs share every flight effect of the registry
+    :data:`dashpot.physics.effects.FLIGHT_EFFECTS` that the scene puts in every fit, with the
+    columns the effect sets up from the scene (``estimates`` adds its parameters and derived
+    quantities): air drag where the scene models it, the drag constant k_d (1/m) with the
+    scene's prior or fixed where exact. An effect the single-run fits try as a nested step
+    (rolling friction on cart scenes) is left out (a note says so).
     """
     scene = scene or Scene()
     runs = list(datas)
@@ -141,10 +145,8 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
     if not usable:
         return _failed(model, "joint fit not made: no run's own fit succeeded to start from",
                        runs)
-    notes = []
-    if scene.tries_friction:
-        notes.append("joint fit without rolling friction in flight (the single-run fits try "
-                     "it)")
+    notes = [f"joint fit without {effect.label} in flight (the single-run fits try it)"
+             for effect in FLIGHT_EFFECTS.values() if effect.steps_in(scene)]
     g = datas[runs[0]].g
     sigma_known = all(data.sigma_known for data in datas.values())
     level, trains_solver, _, reason = choose_accuracy(datas[runs[0]], scene.accuracy, model)
@@ -176,17 +178,26 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
     run_priors = ([("v0", known_v0.value, known_v0.uncertainty)]
                   if known_v0 is not None and not fixed_v0 else [])
 
-    drag = scene.drag
-    flight = ()  # gravity's flight: no flight columns
-    if drag is not None:
-        # Air drag shared by every run (one ball): k_d with the scene's prior, or fixed.
-        k_d = drag.drag_constant
-        flight = ("k_d", g, 0.0)  # k_d, g_eff, friction (FLIGHT_PARAMETERS)
-        if k_d.uncertainty is not None:
-            shared_priors.append(("k_d", k_d.value, k_d.uncertainty))
-        notes.append("air drag in flight shared by every run: " + (
-            f"k_d with the scene's prior {k_d.value:.3g} +- {k_d.uncertainty:.2g} 1/m"
-            if k_d.uncertainty is not None else f"k_d = {k_d.value:.3g} 1/m, exact"))
+    # The flight effects the scene puts in every fit, shared by every run (one body): their
+    # columns as the effects set them up (empty: gravity's flight).
+    shared_effects, columns = [], []
+    for effect in FLIGHT_EFFECTS.values():
+        setup = effect.columns(scene, g, False) if effect.in_every_fit(scene) else None
+        if setup is None:
+            continue
+        shared_effects.append(effect)
+        columns.extend(setup.columns)
+        units = {p.name: p.unit for p in effect.parameters}
+        shared_priors.extend((column.name, column.start, column.prior)
+                             for column in setup.columns
+                             if not column.fixed and column.prior is not None)
+        notes.append(f"{effect.label} in flight shared by every run: " + ", ".join(
+            f"{column.name} = {column.start:.3g} {units[column.name]}, exact" if column.fixed
+            else f"{column.name} fitted free" if column.prior is None
+            else f"{column.name} with the scene's prior {column.start:.3g} +- "
+                 f"{column.prior:.2g} {units[column.name]}"
+            for column in setup.columns))
+    flight = tuple(column.name for column in columns)
 
     params = lmfit.Parameters()
     params.add("zeta", value=float(np.median([starts[r].estimates["zeta"].value
@@ -202,12 +213,11 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         params.add(f"t0_{i}", value=(own.estimates["t0"].value - datas[run].time_origin
                                      if own else 0.0))
 
-    if drag is not None:
-        params.add("k_d", value=drag.drag_constant.value,
-                   vary=drag.drag_constant.uncertainty is not None)
+    for column in columns:
+        params.add(column.name, value=column.start, vary=not column.fixed)
     rows = []
     for i, run in enumerate(runs):
-        predictor = _TrainPredictor(model, g, datas[run].count, trains_solver)
+        predictor = _TrainPredictor(model, g, datas[run].count, trains_solver, shared_effects)
         # The first run's rows carry the shared priors; every run its own v0 prior.
         priors = run_priors + (shared_priors if i == 0 else [])
         rows.append(functools.partial(_residual_rows, data=datas[run], predictor=predictor,
@@ -215,10 +225,10 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
 
     def residual(p):
         values = p.valuesdict()
-        columns = [values["k_d"] if name == "k_d" else name for name in flight]
+        shared = [values[name] for name in flight]
         return np.concatenate([
             row(np.array([[values["zeta"], values["v_star"], values[f"v0_{i}"],
-                           values[f"t0_{i}"], *columns]]))[0] for i, row in enumerate(rows)])
+                           values[f"t0_{i}"], *shared]]))[0] for i, row in enumerate(rows)])
 
     def minimize(start):
         return lmfit.minimize(residual, start, method=METHOD, max_nfev=max_nfev, **OPTIONS,
@@ -273,11 +283,16 @@ def fit_joint(datas, model, scene=None, starts=None, *, max_nfev=4000):
         estimates["gamma"] = _linear_estimate(
             gamma, math.hypot(sd_of({"zeta": 1.0 / zeta, "v_star": -1.0 / v_star}), mass_sd)
             * gamma, "kg/s", "derived", "gamma = 2 m beta")
-    if drag is not None:
-        estimates["k_d"] = _linear_estimate(
-            values["k_d"], sd_of({"k_d": 1.0}), "1/m",
-            "prior" if drag.drag_constant.uncertainty is not None else "fixed",
-            "quadratic drag constant of the flight, shared")
+    held = {column.name: ("fixed" if column.fixed else "fitted" if column.prior is None
+                          else "prior") for column in columns}
+    for parameter in (p for effect in shared_effects for p in effect.parameters):
+        estimates[parameter.name] = _linear_estimate(
+            values[parameter.name], sd_of({parameter.name: 1.0}), parameter.unit,
+            held[parameter.name], f"{parameter.description}, shared")
+    for quantity in (q for effect in shared_effects for q in effect.derived):
+        estimates[quantity.name] = _linear_estimate(
+            quantity.value(values), sd_of(quantity.gradient(values)), quantity.unit, "derived",
+            f"{quantity.description}, shared")
     run_estimates = {}
     for i, run in enumerate(runs):
         run_estimates[run] = {

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 import lmfit
 import numpy as np
 
+from ..physics.effects import FLIGHT_EFFECTS
 from ..physics.models import GRAVITY_MODELS, MODELS
 from ..scene import Scene
 from .accuracy import choose_accuracy
@@ -44,18 +45,17 @@ from .results import FitResult
 from .settings import (COARSE_OMEGA0_STEP, INTERVAL_DRAWS, INTERVAL_SEED, METHOD, OPTIONS,
                        PARAMETERS, UNCERTAINTY_METHODS)
 from .start import _start_values
-from .trains import FLIGHT_PARAMETERS, _TrainPredictor, _restitution
+from .trains import _fit_track, _TrainPredictor, _restitution
 from .uncertainty import IntervalInputs, beta_intervals
 
-FRICTION_STEP_BIC = 6.0
-"""ΔBIC that keeps rolling friction in flight, as the noise fits' nested steps
-(:data:`dashpot.noise_selection.NESTED_STEP_BIC`): strong evidence on the scale of Kass and
-Raftery [12]_."""
-FRICTION_START = 1e-3  # start of the friction deceleration, relative to g_eff
+EFFECT_STEP_BIC = 6.0
+"""ΔBIC that keeps a flight effect tried as a nested step (rolling friction on a cart), as the
+noise fits' nested steps (:data:`dashpot.noise_selection.NESTED_STEP_BIC`): strong evidence on
+the scale of Kass and Raftery [12]_."""
 
 
 def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
-              seed=0, accuracy=None):
+              seed=0, accuracy=None, effects=()):
     """Fit one contact model to a scene's impacts.
 
     Parameters
@@ -82,6 +82,9 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
         Numerical accuracy of the predicted trains (default: the scene's); see
         :func:`choose_accuracy`. The level, its solver and the error it guarantees are
         recorded in ``accuracy``, ``notes`` and ``numerical_tolerance``.
+    effects : sequence of str, default ()
+        Flight effects of the registry :data:`dashpot.physics.effects.FLIGHT_EFFECTS` the fit
+        carries beside those the scene puts in every fit and those it tries as a step (below).
 
     Returns
     -------
@@ -97,15 +100,25 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
         predicted range. Information criteria follow [3]_: with known timing errors AIC =
         χ² + 2K and BIC = χ² + K ln N; otherwise N ln(χ²/N) + 2K and N ln(χ²/N) + K ln N.
 
-        Where the scene models air drag (:attr:`Scene.drag`) the flights between impacts are
-        drag flights and ``estimates`` adds the drag constant ``k_d`` (1/m), fitted with the
-        scene's prior (a Gaussian penalty, as the prior on v0). Where it tries rolling
-        friction (:attr:`Scene.tries_friction`, cart scenes) the model is fitted again with
-        the flight's two accelerations, a_away = g_eff + f away from the bumper and
-        a_toward = g_eff − f back (``g_eff`` with the scene's incline angle as its prior, or
-        fixed where the scene states g_eff; ``friction`` f), and that fit is kept only where
-        it lowers the BIC by at least FRICTION_STEP_BIC; ``estimates`` then adds ``g_eff``,
-        ``friction``, ``a_away`` and ``a_toward`` (m/s²). A note says which was kept.
+        The flight between impacts carries every effect of the registry
+        :data:`dashpot.physics.effects.FLIGHT_EFFECTS` that the scene puts in every fit or
+        `effects` asks for, each set up from the scene by the effect (start, a prior or a
+        fixed value, the note): the trains fly the track law their ``enter`` gives, and
+        ``estimates`` adds each effect's parameters and derived quantities. Air drag is in
+        every fit where the scene models it (:attr:`Scene.drag`: the drag constant ``k_d``,
+        1/m, with the scene's prior, a Gaussian penalty as the prior on v0). An effect the
+        scene tries as a nested step (its ``stepped``: rolling friction where
+        :attr:`Scene.tries_friction`, cart scenes) is fitted again with the model and kept
+        only where it lowers the BIC by at least EFFECT_STEP_BIC; for friction ``estimates``
+        then adds ``g_eff`` (the scene's incline angle its prior, or fixed where the scene
+        states g_eff), ``friction`` f, and the flight's two accelerations ``a_away`` = g_eff
+        + f away from the bumper and ``a_toward`` = g_eff − f back (m/s²). A note says which
+        was kept.
+
+    Raises
+    ------
+    ValueError
+        An unknown model, uncertainty method or flight effect.
     """
     scene = scene or Scene()
     if model not in MODELS:
@@ -114,34 +127,53 @@ def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covarianc
     if unknown:
         raise ValueError(f"unknown uncertainty method {sorted(unknown)[0]!r}; use "
                          f"{', '.join(UNCERTAINTY_METHODS)}")
+    missing = [name for name in effects if name not in FLIGHT_EFFECTS]
+    if missing:
+        raise ValueError(f"unknown flight effect {missing[0]!r}; use "
+                         f"{', '.join(FLIGHT_EFFECTS)}")
     notes = list(data.notes) + flight_notes(scene)
+    carried = tuple(effects)
     try:
         result = _fit(data, model, scene, list(notes), max_nfev, tuple(uncertainty), seed,
-                      accuracy)
-        if scene.tries_friction and result.success:
-            with_friction = _fit(data, model, scene, list(notes), max_nfev, tuple(uncertainty),
-                                 seed, accuracy, friction=True)
-            result = _friction_step(result, with_friction)
+                      accuracy, carried)
+        # Nested steps, in the registry's order: each effect the scene tries is kept only
+        # where it lowers the BIC of the fit kept so far by EFFECT_STEP_BIC.
+        for effect in list(FLIGHT_EFFECTS.values()):
+            if not result.success or effect.name in carried or not effect.steps_in(scene):
+                continue
+            with_effect = _fit(data, model, scene, list(notes), max_nfev, tuple(uncertainty),
+                               seed, accuracy, carried + (effect.name,))
+            result, kept = _effect_step(result, with_effect, effect)
+            carried += (effect.name,) if kept else ()
         return result
     except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as error:
         return _failed(model, f"fit failed: {error}", notes, data)
 
 
-def _friction_step(without, with_friction):
-    """The fit with rolling friction where it lowers the BIC by FRICTION_STEP_BIC, else the
-    one without; a note says which and why."""
-    gain = without.bic - with_friction.bic
-    if with_friction.success and gain >= FRICTION_STEP_BIC:
-        a_away, a_toward = (with_friction.estimates[name] for name in ("a_away", "a_toward"))
-        with_friction.notes.append(
-            f"rolling friction kept: BIC without it minus BIC with it = {gain:.3g} (>= "
-            f"{FRICTION_STEP_BIC:g}); a_away = {a_away.value:.4g} +- {a_away.stderr:.2g} m/s², "
-            f"a_toward = {a_toward.value:.4g} +- {a_toward.stderr:.2g} m/s²")
-        return with_friction
-    why = (f"BIC without it minus BIC with it = {gain:.3g} (< {FRICTION_STEP_BIC:g})"
-           if with_friction.success else f"its fit failed ({with_friction.message})")
-    without.notes.append(f"rolling friction not kept, fixed at zero: {why}")
-    return without
+def _shown_unit(unit):
+    """A unit as the notes print it (m/s² for m/s^2)."""
+    return unit.replace("^2", "²").replace("^3", "³")
+
+
+def _effect_step(without, with_effect, effect):
+    """The fit with `effect` where it lowers the BIC by EFFECT_STEP_BIC, else the one
+    without, and whether the effect was kept; a note says which and why (with the effect's
+    derived quantities, else its parameters, where kept)."""
+    gain = without.bic - with_effect.bic
+    if with_effect.success and gain >= EFFECT_STEP_BIC:
+        shown = [quantity.name for quantity in effect.derived] or list(effect.parameter_names)
+        values = ", ".join(
+            f"{name} = {with_effect.estimates[name].value:.4g} +- "
+            f"{with_effect.estimates[name].stderr:.2g} "
+            f"{_shown_unit(with_effect.estimates[name].unit)}" for name in shown)
+        with_effect.notes.append(
+            f"{effect.label} kept: BIC without it minus BIC with it = {gain:.3g} (>= "
+            f"{EFFECT_STEP_BIC:g}); {values}")
+        return with_effect, True
+    why = (f"BIC without it minus BIC with it = {gain:.3g} (< {EFFECT_STEP_BIC:g})"
+           if with_effect.success else f"its fit failed ({with_effect.message})")
+    without.notes.append(f"{effect.label} not kept, fixed at zero: {why}")
+    return without, False
 
 
 def _failed(model, message, notes, data):
@@ -160,45 +192,32 @@ def _failed(model, message, notes, data):
                      error_bound=math.nan)
 
 
-def _flight_setup(scene, data, friction):
-    """The flight parameters of a fit: start values, varied or not, priors, why fixed.
+def _flight_setup(scene, g, effects):
+    """The flight of a fit: the registry's effects it carries and their columns.
+
+    Every effect of :data:`dashpot.physics.effects.FLIGHT_EFFECTS` that the scene puts in
+    every fit or `effects` names sets its columns up from the scene (its ``setup``), in the
+    registry's order.
 
     Returns
     -------
-    values : dict
-        Start value of each of FLIGHT_PARAMETERS (empty: gravity's flight, no columns).
-    varied : dict
-        Whether each is fitted.
-    priors : list of (name, centre, sd)
-    fixed : dict
-        Why a fixed one is fixed (for the estimates' notes).
+    carried : tuple of FlightEffect
+        The effects in the fit (empty: gravity's flight, no columns).
+    columns : tuple of Column
+        Their columns, in order: start values, whether held, priors, why held.
+    notes : list of str
+        The notes of a dashpot model's fit on them.
     """
-    drag = scene.drag
-    if drag is None and not friction:
-        return {}, {}, [], {}
-    values = {"k_d": 0.0, "g_eff": data.g, "friction": 0.0}
-    varied = dict.fromkeys(FLIGHT_PARAMETERS, False)
-    priors, fixed = [], {}
-    if drag is not None:
-        known = drag.drag_constant
-        values["k_d"] = known.value
-        varied["k_d"] = known.uncertainty is not None
-        if varied["k_d"]:
-            priors.append(("k_d", known.value, known.uncertainty))
-        else:
-            fixed["k_d"] = "drag constant known exactly from the scene"
-    if friction:
-        known = scene.flight_acceleration
-        values["g_eff"] = known.value
-        # Started off zero: the fast optimizer's difference steps are relative to the value.
-        values["friction"] = FRICTION_START * known.value
-        varied["g_eff"] = varied["friction"] = True
-        if known.uncertainty is None:
-            varied["g_eff"] = False
-            fixed["g_eff"] = "the scene's g_eff"
-        else:
-            priors.append(("g_eff", known.value, known.uncertainty))
-    return values, varied, priors, fixed
+    carried, columns, notes = [], [], []
+    for effect in FLIGHT_EFFECTS.values():
+        setup = effect.columns(scene, g, effect.name in effects)
+        if setup is None:
+            continue
+        carried.append(effect)
+        columns.extend(setup.columns)
+        if setup.dashpot_note:
+            notes.append(setup.dashpot_note)
+    return tuple(carried), tuple(columns), notes
 
 
 @dataclass(frozen=True)
@@ -271,7 +290,7 @@ def _contact_priors(known, scene, g, notes):
     return fixed, priors
 
 
-def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, friction=False):
+def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, effects=()):
     known = _known_contact(scene, notes)
     fixed_omega0, fixed_v0 = known.fixed_omega0, known.fixed_v0
     unknowns = 2 + (fixed_omega0 is None) + (fixed_v0 is None)
@@ -286,14 +305,15 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
                        notes, data)
     level, trains_solver, bound, reason = choose_accuracy(data, accuracy or scene.accuracy, model)
     notes.append(f"accuracy {reason}")
-    flight_start, flight_varied, flight_priors, flight_fixed = _flight_setup(scene, data,
-                                                                             friction)
-    flight_names = tuple(flight_start)
+    carried, columns, flight_notes_of_fit = _flight_setup(scene, data.g, effects)
+    flight_names = tuple(column.name for column in columns)
     names = PARAMETERS + flight_names  # the columns of the residual function
+    # The flight of the start values: the effects' track at their columns' starts.
+    flight_start = _fit_track(carried, data.g, [column.start for column in columns])
     known_v0 = None if known.known_v0 is None else known.known_v0.value
     start, how = _start_values(model, data, known_v0, known.known_omega0,
                                fit_v0=fixed_v0 is None, trains_solver=trains_solver,
-                               level=level, flight=tuple(flight_start.values()))
+                               level=level, flight=flight_start)
     if start is None:
         return _failed(model, f"fit failed: {how}", notes, data)
     notes.append(how)
@@ -310,20 +330,18 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
     params.add("v_star", value=g / start["omega0"], vary=fixed_omega0 is None)
     params.add("v0", value=start["v0"], vary=fixed_v0 is None)
     params.add("t0", value=start["t0"])
-    for name in flight_names:
-        params.add(name, value=flight_start[name], vary=flight_varied[name])
+    for column in columns:
+        params.add(column.name, value=column.start, vary=not column.fixed)
     fixed, priors = _contact_priors(known, scene, g, notes)
-    fixed.update(flight_fixed)
-    priors.extend(flight_priors)
-    if friction:
-        notes.append("rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - "
-                     "friction fitted" + (" (the scene's incline angle a prior on g_eff)"
-                                          if flight_varied["g_eff"] else ""))
+    fixed.update({column.name: column.reason for column in columns if column.fixed})
+    priors.extend((column.name, column.start, column.prior) for column in columns
+                  if not column.fixed and column.prior is not None)
+    notes.extend(flight_notes_of_fit)
 
     # Each train is that of the level's map to machine precision (Newton's method, or the
     # compiled impact-by-impact pass over the surrogate tables): the finite-difference
     # Jacobians difference trains whose parameters differ by ~1e-8 to 1e-5.
-    predictor = _TrainPredictor(model, data.g, data.count, trains_solver)
+    predictor = _TrainPredictor(model, data.g, data.count, trains_solver, carried)
     predictor.start = start["ratios"]
     # What the fitted times can be off by, relative to the span of the train.
     tolerance = bound * data.count
@@ -352,7 +370,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
         if not (values["zeta"] >= 0 and values["v_star"] > 0 and values["v0"] > 0):
             return True
         flight = [values[name] for name in flight_names]
-        if not np.all(_TrainPredictor.accepts(*flight)):
+        if not np.all(predictor.accepts(*flight)):
             return True
         trains, *_ = predictor(values["zeta"], g / values["v_star"], values["v0"], *flight)
         return int(trains.impacts[0]) < data.count
@@ -365,7 +383,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
         if data.sigma_known and result.chisqr > _misfit_bound(result.nfree):
             result = _restarted_on_finer_grid(result, params, minimize, captures, model, data,
                                               known, start, trains_solver, level,
-                                              tuple(flight_start.values()), notes)
+                                              flight_start, notes)
     stated_priors = list(priors)
     if (any(name == "v_star" for name, *_ in priors) and data.sigma_known
             and result.chisqr > _misfit_bound(result.nfree)):
@@ -416,8 +434,8 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
             return ("prior" if any(p[0] == name for p in priors) else "fitted"), ""
         return "fixed", fixed.get({"v_star": "omega0"}.get(name, name), "")
 
-    estimates = _estimates(values, varied, cov, status, data, known.mass, level, flight_names,
-                           friction, held_at_limit)
+    estimates = _estimates(values, varied, cov, status, data, known.mass, level, carried,
+                           held_at_limit)
     notes.extend(_identifiability_notes(estimates, varied, correlation, result.params))
 
     nvarys = len(varied)
@@ -432,7 +450,7 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, frict
         uncertainty if success else (),
         IntervalInputs(model=model, data=data, result=result, residual=residual, priors=priors,
                        start_ratios=predictor.start, seed=seed, chisqr_scale=chisqr_scale,
-                       notes=notes),
+                       notes=notes, flight_effects=carried),
         _interval_row(estimates["beta"]))
     top = float(np.max(speeds))
     bottom = float(np.min(speeds[speeds > 0])) if np.any(speeds > 0) else top
@@ -509,21 +527,15 @@ def _restarted_on_finer_grid(result, params, minimize, captures, model, data, kn
     return result
 
 
-FLIGHT_UNITS = {"k_d": "1/m", "g_eff": "m/s^2", "friction": "m/s^2"}
-FLIGHT_MEANINGS = {"k_d": "quadratic drag constant of the flight (deceleration k_d v^2)",
-                   "g_eff": "mean acceleration of the flights",
-                   "friction": "friction deceleration of the flights"}
-
-
-def _estimates(values, varied, cov, status, data, mass, level, flight_names, friction,
-               held_at_limit):
+def _estimates(values, varied, cov, status, data, mass, level, effects, held_at_limit):
     """Every reported quantity of a fit with its 68.27 % and 95.45 % intervals.
 
     Standard errors by linear propagation [4]_; intervals of the derived quantities (ω0, β, k,
     γ) from draws of the Gaussian approximation in the fitted coordinates (ζ, v*, v0, t0),
     where the likelihood is closest to Gaussian. ω0 = g/v* is unbounded above when v* = 0 (the
     gravity-free limit) lies inside the interval, and the intervals say so. `status(name)`
-    gives each parameter's status and why.
+    gives each parameter's status and why. The flight `effects` add their parameters (unit
+    and meaning from their specs) and their derived quantities, by linear propagation.
     """
     g = data.g
     zeta, v_star = values["zeta"], values["v_star"]
@@ -569,19 +581,15 @@ def _estimates(values, varied, cov, status, data, mass, level, flight_names, fri
             gamma_sd = math.hypot(sd_of(zeta=1.0 / zeta, v_star=-1.0 / v_star), mass_sd) * gamma
             estimates["gamma"] = _sampled(gamma, gamma_sd, 2.0 * mass_draws * beta_draws,
                                           "kg/s", "derived", "gamma = 2 m beta")
-    for name in flight_names:
-        if name != "k_d" and not friction:
-            continue
-        st, why = status(name)
-        estimates[name] = _linear_estimate(values[name], sd_of(**{name: 1.0}),
-                                           FLIGHT_UNITS[name], st, why or FLIGHT_MEANINGS[name])
-    if friction:
-        for name, sign, formula in (("a_away", 1.0, "g_eff + friction"),
-                                    ("a_toward", -1.0, "g_eff - friction")):
-            value = values["g_eff"] + sign * values["friction"]
-            spread = sd_of(g_eff=1.0, friction=sign)
-            estimates[name] = _linear_estimate(value, spread, "m/s^2", "derived",
-                                               f"{name} = {formula}")
+    for parameter in (p for effect in effects for p in effect.parameters):
+        st, why = status(parameter.name)
+        estimates[parameter.name] = _linear_estimate(
+            values[parameter.name], sd_of(**{parameter.name: 1.0}), parameter.unit, st,
+            why or parameter.meaning)
+    for quantity in (q for effect in effects for q in effect.derived):
+        estimates[quantity.name] = _linear_estimate(
+            quantity.value(values), sd_of(**quantity.gradient(values)), quantity.unit,
+            "derived", quantity.description)
     if held_at_limit:
         # ω0 sits at a limit the fit was held at, not at a minimum: no error and no bound,
         # and β, k and γ, which scale with it, are not determined either.

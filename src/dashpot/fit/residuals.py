@@ -11,7 +11,7 @@ from .settings import OMEGA0_RANGE, PARAMETERS, REJECTED
 
 def _residual_rows(values, *, data, predictor, priors):
     """Normalized residuals, one row per parameter set (columns as in PARAMETERS, then any
-    flight parameters the predictor takes, :data:`~dashpot.fit.trains.FLIGHT_PARAMETERS`).
+    flight columns the predictor takes, its ``flight_parameters``).
 
     Impact-time misfits over their σ, then the measured impact and rebound speeds' misfits
     over theirs, then one row per Gaussian prior (name, centre, sd). A set outside the

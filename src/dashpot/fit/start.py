@@ -28,7 +28,7 @@ def _flight_ratio_start(intervals, flags):
 
 
 def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10, step=1e-6,
-             trains_solver=impact_trains, flight=()):
+             trains_solver=impact_trains, flight=None):
     """Best ζ (and v0) at each of many fixed ω0, by batched Levenberg–Marquardt, t0 profiled.
 
     Every iteration evaluates the trains at the current values and at a small step in each
@@ -38,8 +38,8 @@ def _profile(model, data, zeta, omega0, v0, start, *, fit_v0=True, iterations=10
     while at fixed ω0 the rest converges in a few steps.
 
     `start` (speeds relative to the first, one row per ω0 or one row for all) starts the
-    trains' Newton iterations. `flight` holds the flight parameters held fixed here
-    (:data:`~dashpot.fit.trains.FLIGHT_PARAMETERS`, SI; empty: gravity's flight).
+    trains' Newton iterations. `flight` is the flight held fixed here, a
+    :class:`~dashpot.physics.effects.Track` (SI; None: gravity's flight).
 
     Returns
     -------
@@ -129,7 +129,7 @@ def _zeta_on_grid(model, eps, vtilde, trains_solver, grid=None):
 
 
 def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
-                  trains_solver=impact_trains, level="exact", omega0_spread=1.0, flight=()):
+                  trains_solver=impact_trains, level="exact", omega0_spread=1.0, flight=None):
     """Start values of ζ, ω0, v0 and t0 from the data, and a note on how they were found.
 
     The interval ratios give ε; the first interval (or the scene) gives v0; ζ follows from ε
@@ -141,7 +141,7 @@ def _start_values(model, data, known_v0, known_omega0, *, fit_v0=True,
     (:func:`_zeta_on_grid`) and takes fewer steps at fixed ω0 (the fit refines them all).
     With `known_omega0` the grid is that one value, or with `omega0_spread` > 1 the grid from
     `known_omega0` / `omega0_spread` to `known_omega0` · `omega0_spread` (rad/s). The fits
-    at fixed ω0 fly the flight of `flight` (its parameters' start values, SI; see
+    at fixed ω0 fly the flight `flight` (the Track at its columns' start values, SI; see
     :func:`_profile`).
     """
     if level == "fast":

@@ -1,13 +1,14 @@
 """Predicted trains of a contact model for many parameter sets at once: impact times, speeds
 and restitution, in the fit's units (s, m/s).
 
-The flight between impacts is gravity's unless the fit gives its flight parameters
-(:data:`FLIGHT_PARAMETERS`, SI units): the drag constant k_d (1/m), the mean acceleration of
-the flight g_eff (m/s²) and a friction deceleration f (m/s²), so that the body decelerates at
-a_away = g_eff + f moving away from the surface and accelerates at a_toward = g_eff − f coming
-back (rolling friction of a cart opposes the motion on both legs) [1]_. The contact stays under
-the data's driving acceleration g (the unit of v* = g/ω0). With k_d = 0, g_eff = g and f = 0
-the trains are today's gravity-only ones exactly.
+The flight between impacts is gravity's unless the fit carries flight effects of the registry
+:data:`dashpot.physics.effects.FLIGHT_EFFECTS` (air drag, rolling friction, ...): their
+parameters are the fit's flight columns (SI units, in the registry's order), and each effect
+enters the coefficients of the track flight law (:class:`~dashpot.physics.effects.Track`:
+deceleration a_up = gravity + away moving away from the surface, acceleration a_down =
+gravity − toward coming back, quadratic drag k_d) [1]_; the train solvers fly that law in
+units of the contact's g. The contact stays under the data's driving acceleration g (the unit
+of v* = g/ω0). At a track that is gravity's exactly the trains are the gravity-only ones.
 
 References
 ----------
@@ -18,15 +19,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..physics.effects import FLIGHT_EFFECTS, flight_track
 from ..physics.models import EXACT_RTOL
 from ..physics.train import TrackFlight, impact_trains
 
-FLIGHT_PARAMETERS = ("k_d", "g_eff", "friction")
-"""Fitted coordinates of the flight, after :data:`~dashpot.fit.settings.PARAMETERS`: drag
-constant (1/m), mean flight acceleration (m/s²), friction deceleration (m/s²)."""
+
+def _flight_columns(effects):
+    """Names of the flight columns of a fit carrying `effects`, in order."""
+    return tuple(name for effect in effects for name in effect.parameter_names)
 
 
-def _track_flight(g, v_star, k_d=None, g_eff=None, friction=None):
+def _fit_track(effects, g, flight):
+    """The :class:`~dashpot.physics.effects.Track` (m/s², 1/m) of the flight columns `flight`
+    (in the order of :func:`_flight_columns`; floats or one array per column), or None
+    where the fit carries no effect or no columns are given (gravity's flight)."""
+    if not effects or len(flight) == 0:
+        return None
+    return flight_track(effects, g, dict(zip(_flight_columns(effects), flight)))
+
+
+def _track_flight(g, v_star, track):
     """The dimensionless :class:`TrackFlight` of each train (None: gravity's).
 
     Parameters
@@ -35,23 +47,24 @@ def _track_flight(g, v_star, k_d=None, g_eff=None, friction=None):
         Driving acceleration of the contact in m/s² (the unit of the accelerations).
     v_star : ndarray
         g/ω0 of each train in m/s.
-    k_d, g_eff, friction : float or ndarray, optional
-        Flight parameters (SI); None: 0, g, 0.
+    track : Track or None
+        The flight's coefficients (SI), floats or one value per train; None: gravity's.
     """
-    if k_d is None and g_eff is None and friction is None:
+    if track is None:
         return None
-    k_d = 0.0 if k_d is None else k_d
-    g_eff = g if g_eff is None else g_eff
-    friction = 0.0 if friction is None else friction
-    if np.all(k_d == 0.0) and np.all(g_eff == g) and np.all(friction == 0.0):
+    up, down, drag = track.up, track.down, track.drag
+    if np.all(up == g) and np.all(down == g) and np.all(drag == 0.0):
         return None
-    return TrackFlight.of((g_eff + friction) / g, (g_eff - friction) / g, k_d * v_star ** 2 / g,
-                          np.size(v_star))
+    return TrackFlight.of(up / g, down / g, drag * v_star ** 2 / g, np.size(v_star))
 
 
-def _flight_accepted(k_d=0.0, g_eff=1.0, friction=0.0):
-    """Mask of physical flight parameters: k_d >= 0 and both accelerations > 0."""
-    return (np.asarray(k_d) >= 0.0) & (np.asarray(g_eff) - np.abs(friction) > 0.0)
+def _track_accepted(track):
+    """Mask of physical flights: drag k_d >= 0 and both accelerations a_up, a_down > 0 (True
+    for gravity's flight, None)."""
+    if track is None:
+        return np.True_
+    return ((np.asarray(track.drag) >= 0.0) & (np.asarray(track.up) > 0.0)
+            & (np.asarray(track.down) > 0.0))
 
 
 def _impact_times(trains, omega0):
@@ -64,26 +77,33 @@ def _impact_times(trains, omega0):
 
 class _TrainPredictor:
     """Predicted trains of one model for many parameter sets at once, each evaluation started
-    from the previous one's train (Newton's start; see :func:`impact_trains`)."""
+    from the previous one's train (Newton's start; see :func:`impact_trains`).
 
-    flight_parameters = FLIGHT_PARAMETERS
+    `effects` are the flight effects the fit carries (registry entries, in the registry's
+    order; default every registered one): the trains' flight columns are their parameters
+    (``flight_parameters``)."""
 
-    def __init__(self, model, g, count, trains_solver=impact_trains):
+    def __init__(self, model, g, count, trains_solver=impact_trains, effects=None):
         self.model, self.g, self.count = model, g, count
         self.trains_solver = trains_solver
+        self.effects = tuple(FLIGHT_EFFECTS.values() if effects is None else effects)
+        self.flight_parameters = _flight_columns(self.effects)
         self.start = None
         self.error_bound = 0.0
 
-    @staticmethod
-    def accepts(*flight):
-        """Mask of the parameter sets whose flight columns (:data:`FLIGHT_PARAMETERS`) are
-        physical."""
-        return _flight_accepted(*flight)
+    def track(self, *flight):
+        """The :class:`~dashpot.physics.effects.Track` of the flight columns (None: gravity's
+        flight, the fit carries no effect)."""
+        return _fit_track(self.effects, self.g, flight)
+
+    def accepts(self, *flight):
+        """Mask of the parameter sets whose flight columns give a physical flight (see
+        :func:`_track_accepted`)."""
+        return _track_accepted(self.track(*flight))
 
     def __call__(self, zeta, omega0, v0, *flight):
         """Trains at arrays (or scalars) ζ, ω0 (rad/s), v0 (m/s), one row per parameter set,
-        and optionally the flight parameters k_d (1/m), g_eff (m/s²), friction (m/s²) (in the
-        order of :data:`FLIGHT_PARAMETERS`; default gravity's flight).
+        and the flight columns (``flight_parameters``, SI; none given: gravity's flight).
 
         Returns
         -------
@@ -101,7 +121,7 @@ class _TrainPredictor:
         v_star = self.g / omega0
         start = (None if self.start is None
                  else np.broadcast_to(self.start, (zeta.size, self.count)))
-        flight = _track_flight(self.g, v_star, *flight)
+        flight = _track_flight(self.g, v_star, self.track(*flight))
         options = {} if flight is None else {"flight": flight}
         trains = self.trains_solver(self.model, zeta, v0 / v_star, self.count, start=start,
                                     rtol=EXACT_RTOL, **options)
@@ -120,18 +140,18 @@ class _TrainPredictor:
 
 
 def _train_times(model, data, zeta, omega0, v0, start=None, trains_solver=impact_trains,
-                 flight=()):
+                 flight=None):
     """Predicted times (s, from the first impact) of the observed impacts, many trains at once.
 
-    A train captured before the last observed impact rests at its last one. `flight` holds
-    the flight parameters (:data:`FLIGHT_PARAMETERS`, SI; empty: gravity's flight).
+    A train captured before the last observed impact rests at its last one. `flight` is the
+    flight's :class:`~dashpot.physics.effects.Track` (SI; None: gravity's flight).
 
     Returns
     -------
     times : ndarray, shape (trains, observed impacts)
     trains : ImpactTrains
     """
-    track = _track_flight(data.g, data.g / np.asarray(omega0, float), *flight)
+    track = _track_flight(data.g, data.g / np.asarray(omega0, float), flight)
     options = {} if track is None else {"flight": track}
     trains = trains_solver(model, zeta, v0 * omega0 / data.g, data.count, start=start,
                            **options)

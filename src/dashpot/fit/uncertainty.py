@@ -55,6 +55,8 @@ class IntervalInputs:
         Divisor of χ² where it measures likelihood (1, or χ²/ν under a misfit).
     notes : list of str
         The fit's notes; a method appends what a user must know of its intervals.
+    flight_effects : tuple of FlightEffect
+        The flight effects the fit carries (its flight columns are their parameters).
     """
 
     model: str
@@ -66,6 +68,7 @@ class IntervalInputs:
     seed: int
     chisqr_scale: float
     notes: list
+    flight_effects: tuple = ()
 
 
 def profile_interval(inputs: IntervalInputs) -> dict:
@@ -80,7 +83,7 @@ def posterior_interval(inputs: IntervalInputs) -> dict:
     :func:`dashpot.fit.posterior._posterior_beta`)."""
     data = inputs.data
     sampled = _TrainPredictor(inputs.model, data.g, data.count,
-                              _trains_solver("fast", inputs.model)[0])
+                              _trains_solver("fast", inputs.model)[0], inputs.flight_effects)
     sampled.start = inputs.start_ratios
     row = _posterior_beta(functools.partial(_residual_rows, data=data, predictor=sampled,
                                             priors=inputs.priors),

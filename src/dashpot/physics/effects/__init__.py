@@ -23,12 +23,16 @@ name, the acceleration it adds, its parameters with units and default bounds and
 vectorized ``enter(track, *params) -> Track``, a reference; where it needs them the ``setup``
 of its columns from scene keys (start, bounds, a prior or a fixed value, the fit's note),
 ``in_scene`` where a scene puts it in every fit, ``tried`` where only some scenes' ladders try
-its rung, the law its rung ``extends`` and the verdict's ``caveat``), plus its module's name in
-``_MODULES``. The noise fits (:func:`dashpot.fit.fit_noise_model`, ``effects=(name,)``) then
-fit its parameters as columns of the step map, every scene's noise fits
-(:func:`dashpot.fit.noise_scene.fit_noise_scene`) fit its rung, and the noise selection
-(:mod:`dashpot.noise_selection`) compares the rung with the law it extends.
-:func:`register` adds an effect at run time, and all of those see it.
+its rung, the law its rung ``extends`` and the verdict's ``caveat``; for the dashpot models'
+fits its plain-words ``meaning``, the ``derived`` quantities they report and where they try it
+as a nested step, ``stepped``), plus its module's name in ``_MODULES``. The noise fits
+(:func:`dashpot.fit.fit_noise_model`, ``effects=(name,)``) then fit its parameters as columns
+of the step map, every scene's noise fits (:func:`dashpot.fit.noise_scene.fit_noise_scene`) fit
+its rung, and the noise selection (:mod:`dashpot.noise_selection`) compares the rung with the
+law it extends; the dashpot models' fits (:func:`dashpot.fit.fit_model`, ``effects=(name,)``,
+and :func:`dashpot.fit.fit_joint` where the scene puts it in every fit) fit its columns, their
+trains flying the :class:`Track` it enters (:func:`flight_track`). :func:`register` adds an
+effect at run time, and all of those see it.
 """
 
 from __future__ import annotations
@@ -38,10 +42,11 @@ from collections.abc import Mapping
 from ..flight import gravity_flight, track_flight
 from . import drag as _drag
 from . import friction as _friction
-from .base import Column, EffectParameter, EffectSetup, FlightEffect, Track
+from .base import Column, DerivedQuantity, EffectParameter, EffectSetup, FlightEffect, Track
 
-__all__ = ["FLIGHT_EFFECTS", "EFFECT_PARAMETERS", "Column", "EffectParameter", "EffectSetup",
-           "FlightEffect", "Track", "flight_map", "register", "unregister"]
+__all__ = ["FLIGHT_EFFECTS", "EFFECT_PARAMETERS", "Column", "DerivedQuantity", "EffectParameter",
+           "EffectSetup", "FlightEffect", "Track", "flight_map", "flight_track", "register",
+           "unregister"]
 
 _MODULES = (_drag, _friction)
 """The modules whose ``EFFECT_SPECS`` make the registry, in its order (the order of the fit's
@@ -142,6 +147,30 @@ def unregister(name):
     del FLIGHT_EFFECTS[name]
 
 
+def flight_track(effects, g, columns):
+    """The coefficients of the flight law of a fit: :class:`Track` at g with `effects` entered
+    in order.
+
+    Parameters
+    ----------
+    effects : sequence of FlightEffect
+        The effects the fit carries, in the registry's order.
+    g : float
+        Acceleration towards the surface without them, in m/s².
+    columns : dict of str -> float or ndarray
+        Every effect's parameters by name (arrays: one value per parameter set).
+
+    Returns
+    -------
+    Track
+        Gravity's (g both ways, no drag) where `effects` is empty.
+    """
+    track = Track(g)
+    for effect in effects:
+        track = effect.enter(track, *(columns[name] for name in effect.parameter_names))
+    return track
+
+
 def flight_map(effects, g, columns):
     """The flight of a fit: ``flight(v) -> Flight`` with `effects` entered in order.
 
@@ -159,12 +188,10 @@ def flight_map(effects, g, columns):
     callable
         ``flight(v)`` of launch speeds v in m/s: :func:`~dashpot.physics.flight.gravity_flight`
         at g without effects, else :func:`~dashpot.physics.flight.track_flight` at the
-        coefficients the effects give.
+        coefficients the effects give (:func:`flight_track`).
     """
     if not effects:
         return lambda v: gravity_flight(v, g)
-    track = Track(g)
-    for effect in effects:
-        track = effect.enter(track, *(columns[name] for name in effect.parameter_names))
+    track = flight_track(effects, g, columns)
     up, down, drag = track.up, track.down, track.drag
     return lambda v: track_flight(v, up, down, drag)

@@ -3,10 +3,12 @@
 A flight effect (air drag, rolling friction, ...) is a :class:`FlightEffect`: a name, the
 acceleration it adds in one line, its parameters (:class:`EffectParameter`: unit, meaning,
 default bounds and start), how it changes the coefficients of the flight law (:class:`Track`,
-the closed form :func:`dashpot.physics.flight.track_flight`) and where it stands in a noise
-fit: how a scene sets its columns up (start values, bounds, a prior or a fixed value from scene
-keys, :class:`EffectSetup`), the rung it makes on the selection ladder and the note the verdict
-carries where its rung was tried. Nothing here knows any particular effect: they are defined in
+the closed form :func:`dashpot.physics.flight.track_flight`), the quantities a fit derives from
+its parameters (:class:`DerivedQuantity`), and where it stands in a fit: how a scene sets its
+columns up (start values, bounds, a prior or a fixed value from scene keys, why a value is
+held, :class:`EffectSetup`), whether the dashpot models' fits try it as a nested step, the rung
+it makes on the noise fits' selection ladder and the note the verdict carries where its rung
+was tried. Nothing here knows any particular effect: they are defined in
 the modules beside this one and collected in :data:`dashpot.physics.effects.FLIGHT_EFFECTS`.
 
 This module imports nothing of the package but the flight law, so that every effect module can
@@ -19,7 +21,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Column", "EffectParameter", "EffectSetup", "FlightEffect", "Track"]
+__all__ = ["Column", "DerivedQuantity", "EffectParameter", "EffectSetup", "FlightEffect",
+           "Track"]
 
 
 @dataclass(frozen=True)
@@ -70,10 +73,15 @@ class EffectParameter:
     unit : str
         SI unit.
     description : str
-        What it is, in a few words (reports).
+        What it is, in plain words (reports; a joint fit's estimate adds ", shared").
     lower, upper, start : float
         Default fit bounds and start value, where the effect's ``setup`` takes them (an effect
-        whose bounds scale with the scene, as friction's with g_eff, sets its own).
+        whose bounds scale with the scene, as friction's with g_eff, sets its own). A start
+        off zero: the fast level's optimizer differences each column with a step relative to
+        its value.
+    detail : str
+        How it enters, in a few symbols (``"deceleration k_d v^2"``), shown after the
+        description in a single fit's estimate ("" for none).
     """
 
     name: str
@@ -82,6 +90,39 @@ class EffectParameter:
     lower: float = 0.0
     upper: float = math.inf
     start: float = 0.0
+    detail: str = ""
+
+    @property
+    def meaning(self):
+        """The description with its detail: the note of a fitted estimate."""
+        return f"{self.description} ({self.detail})" if self.detail else self.description
+
+
+@dataclass(frozen=True)
+class DerivedQuantity:
+    """A quantity a fit reports from an effect's parameters (a_away = g_eff + f, ...), with its
+    error by linear propagation.
+
+    Attributes
+    ----------
+    name : str
+        Key of the fit's estimates.
+    unit : str
+        SI unit.
+    description : str
+        Its formula or meaning (the estimate's note).
+    value : callable
+        ``value(columns) -> float`` from the fitted columns by name.
+    gradient : callable
+        ``gradient(columns) -> dict`` of ∂q/∂p by parameter name (parameters left out add
+        nothing).
+    """
+
+    name: str
+    unit: str
+    description: str
+    value: Callable
+    gradient: Callable
 
 
 @dataclass(frozen=True)
@@ -100,6 +141,9 @@ class Column:
         Standard deviation of a Gaussian prior centred on `start` (None: no prior).
     fixed : bool
         Held at `start` (a value the scene states exactly).
+    reason : str
+        Why it is held, where `fixed` (the note of a dashpot model's estimate; "" for the
+        parameter's meaning).
     """
 
     name: str
@@ -108,14 +152,31 @@ class Column:
     upper: float
     prior: float | None = None
     fixed: bool = False
+    reason: str = ""
 
 
 @dataclass(frozen=True)
 class EffectSetup:
-    """An effect's columns in one fit (in the order of its parameters) and the fit's note."""
+    """An effect's columns in one fit (in the order of its parameters) and the fit's note.
+
+    Attributes
+    ----------
+    columns : tuple of Column
+    note : str
+        The note of a fit carrying the effect.
+    model_note : str or None
+        The note of a dashpot model's fit (:func:`dashpot.fit.fit_model`) where it words it
+        otherwise ("" for none, where the scene's notes say it already); None: `note`.
+    """
 
     columns: tuple[Column, ...]
     note: str
+    model_note: str | None = None
+
+    @property
+    def dashpot_note(self):
+        """The note of a dashpot model's fit ("" for none)."""
+        return self.note if self.model_note is None else self.model_note
 
 
 @dataclass(frozen=True)
@@ -157,6 +218,16 @@ class FlightEffect:
     carried : callable, optional
         ``carried(fit, name) -> str or None``: a note of the verdict on the selected fit
         `fit` (named `name`) where the effect is in it without a rung (the scene's).
+    meaning : str
+        The effect in plain words (``"rolling friction"``), in the fits' notes; default its
+        name.
+    derived : tuple of DerivedQuantity
+        What a fit carrying the effect reports beside its parameters.
+    stepped : callable, optional
+        ``stepped(scene) -> bool``: whether the dashpot models' fits of `scene`
+        (:func:`dashpot.fit.fit_model`) try the effect as a nested step: the model fitted
+        again with it, kept where it lowers the BIC enough. Default: never (a fit still
+        carries it where the scene puts it in every fit or the fit asks for it).
     """
 
     name: str
@@ -170,6 +241,14 @@ class FlightEffect:
     extends: str = "constant"
     caveat: str = ""
     carried: Callable | None = None
+    meaning: str = ""
+    derived: tuple[DerivedQuantity, ...] = ()
+    stepped: Callable | None = None
+
+    @property
+    def label(self):
+        """The effect in plain words: its meaning, else its name."""
+        return self.meaning or self.name
 
     @property
     def parameter_names(self):
@@ -202,3 +281,9 @@ class FlightEffect:
     def has_rung(self, scene):
         """Whether `scene`'s ladder fits the effect's rung."""
         return not self.in_every_fit(scene) and (self.tried is None or bool(self.tried(scene)))
+
+    def steps_in(self, scene):
+        """Whether the dashpot models' fits of `scene` try the effect as a nested step (see
+        :attr:`stepped`; never where the scene puts it in every fit)."""
+        return (not self.in_every_fit(scene) and self.stepped is not None
+                and bool(self.stepped(scene)))

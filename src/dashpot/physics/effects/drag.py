@@ -33,12 +33,16 @@ def _setup(scene, g, requested):
         known = drag.drag_constant
         bounds = (0.0, max(DRAG_UPPER, 10.0 * known.value))
         if known.uncertainty is None:
-            return EffectSetup((Column("k_d", known.value, *bounds, fixed=True),),
+            return EffectSetup((Column("k_d", known.value, *bounds, fixed=True,
+                                       reason="drag constant known exactly from the scene"),),
                                f"air drag: k_d = {known.value:.4g} 1/m from the scene, held "
-                               f"fixed; g_eff = {g:.5g} m/s²")
+                               f"fixed; g_eff = {g:.5g} m/s²", model_note="")
+        # A dashpot model's fit has the scene's flight notes on drag already
+        # (:func:`dashpot.fit.data.flight_notes`): no note of its own.
         return EffectSetup((Column("k_d", known.value, *bounds, prior=known.uncertainty),),
                            f"air drag: k_d fitted with the scene's prior {known.value:.4g} ± "
-                           f"{known.uncertainty:.2g} 1/m (C_d prior); g_eff = {g:.5g} m/s²")
+                           f"{known.uncertainty:.2g} 1/m (C_d prior); g_eff = {g:.5g} m/s²",
+                           model_note="")
     if not requested:
         return None
     return EffectSetup(
@@ -58,12 +62,13 @@ def _carried(fit, name):
 
 EFFECT_SPECS = (FlightEffect(
     "drag", "−k_d·v|v| (quadratic air drag)",
-    (EffectParameter("k_d", "1/m", "quadratic drag constant of the flight (k_d v^2)",
-                     0.0, DRAG_UPPER, DRAG_START),),
+    (EffectParameter("k_d", "1/m", "quadratic drag constant of the flight",
+                     0.0, DRAG_UPPER, DRAG_START, detail="deceleration k_d v^2"),),
     _enter,
     "P. Timmerman and J. P. van der Weele, Am. J. Phys. 67, 538-546 (1999)",
     setup=_setup,
     in_scene=lambda scene: bool(getattr(scene, "needs_drag", False)),
     caveat="drag without the ball's mass and diameter is degenerate with a speed-dependent "
            "restitution (e = e0 - c v^2 fits about as well)",
-    carried=_carried),)
+    carried=_carried,
+    meaning="air drag"),)

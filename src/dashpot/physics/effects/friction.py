@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .base import Column, EffectParameter, EffectSetup, FlightEffect
+from .base import Column, DerivedQuantity, EffectParameter, EffectSetup, FlightEffect
 
 __all__ = ["EFFECT_SPECS", "FRICTION_START", "FRICTION_UPPER"]
 
@@ -32,12 +32,30 @@ def _setup(scene, g, requested):
         return None
     known = scene.flight_acceleration
     exact = known.uncertainty is None
+    fitted = "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - friction "
     return EffectSetup(
         (Column("g_eff", known.value, 0.5 * known.value, 2.0 * known.value,
-                prior=known.uncertainty, fixed=exact),
+                prior=known.uncertainty, fixed=exact, reason="the scene's g_eff"),
+         # Started off zero: the fast optimizer's difference steps are relative to the value.
          Column("friction", FRICTION_START * known.value, 0.0, FRICTION_UPPER * known.value)),
-        "rolling friction in flight: a_away = g_eff + friction, a_toward = g_eff - friction "
-        "fitted" + (" (g_eff fixed at the scene's)" if exact else " (the scene's g_eff a prior)"))
+        fitted + "fitted" + (" (g_eff fixed at the scene's)" if exact
+                             else " (the scene's g_eff a prior)"),
+        model_note=fitted + "fitted" + ("" if exact
+                                        else " (the scene's incline angle a prior on g_eff)"))
+
+
+# The two accelerations of the flight, reported by the dashpot models' fits with friction.
+_ACCELERATIONS = (
+    DerivedQuantity("a_away", "m/s^2", "a_away = g_eff + friction",
+                    lambda p: p["g_eff"] + p["friction"],
+                    lambda p: {"g_eff": 1.0, "friction": 1.0}),
+    DerivedQuantity("a_toward", "m/s^2", "a_toward = g_eff - friction",
+                    lambda p: p["g_eff"] - p["friction"],
+                    lambda p: {"g_eff": 1.0, "friction": -1.0}))
+
+
+def _tried(scene):
+    return bool(getattr(scene, "tries_friction", False))
 
 
 EFFECT_SPECS = (FlightEffect(
@@ -48,7 +66,10 @@ EFFECT_SPECS = (FlightEffect(
     "S. P. Bartz, \"Coefficient of restitution of a linear dashpot on a rigid surface\", "
     "section \"Modeling experimental data\"",
     setup=_setup,
-    tried=lambda scene: bool(getattr(scene, "tries_friction", False)),
+    tried=_tried,
     caveat="friction from impact times alone is nearly degenerate with the restitution (both "
            "scale each flight's speed); the scene's prior on g_eff and a known first impact "
-           "speed are what separate them"),)
+           "speed are what separate them",
+    meaning="rolling friction",
+    derived=_ACCELERATIONS,
+    stepped=_tried),)
