@@ -14,9 +14,10 @@ target of issue 16 (<= 8x against the faster closed form) and the baseline of th
 before the root finding was compiled (commit 3830686: 7-15x, 1.1e6-2.0e6 evaluations/s for the
 gravity models against 1.5e7-2e7 for the closed forms), and the CPU time per point of the
 slowest gravity model and of the fastest closed form. Measured after the gravity models' collide
-became one compiled pass: 4.1x / 11.0x / 4.0x at 1e3 / 1e4 / 1e5 points against the faster closed
-form (2.5x / 5.9x / 2.5x against the slower), about 140 ns per gravity point against Ia's 12 ns
-at 1e4 points, where numpy's vectorized exp makes Ia cheapest.
+became one compiled pass: 4.5x / 12.3x / 3.5x at 1e3 / 1e4 / 1e5 points against the faster closed
+form (2.8x / 6.7x / 2.3x against the slower), about 160 ns per gravity point against Ia's 13 ns
+at 1e4 points, where numpy's vectorized exp makes Ia cheapest (numba's inlining took a tenth off
+the gravity models but made their first compile 20 s instead of 3.6 s: not used).
 
 Timings are CPU time (time.process_time) of the best of three runs, so that other load on the
 machine distorts them less. Run with ``make bench``.

@@ -63,12 +63,10 @@ _HUGE_SPEED = 1e300
 _IB, _IIB_CS, _IIB_MODAL = 0, 1, 2
 
 # Float division by zero gives inf/nan as in numpy (the iteration tests for it) instead of
-# raising; no fastmath, so that comparisons with inf and nan keep their IEEE meaning. Every
-# function is inlined into the loops that call it (numba's own inlining, before LLVM's): a call
-# between compiled functions passes its results through memory and checks a status code, and
-# inlining them took a fifth off the time per point. It costs compile time (about 15-20 s once,
-# then loaded from the cache).
-_jit = numba.njit(cache=True, error_model="numpy", inline="always")
+# raising; no fastmath, so that comparisons with inf and nan keep their IEEE meaning. numba's
+# own inlining (inline="always") took a fifth off the time per point but made the first
+# compile 20 s instead of 3.6 s (every new install, every fresh test run): not used.
+_jit = numba.njit(cache=True, error_model="numpy")
 
 
 @_jit
