@@ -78,6 +78,27 @@ from .start import _flight_ratio_start, _start_values
 __all__ = ["NoiseProblem"]
 
 
+
+def _largest_relative_error(pairs):
+    """Largest finite |approx − exact|/|exact| over (approx, exact) array pairs (0 if none)."""
+    relative = 0.0
+    for approx, exact in pairs:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            error = np.abs(approx - exact) / np.abs(exact)
+        relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
+    return relative
+
+
+def _filter_differences(tabulated, direct):
+    """|Δ(−2 ln L)| and the largest |Δt| of predicted impact times between two filter runs
+    of one parameter row (the tabulated step map against the direct evaluation)."""
+    likelihood = abs(float(tabulated.neg2_log_likelihood[0])
+                     - float(direct.neg2_log_likelihood[0]))
+    timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
+                                    - direct.predicted_times[0]), initial=0.0))
+    return likelihood, timing
+
+
 class NoiseProblem:
     """One law fitted to a batch of trains under the noise model: the parameter layout (the
     law's parameters, the flight's, v0, ln σ_ε, ln σ_j), the objective −2 ln L with priors, at
@@ -444,16 +465,8 @@ class NoiseProblem:
         if probes.size:
             exact = self.step_model(row[None, self.step_columns]).step(probes[:, None])
             approx = table.interpolate(probes, 0)
-            for q in (0, 1):
-                value = exact[q][:, 0]
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    error = np.abs(approx[q] - value) / np.abs(value)
-                relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
-        likelihood = abs(float(tabulated.neg2_log_likelihood[0])
-                         - float(direct.neg2_log_likelihood[0]))
-        timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
-                                        - direct.predicted_times[0]), initial=0.0))
-        return relative, likelihood, timing, direct
+            relative = _largest_relative_error([(approx[q], exact[q][:, 0]) for q in (0, 1)])
+        return (relative, *_filter_differences(tabulated, direct), direct)
 
     def _speed_level_errors(self, rows, trains):
         """:meth:`level_errors` of the filter with measured speeds, which evaluates the law
@@ -471,15 +484,8 @@ class NoiseProblem:
             law_params = [rows[:, i] for i in range(len(self.law.parameters))]
             exact = self.law.contact(speeds, *law_params, g=self.g, level="exact")
             approx = self.law.contact(speeds, *law_params, g=self.g, level=self.level)
-            for q in (0, 2):
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    error = np.abs(approx[q] - exact[q]) / np.abs(exact[q])
-                relative = max(relative, float(np.max(error[np.isfinite(error)], initial=0.0)))
-        likelihood = abs(float(tabulated.neg2_log_likelihood[0])
-                         - float(direct.neg2_log_likelihood[0]))
-        timing = float(np.nanmax(np.abs(tabulated.predicted_times[0]
-                                        - direct.predicted_times[0]), initial=0.0))
-        return relative, likelihood, timing, direct
+            relative = _largest_relative_error([(approx[q], exact[q]) for q in (0, 2)])
+        return (relative, *_filter_differences(tabulated, direct), direct)
 
     def objective(self, rows, trains):
         """−2 ln L (priors included) of rows (B, R, P) against trains (B,) → (B, R); inf where
