@@ -24,7 +24,7 @@ import pandas as pd
 import pytest
 from scipy.integrate import solve_ivp
 
-from dashpot.fit import fit_model, prepare_data
+from dashpot.fit import fit_joint, fit_model, prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.fit.noise_scene import fit_noise_scene
 from dashpot.likelihood import TrainModel
@@ -247,7 +247,8 @@ def test_registered_effect_is_fitted_by_a_dashpot_model(toy, scene):
 
 def test_a_stepped_effect_is_kept_by_the_dashpot_models_nested_step(scene):
     """A toy whose spec asks the dashpot models' fits to try it (``stepped``) is fitted again
-    with the model and kept by ΔBIC, as rolling friction on a cart, with no fit asking."""
+    with the model and kept by ΔBIC, as rolling friction on a cart, with no fit asking
+    (measured: ΔBIC = 722)."""
     stepped = dataclasses.replace(TOY, name="toy-stepped", meaning="the toy's deceleration",
                                   stepped=lambda scene: True)
     register(stepped)
@@ -260,3 +261,27 @@ def test_a_stepped_effect_is_kept_by_the_dashpot_models_nested_step(scene):
                for note in fit.notes), fit.notes
     c = fit.estimates["c_toy"]
     assert c.low95 <= DECELERATION <= c.high95, c
+
+
+def test_an_effect_in_every_fit_is_shared_by_a_joint_fit(scene):
+    """A toy the scene puts in every fit (``in_scene``) is carried by each run's dashpot-model
+    fit and shared by the runs of a joint fit (one column for all, its default start and
+    bounds, fitted free); the joint c holds the truth in its 95.45 % interval (measured:
+    0.490 ± 0.012 m/s² from the two runs, each run's own ± 0.017)."""
+    shared = dataclasses.replace(TOY, name="toy-shared", in_scene=lambda scene: True)
+    register(shared)
+    try:
+        datas = {run: prepare_data(_ia_train(DASHPOT_SEED + 4 + run), scene) for run in (1, 2)}
+        starts = {run: fit_model(data, "Ia", scene) for run, data in datas.items()}
+        joint = fit_joint(datas, "Ia", scene, starts)
+    finally:
+        unregister(shared.name)
+    assert all("c_toy" in fit.varied for fit in starts.values())
+    assert joint.success, joint.message
+    c = joint.estimates["c_toy"]
+    assert (c.status, c.unit, c.note) == ("fitted", "m/s^2",
+                                          "constant deceleration against the motion, shared")
+    assert list(joint.varied).count("c_toy") == 1
+    assert c.low95 <= DECELERATION <= c.high95, c
+    assert any(note.startswith("toy-shared in flight shared by every run: c_toy fitted free")
+               for note in joint.notes), joint.notes

@@ -201,7 +201,8 @@ class FlightEffect:
         ``setup(scene, g, requested) -> EffectSetup or None``: the effect's columns in a fit
         of `scene` (a :class:`dashpot.scene.Scene`; g in m/s²), `requested` whether the fit
         asks for the effect; None where the fit leaves it out. Default: the parameters free
-        at their default bounds and start where requested, else out.
+        at their default bounds and start where requested or in every fit (`in_scene`),
+        else out.
     in_scene : callable, optional
         ``in_scene(scene) -> bool``: the scene puts the effect in every fit (drag where it
         gives the ball's mass and diameter); then ``setup`` is asked with `requested` false
@@ -264,11 +265,11 @@ class FlightEffect:
         """The effect's :class:`EffectSetup` in a fit of `scene`, or None where it is out.
 
         The effect's own ``setup`` where it has one; else its parameters free at their
-        default bounds and start, where `requested`.
+        default bounds and start, where `requested` or where the scene puts it in every fit.
         """
         if self.setup is not None:
             return self.setup(scene, g, requested)
-        if not requested:
+        if not requested and not self.in_every_fit(scene):
             return None
         columns = tuple(Column(p.name, p.start, p.lower, p.upper) for p in self.parameters)
         return EffectSetup(columns, f"{self.name}: {self.formula}, "
