@@ -63,7 +63,12 @@ def _check(effect, known):
         raise ValueError(f"flight effect name {effect.name!r} must be non-empty, without '+'")
     if not effect.parameters or not callable(effect.enter):
         raise ValueError(f"flight effect {effect.name!r} needs parameters and an enter function")
-    taken = {p for other in known.values() for p in other.parameter_names}
+    taken = {name for other in known.values()
+             for name in (*other.parameter_names, *(q.name for q in other.derived))}
+    for q in effect.derived:
+        if q.name in taken or q.name in effect.parameter_names:
+            raise ValueError(f"flight effect {effect.name!r}: derived quantity {q.name!r} is "
+                             f"already a parameter or another effect's")
     for p in effect.parameters:
         if p.name in taken:
             raise ValueError(f"flight effect {effect.name!r}: parameter {p.name!r} is another "

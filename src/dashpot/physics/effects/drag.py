@@ -45,11 +45,12 @@ def _setup(scene, g, requested):
                            model_note="")
     if not requested:
         return None
-    return EffectSetup(
-        (Column("k_d", DRAG_START, 0.0, DRAG_UPPER),),
-        "air drag: k_d fitted free (>= 0), the scene gives no mass and diameter; without them "
-        "drag is degenerate with a speed-dependent restitution (e = e0 - c v^2 fits about as "
-        "well): its rung says whether the data need either, not which")
+    free = ("air drag: k_d fitted free (>= 0), the scene gives no mass and diameter; without "
+            "them drag is degenerate with a speed-dependent restitution (e = e0 - c v^2 fits "
+            "about as well)")
+    return EffectSetup((Column("k_d", DRAG_START, 0.0, DRAG_UPPER),),
+                       free + ": its rung says whether the data need either, not which",
+                       model_note=free)
 
 
 def _carried(fit, name):
