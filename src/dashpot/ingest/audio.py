@@ -93,6 +93,8 @@ __all__ = ["read_audio", "detect_impacts"]
 
 # A rise this long after a ring or echo of an earlier impact starts may be that sound's.
 _SECONDARY_REACH_SECONDS = 2e-3
+_RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pass to settle
+_JOIN_READS_SECONDS = 0.05
 
 # --------------------------------------------------------------------------------------------
 # Public entry point
@@ -409,8 +411,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries):
     """Onsets fitted again on the impacts' first bursts.
 
     Each impact's stretch of the file (2 ms before its onset to 3 ms after, with the fit's
-    noise window and 55 ms for the high-pass to settle) is read again and filtered as in the
-    stream. Where a first burst rises before the fitted edge (:func:`_first_burst`), the
+    noise window and 20 ms for the high-pass to settle, some nine of its time constants) is
+    read again and filtered as in the stream. Where a first burst rises before the fitted edge (:func:`_first_burst`), the
     change-point fit is done again with its window on that burst (its rough onset a sample
     before the burst's crossing of a fifth of the peak). A burst is not the impact's where
     a ring or echo of an earlier impact, at a delay at which they recur (`secondaries`: the
@@ -421,33 +423,47 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries):
     """
     settings, sample_rate = stream.settings, stream.settings.sample_rate
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
-    lead = settings.pre + before + int(0.055 * sample_rate)
+    lead = settings.pre + before + int(_RESETTLE_SECONDS * sample_rate)
     tail = after + settings.span + settings.pre
     noise_rms = stream.noise[timing] / np.sqrt(max(1.0 - stream.rho[timing] ** 2, 1e-6))
-    centres = np.round(times * sample_rate).astype(np.int64)
-    windows, offsets, moved = [], [], []
+    starts = np.round(times * sample_rate).astype(np.int64) - lead
+    length = lead + tail
     with _open(path) as handle:
-        for k, centre in enumerate(centres):
-            start, stop = centre - lead, centre + tail
-            if start < 0 or stop > handle.frames:
+        inside = np.flatnonzero((starts >= 0) & (starts + length <= handle.frames))
+        raw = np.empty((inside.size, length))
+        # Stretches less than half a second apart are read in one piece (a read costs about
+        # as much as decoding that long a stretch).
+        gap = int(_JOIN_READS_SECONDS * sample_rate)
+        breaks = np.flatnonzero(np.diff(starts[inside]) > length + gap) + 1
+        for group in np.split(np.arange(inside.size), breaks):
+            if group.size == 0:
                 continue
-            handle.seek(int(start))
-            raw = handle.read(int(stop - start), dtype="float64", always_2d=True)[:, timing]
-            filtered, _ = signal.sosfilt(stream.sos, raw, zi=signal.sosfilt_zi(stream.sos)
-                                         * raw[0])
-            onset = lead
-            level = filtered[onset - settings.pre - before:onset - before].mean()
-            burst = _first_burst(np.abs(filtered - level), onset, noise_rms, sample_rate)
-            if burst is None:
-                continue
-            first = np.searchsorted(secondaries, (start + burst) / sample_rate
-                                    - _SECONDARY_REACH_SECONDS)
-            if first < secondaries.size and secondaries[first] < times[k]:
-                continue
-            rough = burst - 1  # a sharp edge starts within a sample before its crossing
-            windows.append(filtered[rough - settings.pre:rough + settings.span])
-            offsets.append(start + rough - settings.pre)
-            moved.append(k)
+            first = int(starts[inside[group[0]]])
+            handle.seek(first)
+            piece = handle.read(int(starts[inside[group[-1]]]) + length - first,
+                                dtype="float64", always_2d=True)[:, timing]
+            offsets_in_piece = starts[inside[group]] - first
+            raw[group] = piece[offsets_in_piece[:, None] + np.arange(length)[None, :]]
+    # All stretches filtered at once, each from the filter at rest on its first sample.
+    initial = signal.sosfilt_zi(stream.sos)[:, None, :] * raw[None, :, :1]
+    filtered, _ = signal.sosfilt(stream.sos, raw, axis=1, zi=initial)
+    onset = lead
+    levels = filtered[:, onset - settings.pre - before:onset - before].mean(axis=1)
+    magnitude = np.abs(filtered - levels[:, None])
+    bursts = _first_burst(magnitude, onset, noise_rms, sample_rate)
+    windows, offsets, moved = [], [], []
+    for row, k in enumerate(inside):
+        burst = int(bursts[row])
+        if burst < 0:
+            continue
+        first = np.searchsorted(secondaries, (starts[k] + burst) / sample_rate
+                                - _SECONDARY_REACH_SECONDS)
+        if first < secondaries.size and secondaries[first] < times[k]:
+            continue
+        rough = burst - 1  # a sharp edge starts within a sample before its crossing
+        windows.append(filtered[row, rough - settings.pre:rough + settings.span])
+        offsets.append(starts[k] + rough - settings.pre)
+        moved.append(int(k))
     if not moved:
         return times, sigmas, 0
     onset, sigma, _ = _onset_posterior(np.stack(windows), settings.pre, sample_rate)

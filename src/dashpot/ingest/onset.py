@@ -255,14 +255,14 @@ _BURST_BACKGROUND_SECONDS = 1e-3  # the stretch before the reach whose RMS is th
 
 
 def _first_burst(magnitude, onset, noise_rms, sample_rate):
-    """Sample where an impact's first burst rises through a fifth of the impact's peak.
+    """Sample where each impact's first burst rises through a fifth of the impact's peak.
 
     Parameters
     ----------
-    magnitude : ndarray, shape (W,)
-        Magnitude of the high-passed waveform (level removed) around the impact.
+    magnitude : ndarray, shape (K, W)
+        Magnitude of the high-passed waveform (level removed) around each impact.
     onset : int
-        Index in `magnitude` of the onset fitted so far.
+        Index in each row of the onset fitted so far.
     noise_rms : float
         RMS of the recording's noise, in the units of `magnitude`.
     sample_rate : float
@@ -270,11 +270,12 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
 
     Returns
     -------
-    int or None
-        Index of the first sample from 2 ms to 0.25 ms before `onset` at which the magnitude
-        reaches L = 20 % of its peak from 2 ms before `onset` to 3 ms after it, where the
-        sound from there to `onset` has an RMS of at least L/2; None where there is none,
-        or where L is not 4 times the RMS of the noise and of the 1 ms before the reach.
+    ndarray of int, shape (K,)
+        For each row, the index of the first sample from 2 ms to 0.25 ms before `onset` at
+        which the magnitude reaches L = 20 % of its peak from 2 ms before `onset` to 3 ms
+        after it, where the sound from there to `onset` has an RMS of at least L/2; -1
+        where there is none, or where L is not 4 times the RMS of the noise and of the 1 ms
+        before the reach.
 
     Notes
     -----
@@ -290,19 +291,19 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     the onset is half the level or more; a spike of noise or a click does not).
     """
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
-    lo, hi = max(onset - before, 0), min(onset + after, magnitude.size)
+    quiet = int(round(_BURST_BACKGROUND_SECONDS * sample_rate))
+    lo, hi = onset - before, min(onset + after, magnitude.shape[1])
     last = onset - int(round(_BURST_MIN_LEAD_SECONDS * sample_rate))
-    if last <= lo or hi <= onset:
-        return None
-    level = _BURST_LEVEL * magnitude[lo:hi].max()
-    background = magnitude[max(lo - int(round(_BURST_BACKGROUND_SECONDS * sample_rate)), 0):lo]
-    floor = max(noise_rms, float(np.sqrt(np.mean(background**2))) if background.size else 0.0)
-    if level < _BURST_BACKGROUND * floor:
-        return None
-    crossings = lo + np.flatnonzero(magnitude[lo:last] >= level)
-    if crossings.size == 0:
-        return None
-    first = int(crossings[0])
-    if np.mean(magnitude[first:onset] ** 2) < (0.5 * level) ** 2:
-        return None
-    return first
+    if lo - quiet < 0 or last <= lo or hi <= onset:
+        return np.full(magnitude.shape[0], -1)
+    level = _BURST_LEVEL * magnitude[:, lo:hi].max(axis=1)
+    floor = np.maximum(noise_rms, np.sqrt(np.mean(magnitude[:, lo - quiet:lo] ** 2, axis=1)))
+    above = magnitude[:, lo:last] >= level[:, None]
+    first = lo + np.argmax(above, axis=1)
+    # Mean square from each crossing to the onset, from cumulative sums.
+    power = np.cumsum(magnitude[:, lo:onset] ** 2, axis=1)
+    upto = power[:, -1] - np.where(first > lo, power[np.arange(first.size),
+                                                     np.maximum(first - lo - 1, 0)], 0.0)
+    lasting = upto / (onset - first) >= (0.5 * level) ** 2
+    found = above.any(axis=1) & (level >= _BURST_BACKGROUND * floor) & lasting
+    return np.where(found, first, -1)
