@@ -68,14 +68,7 @@ def test_the_check_finds_a_first_burst_and_passes_a_single_one(tmp_path):
     assert earlier_bursts(path, [0.1]).size == 0
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param("pingpong", marks=pytest.mark.xfail(strict=True, reason=(
-        "measured: ping-pong impact 26 (of 52) is timed 1.06 ms after its first burst (77 % "
-        "of the impact's peak): a transient at a delay that recurs after the impacts "
-        "(43.7 ms, found after impact 25) starts about 1 ms before that burst, so the burst "
-        "is taken for that ring or echo. Impacts 4, 5 and 25 are now timed at their first "
-        "burst, and the bouncy ball's 27, 28, 29, 31 and 33"))),
-    "bouncy"])
+@pytest.mark.parametrize("name", ["pingpong", "bouncy"])
 def test_real_impacts_are_timed_at_their_first_burst(name):
     path = RECORDINGS[name]
     if not path.exists():

@@ -80,9 +80,9 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_drop_trailing_secondaries, _fill_impacts, _fixed_delays, _louder_between,
-                    _probe, _robust_trend, _secondary_delays, _secondary_levels,
-                    _select_bounces, _trim_growing_end)
+from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _fill_impacts,
+                    _fixed_delays, _louder_between, _probe, _robust_trend, _secondary_delays,
+                    _secondary_levels, _select_bounces, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
                        _process, _Settings, _Stream)
@@ -342,9 +342,16 @@ def _impact_table(path, stream, sample_rate, duration):
         dropped_end, dropped_secondaries = times.size - grown, grown - kept
         times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
         clipped_flags = clipped_flags[:kept]
-    secondaries = (times[:, None] + _secondary_delays(rough, chain)[None, :]).ravel()
+    delays = _secondary_delays(rough, chain)
+    levels = _secondary_levels(rough, amplitude, chain, delays)
+    # Where each ring or echo recurring after the impacts would start, and how loud it may be
+    # (as in _drop_trailing_secondaries; unknown loudness: any).
+    secondaries = (times[:, None] + delays[None, :]).ravel()
+    loudest = (_SECONDARY_MARGIN * amplitudes[:, None]
+               * np.where(np.isfinite(levels), levels, np.inf)[None, :]).ravel()
+    order = np.argsort(secondaries)
     times, sigmas, moved = _retime_on_first_burst(path, stream, times, sigmas, timing,
-                                                  np.sort(secondaries))
+                                                  secondaries[order], loudest[order])
     table = pd.DataFrame({
         "time": times,
         "time_uncertainty": sigmas,
@@ -407,19 +414,20 @@ def _impact_table(path, stream, sample_rate, duration):
     return table
 
 
-def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries):
+def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, loudest):
     """Onsets fitted again on the impacts' first bursts.
 
     Each impact's stretch of the file (2 ms before its onset to 3 ms after, with the fit's
     noise window and 20 ms for the high-pass to settle, some nine of its time constants) is
-    read again and filtered as in the stream. Where a first burst rises before the fitted edge (:func:`_first_burst`), the
-    change-point fit is done again with its window on that burst (its rough onset a sample
-    before the burst's crossing of a fifth of the peak). A burst is not the impact's where
+    read again and filtered as in the stream. Where a first burst rises before the fitted
+    edge (:func:`_first_burst`), the change-point fit is done again with its window on that
+    burst (its rough onset a sample before the burst's crossing of a fifth of the peak). A burst is not the impact's where
     a ring or echo of an earlier impact, at a delay at which they recur (`secondaries`: the
-    impacts' times plus those delays, s, sorted), starts from 2 ms before it to the onset:
-    that sound, which the chain told from the impact, may still be going on there (rings
-    and echoes rise and decay over milliseconds). Returns the times (s), their 1σ (s) and
-    how many moved.
+    impacts' times plus those delays, s, sorted), starts from 2 ms before it to the onset
+    and may be as loud as the burst (`loudest`: twice the usual level of that secondary
+    against its impact, times the impact's amplitude, full scale): that sound, which the
+    chain told from the impact, may still be going on there (rings and echoes rise and
+    decay over milliseconds). Returns the times (s), their 1σ (s) and how many moved.
     """
     settings, sample_rate = stream.settings, stream.settings.sample_rate
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
@@ -456,9 +464,9 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries):
         burst = int(bursts[row])
         if burst < 0:
             continue
-        first = np.searchsorted(secondaries, (starts[k] + burst) / sample_rate
-                                - _SECONDARY_REACH_SECONDS)
-        if first < secondaries.size and secondaries[first] < times[k]:
+        lo, hi = np.searchsorted(secondaries, [(starts[k] + burst) / sample_rate
+                                               - _SECONDARY_REACH_SECONDS, times[k]])
+        if np.any(magnitude[row, burst:onset].max() <= loudest[lo:hi]):
             continue
         rough = burst - 1  # a sharp edge starts within a sample before its crossing
         windows.append(filtered[row, rough - settings.pre:rough + settings.span])
