@@ -41,10 +41,10 @@ References
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import numpy as np
 
+from ._registry import LiveMapping
 from .physics.effects import FLIGHT_EFFECTS
 from .physics.laws import LAWS
 from .select import SELECTION_COLUMNS, _misfit_scale, selection_table
@@ -56,33 +56,19 @@ NESTED_STEP_BIC = 6.0
 BASE = "constant"
 
 
-class _Ladder(Mapping):
+def _ladder(law_field, effect_field):
     """``name -> value`` of every rung, read live from the registries: `law_field` of each
     law or model with a simpler rung (RestitutionLaw.simpler, .effect), `effect_field` of each
     flight effect's rung (FlightEffect.extends, .name)."""
-
-    def __init__(self, law_field, effect_field):
-        self._law_field, self._effect_field = law_field, effect_field
-
-    def _items(self):
-        return {**{name: getattr(law, self._law_field) for name, law in LAWS.items()
-                   if law.simpler is not None},
-                **{effect.rung: getattr(effect, self._effect_field)
-                   for effect in FLIGHT_EFFECTS.values()}}
-
-    def __getitem__(self, name):
-        return self._items()[name]
-
-    def __iter__(self):
-        return iter(self._items())
-
-    def __len__(self):
-        return len(self._items())
+    return LiveMapping(lambda: {
+        **{name: getattr(law, law_field) for name, law in LAWS.items()
+           if law.simpler is not None},
+        **{effect.rung: getattr(effect, effect_field) for effect in FLIGHT_EFFECTS.values()}})
 
 
-SIMPLER = _Ladder("simpler", "extends")
+SIMPLER = _ladder("simpler", "extends")
 """The simpler rung of each law or model (see the module notes)."""
-EFFECTS = _Ladder("effect", "name")
+EFFECTS = _ladder("effect", "name")
 """The effect each law or model adds to its simpler rung."""
 NOISE_SELECTION_COLUMNS = SELECTION_COLUMNS + (
     "neg2_log_likelihood", "sigma_eps", "sigma_j", "effect", "simpler", "bic_gain", "kept",

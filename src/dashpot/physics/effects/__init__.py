@@ -37,8 +37,8 @@ effect at run time, and all of those see it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
+from ..._registry import LiveMapping
+from ..._registry import unregister as _unregister
 from ..flight import gravity_flight, track_flight
 from . import drag as _drag
 from . import friction as _friction
@@ -91,25 +91,10 @@ FLIGHT_EFFECTS = _registry(_MODULES)
 """Every flight effect by name, in the order a fit's columns take them."""
 
 
-class _Parameters(Mapping):
-    """Unit and meaning of every registered effect's parameters, by name (read live)."""
-
-    def _items(self):
-        return {p.name: (p.unit, p.description)
-                for effect in FLIGHT_EFFECTS.values() for p in effect.parameters}
-
-    def __getitem__(self, name):
-        return self._items()[name]
-
-    def __iter__(self):
-        return iter(self._items())
-
-    def __len__(self):
-        return len(self._items())
-
-
-EFFECT_PARAMETERS = _Parameters()
-"""``name -> (unit, description)`` of every registered effect's parameters."""
+EFFECT_PARAMETERS = LiveMapping(lambda: {
+    parameter.name: (parameter.unit, parameter.description)
+    for effect in FLIGHT_EFFECTS.values() for parameter in effect.parameters})
+"""``name -> (unit, description)`` of every registered effect's parameters (read live)."""
 
 
 def register(effect):
@@ -145,11 +130,9 @@ def unregister(name):
     ValueError
         `name` is not registered, or is one of the modules' effects.
     """
-    if name not in FLIGHT_EFFECTS:
-        raise ValueError(f"no flight effect {name!r} is registered")
-    if any(name == effect.name for module in _MODULES for effect in module.EFFECT_SPECS):
-        raise ValueError(f"flight effect {name!r} is one of the built-in effects")
-    del FLIGHT_EFFECTS[name]
+    _unregister(FLIGHT_EFFECTS, name,
+                {effect.name for module in _MODULES for effect in module.EFFECT_SPECS},
+                "flight effect")
 
 
 def flight_track(effects, g, columns):

@@ -67,6 +67,7 @@ from . import dashpot_models as _dashpot_models
 from . import hunt_crossley as _hunt_crossley
 from . import speed_terms as _speed_terms
 from . import viscoelastic_hertz as _viscoelastic_hertz
+from ..._registry import unregister as _unregister
 from .base import Derived, LawParameter, Restitution, RestitutionLaw
 from .dashpot_models import dashpot_contact_time, dashpot_step
 from .hunt_crossley import hunt_crossley_restitution
@@ -153,11 +154,8 @@ def unregister(name):
     ValueError
         `name` is not registered, or is one of the modules' laws.
     """
-    if name not in LAWS:
-        raise ValueError(f"no restitution law {name!r} is registered")
-    if any(name == law.name for module in _MODULES for law in module.LAW_SPECS):
-        raise ValueError(f"restitution law {name!r} is one of the built-in laws")
-    del LAWS[name]
+    _unregister(LAWS, name, {law.name for module in _MODULES for law in module.LAW_SPECS},
+                "restitution law")
 
 
 def restitution(name, speed, *params):
