@@ -273,9 +273,9 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     ndarray of int, shape (K,)
         For each row, the index of the first sample from 2 ms to 0.25 ms before `onset` at
         which the magnitude reaches L = 20 % of its peak from 2 ms before `onset` to 3 ms
-        after it, where the sound from there to `onset` has an RMS of at least L/2; -1
-        where there is none, or where L is not 4 times the RMS of the noise and of the 1 ms
-        before the reach.
+        after it, where the sound from there to `onset` has an RMS of at least L/2 and a
+        peak below that of the millisecond from `onset`; -1 where there is none, or where L
+        is not 4 times the RMS of the noise and of the 1 ms before the reach.
 
     Notes
     -----
@@ -287,8 +287,10 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     seismology, e.g. M. Baer and U. Kradolfer, Bull. Seismol. Soc. Am. 77, 1437-1445,
     1987). The level clears the sound before the reach four times over (Gaussian noise
     exceeds 4 RMS once in 16,000 samples, so a crossing over the 2 ms is not the noise's,
-    nor that of a ring of an earlier impact decaying there), and a burst lasts (its RMS to
-    the onset is half the level or more; a spike of noise or a click does not).
+    nor that of a ring of an earlier impact decaying there), a burst lasts (its RMS to
+    the onset is half the level or more; a spike of noise or a click does not), and it is
+    fainter than the edge it leads (on the real recordings 0.2-0.75 of its peak; a louder
+    sound before that edge would have been chosen as the impact were it one).
     """
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
     quiet = int(round(_BURST_BACKGROUND_SECONDS * sample_rate))
@@ -305,5 +307,10 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     upto = power[:, -1] - np.where(first > lo, power[np.arange(first.size),
                                                      np.maximum(first - lo - 1, 0)], 0.0)
     lasting = upto / (onset - first) >= (0.5 * level) ** 2
-    found = above.any(axis=1) & (level >= _BURST_BACKGROUND * floor) & lasting
+    # ... and is fainter than the edge the fit timed, which it leads: a louder sound before
+    # that edge is a sound of its own (the chain chose the edge), not its impact's opening.
+    span = magnitude[:, lo:onset]
+    burst_peak = np.where(np.arange(lo, onset)[None, :] >= first[:, None], span, 0.0).max(axis=1)
+    fainter = burst_peak < magnitude[:, onset:onset + int(round(1e-3 * sample_rate))].max(axis=1)
+    found = above.any(axis=1) & (level >= _BURST_BACKGROUND * floor) & lasting & fainter
     return np.where(found, first, -1)
