@@ -5,7 +5,6 @@ or the scene, ζ from ε, and ω0 from batched fits at fixed ω0 over a grid.
 from __future__ import annotations
 
 import functools
-import math
 
 import numpy as np
 

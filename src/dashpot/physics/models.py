@@ -37,8 +37,7 @@ from scipy.optimize import elementwise
 from .._validation import check_model, check_nonnegative, check_positive
 # GRAVITY_MODELS is defined with the brackets (the ode method needs it too) and kept importable
 # from here.
-from .brackets import (GRAVITY_MODELS, _iia_contact_time, _ib_bracket,  # noqa: F401
-                       _iib_bracket, _kernels)
+from .brackets import GRAVITY_MODELS, _iia_contact_time, _iib_bracket, _kernels  # noqa: F401
 from .contact import Damping
 
 __all__ = ["MODELS", "Collision", "collide", "critical_velocity"]
