@@ -617,10 +617,12 @@ class NoiseProblem:
             span = self.upper[i] - self.lower[i]
             units[..., i] = np.where(rows[..., i] != 0.0, 1e-3 * np.abs(rows[..., i]),
                                      1e-4 * span)
-        # The flight's: k_d about its prior's sd (0.02 1/m for a ping-pong ball), the
-        # accelerations 1e-3 of g_eff.
+        # The flight's: each parameter's own step (EffectParameter.step), else 1e-3 of g.
+        steps = {parameter.name: parameter.step for effect in self.flight_effects
+                 for parameter in effect.parameters}
         for name in self.flight_start:
-            units[..., self.index(name)] = 1e-2 if name == "k_d" else 1e-3 * self.g
+            step = steps.get(name)
+            units[..., self.index(name)] = 1e-3 * self.g if step is None else step
         law_count = self.law_count
         units[..., law_count] = 1e-3 * np.abs(rows[..., law_count])
         units[..., law_count + 1:] = 0.3

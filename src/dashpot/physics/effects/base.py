@@ -82,6 +82,9 @@ class EffectParameter:
     detail : str
         How it enters, in a few symbols (``"deceleration k_d v^2"``), shown after the
         description in a single fit's estimate ("" for none).
+    step : float or None
+        The noise fit optimizer's first step in this parameter, about its standard error, in
+        its unit; None: 1e-3 of g (an acceleration).
     """
 
     name: str
@@ -91,6 +94,7 @@ class EffectParameter:
     upper: float = math.inf
     start: float = 0.0
     detail: str = ""
+    step: float | None = None
 
     @property
     def meaning(self):

@@ -64,7 +64,9 @@ def _carried(fit, name):
 EFFECT_SPECS = (FlightEffect(
     "drag", "−k_d·v|v| (quadratic air drag)",
     (EffectParameter("k_d", "1/m", "quadratic drag constant of the flight",
-                     0.0, DRAG_UPPER, DRAG_START, detail="deceleration k_d v^2"),),
+                     0.0, DRAG_UPPER, DRAG_START, detail="deceleration k_d v^2",
+                     # about the C_d prior's sd for a ping-pong ball (0.02 1/m)
+                     step=1e-2),),
     _enter,
     "P. Timmerman and J. P. van der Weele, Am. J. Phys. 67, 538-546 (1999)",
     setup=_setup,
