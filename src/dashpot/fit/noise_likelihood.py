@@ -60,7 +60,7 @@ import numba
 import numpy as np
 
 from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed
-from ..physics.effects import FLIGHT_EFFECTS, flight_map
+from ..physics.effects import FLIGHT_EFFECTS, flight_map, flight_track
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
 from .noise_settings import (
@@ -531,16 +531,15 @@ class NoiseProblem:
         intervals = np.diff(data.times) / np.diff(data.index)
         eps = _flight_ratio_start(intervals, data.interval_flags[: intervals.size])
         flight_start, flight = dict(self.flight_start), self.flight
-        measured = self._friction_from_speeds(data) if self.has_speeds else None
+        measured = self._flight_from_speeds(data) if self.has_speeds else None
         if measured is not None:
-            # The flights' two accelerations from the measured speeds; the interval ratio is
-            # ε times the flight's speed ratio √(a_toward/a_away).
+            # The flight's parameters from the measured speeds; the interval ratio is ε times
+            # the flight's speed ratio √(a_toward/a_away) (no drag: see _flight_from_speeds).
             flight_start.update(measured)
             row = np.array([[*([0.0] * len(self.law.parameters)), *flight_start.values()]])
             flight = self.flight_of(row)
-            ratio = math.sqrt((measured["g_eff"] - measured["friction"])
-                              / (measured["g_eff"] + measured["friction"]))
-            eps = float(np.clip(eps / ratio, 1e-3, 1.0 - 1e-9))
+            track = flight_track(self.flight_effects, self.g, flight_start)
+            eps = float(np.clip(eps / math.sqrt(track.down / track.up), 1e-3, 1.0 - 1e-9))
         # The rebound after the first impact from its flight: T(v) = first interval, by Newton
         # steps on the flight law (gravity or drag) from the gravity value.
         rebound = 0.5 * self.g * intervals[0]
@@ -572,19 +571,14 @@ class NoiseProblem:
         return ([start[p] for p in self.law.parameter_names] + list(flight_start.values())
                 + [v0, 0.0, 0.0])
 
-    def _friction_from_speeds(self, data):
-        """Start values of g_eff and the friction f of a train with measured speeds (None
-        without friction in the fit, or without two flights whose both ends are measured).
-
-        A flight after rebound speed v_n (decelerating at a_away = g_eff + f) returns at
-        u_{n+1} = ρ·v_n, ρ = √(a_toward/a_away), and lasts T_n = v_n/a_away + u_{n+1}/a_toward
-        = v_n(1 + ρ)/(ρ·a_away) (:func:`dashpot.physics.flight.track_flight` without drag): ρ
-        and K = T_n/v_n by least squares through the origin over the flights, then
-        a_away = (1 + ρ)/(ρK), g_eff = a_away(1 + ρ²)/2 and f = a_away(1 − ρ²)/2, f kept
-        between its own start value and half its upper bound (the fit starts inside them).
-        Where the flight has drag too, None."""
-        if "friction" not in self.flight_start or "k_d" in self.flight_start:
+    def _flight_from_speeds(self, data):
+        """Start values of the flight's parameters of a train with measured speeds, from its
+        one effect's ``speed_start`` (:class:`dashpot.physics.effects.FlightEffect`); None
+        where the fit carries no such effect alone, or fewer than two flights have both ends
+        measured."""
+        if len(self.flight_effects) != 1 or self.flight_effects[0].speed_start is None:
             return None
+        effect = self.flight_effects[0]
         flights = np.flatnonzero(np.diff(data.index) == 1)
         launch, landing = data.rebound_speed[flights], data.impact_speed[flights + 1]
         duration = np.diff(data.times)[flights]
@@ -592,22 +586,9 @@ class NoiseProblem:
                   & (landing > 0.0) & (duration > 0.0))
         if np.sum(usable) < 2:
             return None
-        launch, landing, duration = launch[usable], landing[usable], duration[usable]
-        ratio = float(np.sum(landing * launch) / np.sum(launch * launch))
-        per_speed = float(np.sum(duration * launch) / np.sum(launch * launch))
-        if not (0.0 < ratio and per_speed > 0.0):
-            return None
-        ratio = min(ratio, 1.0)
-        away = (1.0 + ratio) / (ratio * per_speed)
-        g_eff = 0.5 * away * (1.0 + ratio * ratio)
-        low, high = self.lower[self.index("g_eff")], self.upper[self.index("g_eff")]
-        if not low < g_eff < high:
-            return None
-        # Inside f's bounds, no lower than its own start and at most half its upper bound.
-        friction = float(np.clip(0.5 * away * (1.0 - ratio * ratio),
-                                 self.flight_start["friction"],
-                                 0.5 * self.upper[self.index("friction")]))
-        return {"g_eff": g_eff, "friction": friction}
+        columns = {name: (self.flight_start[name], self.lower[self.index(name)],
+                          self.upper[self.index(name)]) for name in effect.parameter_names}
+        return effect.speed_start(launch[usable], landing[usable], duration[usable], columns)
 
     def units(self, rows):
         """Initial coordinate units (about a standard error) of every parameter, per row."""

@@ -233,6 +233,12 @@ class FlightEffect:
         (:func:`dashpot.fit.fit_model`) try the effect as a nested step: the model fitted
         again with it, kept where it lowers the BIC enough. Default: never (a fit still
         carries it where the scene puts it in every fit or the fit asks for it).
+    speed_start : callable, optional
+        ``speed_start(launch, landing, duration, columns) -> dict or None``: start values of
+        the effect's parameters from a motion sensor's measured flights (launch and landing
+        speeds in m/s, durations in s; flights of this effect alone, no other), with
+        ``columns`` its parameters' (start, lower, upper) by name; None where the flights do
+        not give them. Default: none (the setup's start values).
     """
 
     name: str
@@ -249,6 +255,7 @@ class FlightEffect:
     meaning: str = ""
     derived: tuple[DerivedQuantity, ...] = ()
     stepped: Callable | None = None
+    speed_start: Callable | None = None
 
     @property
     def label(self):

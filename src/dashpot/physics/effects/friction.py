@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from .base import Column, DerivedQuantity, EffectParameter, EffectSetup, FlightEffect
 
 __all__ = ["EFFECT_SPECS", "FRICTION_START", "FRICTION_UPPER"]
@@ -58,6 +60,30 @@ def _tried(scene):
     return bool(getattr(scene, "tries_friction", False))
 
 
+def _speed_start(launch, landing, duration, columns):
+    """Start values of g_eff and f from measured flights (None unless they give them).
+
+    A flight after rebound speed v_n (decelerating at a_away = g_eff + f) returns at
+    u_{n+1} = ρ·v_n, ρ = √(a_toward/a_away), and lasts T_n = v_n/a_away + u_{n+1}/a_toward
+    = v_n(1 + ρ)/(ρ·a_away) (:func:`dashpot.physics.flight.track_flight` without drag): ρ
+    and K = T_n/v_n by least squares through the origin over the flights, then
+    a_away = (1 + ρ)/(ρK), g_eff = a_away(1 + ρ²)/2 and f = a_away(1 − ρ²)/2, f kept between
+    its own start value and half its upper bound (the fit starts inside them)."""
+    ratio = float(np.sum(landing * launch) / np.sum(launch * launch))
+    per_speed = float(np.sum(duration * launch) / np.sum(launch * launch))
+    if not (0.0 < ratio and per_speed > 0.0):
+        return None
+    ratio = min(ratio, 1.0)
+    away = (1.0 + ratio) / (ratio * per_speed)
+    g_eff = 0.5 * away * (1.0 + ratio * ratio)
+    _, low, high = columns["g_eff"]
+    if not low < g_eff < high:
+        return None
+    start, _, upper = columns["friction"]
+    friction = float(np.clip(0.5 * away * (1.0 - ratio * ratio), start, 0.5 * upper))
+    return {"g_eff": g_eff, "friction": friction}
+
+
 EFFECT_SPECS = (FlightEffect(
     "friction", "∓f against the motion, g_eff fitted (rolling friction on an incline)",
     (EffectParameter("g_eff", "m/s^2", "mean acceleration of the flights"),
@@ -72,4 +98,5 @@ EFFECT_SPECS = (FlightEffect(
            "speed are what separate them",
     meaning="rolling friction",
     derived=_ACCELERATIONS,
-    stepped=_tried),)
+    stepped=_tried,
+    speed_start=_speed_start),)
