@@ -735,11 +735,12 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
 
 
 @numba.njit(cache=True, inline="always")
-def _observe_speed(x, p_xx, p_xo, p_oo, o, measured, noise):
-    """Scalar update of a state (x, o) with a measurement of x (a speed) of variance `noise`:
-    (x, P_xx, P_xo, P_oo, o, innovation, its variance, −2 ln L term). Written so that
-    nothing cancels in the measured component's variance (P_xx·R/S); the other's is
-    clipped at 0."""
+def _observe(x, p_xx, p_xo, p_oo, o, measured, noise):
+    """Scalar update of a state (x, o) with a measurement of x (an impact time or a speed) of
+    variance `noise`: (x, P_xx, P_xo, P_oo, o, innovation, its variance, −2 ln L term; inf
+    with the state unchanged where the innovation has no variance). Written so that nothing
+    cancels in the measured component's variance (P_xx·R/S); the other's is clipped at 0.
+    For the impact time it is the arithmetic of :meth:`dashpot.likelihood.TrainModel.filter`."""
     variance = p_xx + noise
     r = measured - x
     if not variance > 0.0:
@@ -767,23 +768,15 @@ def _impact_update(n, state, anchored, times, timing_variance, impact_speed, spe
         out[2, b, n], out[3, b, n] = t, u
         scored[b, n] = seen
         if seen:
-            variance = p_tt + timing
-            innovation = y - t
+            t, p_tt, p_tu, p_uu, u, innovation, variance, term = _observe(
+                t, p_tt, p_tu, p_uu, u, y, timing)
             out[0, b, n], out[1, b, n] = innovation, variance
-            if variance > 0.0:
-                total[b] += innovation * innovation / variance + math.log(variance) + LOG_TWO_PI
-                gain_t, gain_u = p_tt / variance, p_tu / variance
-                t, u = t + gain_t * innovation, u + gain_u * innovation
-                keep = timing / variance
-                p_uu = max(p_uu - gain_u * p_tu, 0.0)
-                p_tt, p_tu = p_tt * keep, p_tu * keep
-            else:
-                total[b] = math.inf
+            total[b] += term
         if anchor:
             t, p_tt, p_tu = y, timing, 0.0
         measured, noise = impact_speed[b, n], speed_variance[b, n]
         if math.isfinite(measured) and math.isfinite(noise):
-            u, p_uu, p_tu, p_tt, t, r, variance, term = _observe_speed(
+            u, p_uu, p_tu, p_tt, t, r, variance, term = _observe(
                 u, p_uu, p_tu, p_tt, t, measured, noise)
             speed_out[0, b, n, 0], speed_out[1, b, n, 0] = r, variance
             speed_scored[b, n, 0] = True
@@ -816,7 +809,7 @@ def _bounce_update(n, state, columns, process, rebound_speed, speed_variance, to
         v = rebound
         measured, noise = rebound_speed[b, n], speed_variance[b, n]
         if math.isfinite(measured) and math.isfinite(noise):
-            v, p_uu, p_tu, p_tt, t, r, variance, term = _observe_speed(
+            v, p_uu, p_tu, p_tt, t, r, variance, term = _observe(
                 v, p_uu, p_tu, p_tt, t, measured, noise)
             speed_out[0, b, n, 1], speed_out[1, b, n, 1] = r, variance
             speed_scored[b, n, 1] = True
