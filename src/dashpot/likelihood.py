@@ -657,6 +657,24 @@ def _interpolate_many(speed, members, log_low, log_step, nodes, values, slopes, 
         out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = d, l, fd, fl, gt, gu
 
 
+@numba.njit(cache=True, inline="always")
+def _observe(x, p_xx, p_xo, p_oo, o, measured, noise):
+    """Scalar update of a state (x, o) with a measurement of x (an impact time or a speed) of
+    variance `noise`: (x, P_xx, P_xo, P_oo, o, innovation, its variance, −2 ln L term; inf
+    with the state unchanged where the innovation has no variance). Written so that nothing
+    cancels in the measured component's variance (P_xx·R/S); the other's is clipped at 0.
+    For the impact time it is the arithmetic of :meth:`TrainModel.filter`."""
+    variance = p_xx + noise
+    r = measured - x
+    if not variance > 0.0:
+        return x, p_xx, p_xo, p_oo, o, r, variance, math.inf
+    term = r * r / variance + math.log(variance) + LOG_TWO_PI
+    gain_x, gain_o = p_xx / variance, p_xo / variance
+    keep = noise / variance
+    p_oo = max(p_oo - gain_o * p_xo, 0.0)
+    return x + gain_x * r, p_xx * keep, p_xo * keep, p_oo, o + gain_o * r, r, variance, term
+
+
 @numba.njit(cache=True)
 def _filter_table(times, timing_variance, start_time, diffuse, start_speed, process, members,
                   log_low, log_step, nodes, values, slopes, unusable, patch_speed,
@@ -667,7 +685,6 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
     filtered speeds; the arithmetic is that of the numpy loop, step for step.
     """
     rows, count = times.shape
-    log_two_pi = math.log(2.0 * math.pi)
     for b in range(rows):
         t, u = start_time[b], start_speed[b]
         member = members[b]
@@ -686,19 +703,11 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
             out[2, b, n], out[3, b, n] = t, u
             scored[b, n] = seen
             if seen:
-                variance = p_tt + timing
-                innovation = y - t
+                # No timing noise on a certain prediction (no variance) is impossible: inf.
+                t, p_tt, p_tu, p_uu, u, innovation, variance, term = _observe(
+                    t, p_tt, p_tu, p_uu, u, y, timing)
                 out[0, b, n], out[1, b, n] = innovation, variance
-                if variance > 0.0:
-                    value += innovation * innovation / variance + math.log(variance) + log_two_pi
-                    gain_t, gain_u = p_tt / variance, p_tu / variance
-                    t, u = t + gain_t * innovation, u + gain_u * innovation
-                    keep = timing / variance
-                    p_uu = max(p_uu - gain_u * p_tu, 0.0)
-                    p_tt, p_tu = p_tt * keep, p_tu * keep
-                else:
-                    # No timing noise on a certain prediction: impossible, not a density.
-                    value = math.inf
+                value += term
             else:
                 out[0, b, n], out[1, b, n] = math.nan, math.nan
             if anchor:

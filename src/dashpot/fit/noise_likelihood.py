@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed
+from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed, _observe
 from ..physics.effects import FLIGHT_EFFECTS, flight_map, flight_track
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
@@ -732,24 +732,6 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
         predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
         scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
         speed_scored=speed_scored)
-
-
-@numba.njit(cache=True, inline="always")
-def _observe(x, p_xx, p_xo, p_oo, o, measured, noise):
-    """Scalar update of a state (x, o) with a measurement of x (an impact time or a speed) of
-    variance `noise`: (x, P_xx, P_xo, P_oo, o, innovation, its variance, −2 ln L term; inf
-    with the state unchanged where the innovation has no variance). Written so that nothing
-    cancels in the measured component's variance (P_xx·R/S); the other's is clipped at 0.
-    For the impact time it is the arithmetic of :meth:`dashpot.likelihood.TrainModel.filter`."""
-    variance = p_xx + noise
-    r = measured - x
-    if not variance > 0.0:
-        return x, p_xx, p_xo, p_oo, o, r, variance, math.inf
-    term = r * r / variance + math.log(variance) + LOG_TWO_PI
-    gain_x, gain_o = p_xx / variance, p_xo / variance
-    keep = noise / variance
-    p_oo = max(p_oo - gain_o * p_xo, 0.0)
-    return x + gain_x * r, p_xx * keep, p_xo * keep, p_oo, o + gain_o * r, r, variance, term
 
 
 @numba.njit(cache=True)
