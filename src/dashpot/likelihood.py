@@ -676,6 +676,28 @@ def _observe(x, p_xx, p_xo, p_oo, o, measured, noise):
 
 
 @numba.njit(cache=True)
+def _observe_time(y, timing, anchored, t, u, p_tt, p_tu, p_uu):
+    """An impact time y (variance `timing`) taken into the state (t, u) with covariance
+    (p_tt, p_tu, p_uu): scored by :func:`_observe` once an earlier time has anchored the
+    diffuse start, else, at the first observed time, the start anchored there.
+
+    Returns (seen, anchored, innovation, its variance, −2 ln L term, t, u, p_tt, p_tu, p_uu):
+    innovation and variance NaN and the term 0 where the time is not scored.
+    """
+    observation = math.isfinite(y)
+    seen = observation and anchored
+    innovation = variance = math.nan
+    term = 0.0
+    if seen:
+        # No timing noise on a certain prediction (no variance) is impossible: inf.
+        t, p_tt, p_tu, p_uu, u, innovation, variance, term = _observe(
+            t, p_tt, p_tu, p_uu, u, y, timing)
+    elif observation:
+        t, p_tt, p_tu = y, timing, 0.0
+    return seen, anchored or observation, innovation, variance, term, t, u, p_tt, p_tu, p_uu
+
+
+@numba.njit(cache=True)
 def _filter_table(times, timing_variance, start_time, diffuse, start_speed, process, members,
                   log_low, log_step, nodes, values, slopes, unusable, patch_speed,
                   patch_step, patch_count, out, scored, total, off_grid, stop_speed):
@@ -694,24 +716,11 @@ def _filter_table(times, timing_variance, start_time, diffuse, start_speed, proc
         broken = False
         interval = -1
         for n in range(count):
-            y = times[b, n]
-            timing = timing_variance[b, n]
-            observation = math.isfinite(y)
-            anchor = observation and not anchored
-            seen = observation and anchored
-            anchored = anchored or observation
             out[2, b, n], out[3, b, n] = t, u
-            scored[b, n] = seen
-            if seen:
-                # No timing noise on a certain prediction (no variance) is impossible: inf.
-                t, p_tt, p_tu, p_uu, u, innovation, variance, term = _observe(
-                    t, p_tt, p_tu, p_uu, u, y, timing)
-                out[0, b, n], out[1, b, n] = innovation, variance
-                value += term
-            else:
-                out[0, b, n], out[1, b, n] = math.nan, math.nan
-            if anchor:
-                t, p_tt, p_tu = y, timing, 0.0
+            (scored[b, n], anchored, out[0, b, n], out[1, b, n], term,
+             t, u, p_tt, p_tu, p_uu) = _observe_time(times[b, n], timing_variance[b, n],
+                                                     anchored, t, u, p_tt, p_tu, p_uu)
+            value += term
             out[4, b, n] = u
             if n == count - 1:
                 break

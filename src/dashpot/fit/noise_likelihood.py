@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..likelihood import LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed, _observe
+from ..likelihood import TrainFilter, TrainModel, _finite_speed, _observe, _observe_time
 from ..physics.effects import FLIGHT_EFFECTS, flight_map, flight_track
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
@@ -735,6 +735,22 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
 
 
 @numba.njit(cache=True)
+def _observe_speed(v, p_vv, p_vt, p_tt, t, measured, noise, b, n, which, total, speed_out,
+                   speed_scored):
+    """A measured speed (impact speed: `which` 0, rebound speed: 1; variance `noise`) taken
+    into the state (v, t) of row b at impact n by :func:`dashpot.likelihood._observe`, its
+    innovation, variance and −2 ln L term recorded; the state unchanged where it is missing.
+    Returns (v, P_vv, P_vt, P_tt, t)."""
+    if math.isfinite(measured) and math.isfinite(noise):
+        v, p_vv, p_vt, p_tt, t, r, variance, term = _observe(v, p_vv, p_vt, p_tt, t,
+                                                             measured, noise)
+        speed_out[0, b, n, which], speed_out[1, b, n, which] = r, variance
+        speed_scored[b, n, which] = True
+        total[b] += term
+    return v, p_vv, p_vt, p_tt, t
+
+
+@numba.njit(cache=True)
 def _impact_update(n, state, anchored, times, timing_variance, impact_speed, speed_variance,
                    total, out, scored, speed_out, speed_scored):
     """Impact n of every row of :func:`_speed_filter`: its time (the arithmetic of
@@ -742,27 +758,14 @@ def _impact_update(n, state, anchored, times, timing_variance, impact_speed, spe
     observed one), then its measured impact speed; the outputs recorded."""
     for b in range(state.shape[1]):
         t, u, p_tt, p_tu, p_uu = state[0, b], state[1, b], state[2, b], state[3, b], state[4, b]
-        y, timing = times[b, n], timing_variance[b, n]
-        observation = math.isfinite(y)
-        anchor = observation and not anchored[b]
-        seen = observation and anchored[b]
-        anchored[b] = anchored[b] or observation
         out[2, b, n], out[3, b, n] = t, u
-        scored[b, n] = seen
-        if seen:
-            t, p_tt, p_tu, p_uu, u, innovation, variance, term = _observe(
-                t, p_tt, p_tu, p_uu, u, y, timing)
-            out[0, b, n], out[1, b, n] = innovation, variance
-            total[b] += term
-        if anchor:
-            t, p_tt, p_tu = y, timing, 0.0
-        measured, noise = impact_speed[b, n], speed_variance[b, n]
-        if math.isfinite(measured) and math.isfinite(noise):
-            u, p_uu, p_tu, p_tt, t, r, variance, term = _observe(
-                u, p_uu, p_tu, p_tt, t, measured, noise)
-            speed_out[0, b, n, 0], speed_out[1, b, n, 0] = r, variance
-            speed_scored[b, n, 0] = True
-            total[b] += term
+        (scored[b, n], anchored[b], out[0, b, n], out[1, b, n], term,
+         t, u, p_tt, p_tu, p_uu) = _observe_time(times[b, n], timing_variance[b, n],
+                                                 anchored[b], t, u, p_tt, p_tu, p_uu)
+        total[b] += term
+        u, p_uu, p_tu, p_tt, t = _observe_speed(u, p_uu, p_tu, p_tt, t, impact_speed[b, n],
+                                                speed_variance[b, n], b, n, 0, total,
+                                                speed_out, speed_scored)
         out[4, b, n] = u
         state[0, b], state[1, b], state[2, b], state[3, b], state[4, b] = t, u, p_tt, p_tu, p_uu
 
@@ -788,14 +791,9 @@ def _bounce_update(n, state, columns, process, rebound_speed, speed_variance, to
         p_tt, p_tu, p_uu = (p_tt + 2.0 * contact_slope * p_tu + contact_slope * contact_slope
                             * p_uu, slope * (p_tu + contact_slope * p_uu),
                             slope * slope * p_uu + kick * kick)
-        v = rebound
-        measured, noise = rebound_speed[b, n], speed_variance[b, n]
-        if math.isfinite(measured) and math.isfinite(noise):
-            v, p_uu, p_tu, p_tt, t, r, variance, term = _observe(
-                v, p_uu, p_tu, p_tt, t, measured, noise)
-            speed_out[0, b, n, 1], speed_out[1, b, n, 1] = r, variance
-            speed_scored[b, n, 1] = True
-            total[b] += term
+        v, p_uu, p_tu, p_tt, t = _observe_speed(rebound, p_uu, p_tu, p_tt, t,
+                                                rebound_speed[b, n], speed_variance[b, n],
+                                                b, n, 1, total, speed_out, speed_scored)
         state[0, b], state[1, b], state[2, b], state[3, b], state[4, b] = t, v, p_tt, p_tu, p_uu
 
 

@@ -164,12 +164,8 @@ def flight_map(effects, g, columns):
 
     Parameters
     ----------
-    effects : sequence of FlightEffect
-        The effects the fit carries, in the registry's order.
-    g : float
-        Acceleration towards the surface without them, in m/s².
-    columns : dict of str -> float or ndarray
-        Every effect's parameters by name (arrays: one value per parameter set).
+    effects, g, columns
+        As for :func:`flight_track`.
 
     Returns
     -------
