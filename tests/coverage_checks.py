@@ -36,6 +36,24 @@ def binomial_range(trials, rate):
             int(stats.binom.isf(TAIL, trials, rate)))
 
 
+
+def normal_binomial_range(trials, rate):
+    """rate·N ∓ 3σ of Bin(N, rate) in the normal approximation: the range of a count of
+    successes (covering trials, kept rungs) in the few-trial checks of single effects."""
+    sd = (trials * rate * (1.0 - rate)) ** 0.5
+    return trials * rate - 3.0 * sd, trials * rate + 3.0 * sd
+
+
+def assert_covers_at_both_levels(estimates, truth, label=""):
+    """The 68.27 and 95.45 % intervals of `estimates` (one per trial) hold `truth` a number of
+    times inside :func:`normal_binomial_range`."""
+    trials = len(estimates)
+    for level, rate in LEVELS:
+        inside = sum(getattr(e, f"low{level}") <= truth <= getattr(e, f"high{level}")
+                     for e in estimates)
+        low, high = normal_binomial_range(trials, rate)
+        assert low <= inside <= min(high, trials), (label, level, inside)
+
 def collect(estimates):
     """Arrays of FIELDS from a list of Estimate (one per trial)."""
     return {name: np.array([float(getattr(e, name)) for e in estimates]) for name in FIELDS}

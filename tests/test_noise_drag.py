@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from coverage_checks import assert_covers_at_both_levels, normal_binomial_range
+
 from dashpot.fit import prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.likelihood import TrainModel
@@ -65,10 +67,6 @@ def without_drag():
     return rungs(drawn(0.0, NULL_TRIALS, seed=7734))
 
 
-def binomial_range(trials, rate):
-    sd = math.sqrt(trials * rate * (1.0 - rate))
-    return trials * rate - 3.0 * sd, trials * rate + 3.0 * sd
-
 
 def test_the_drag_effect_is_many_times_the_scatter():
     """The scenario qualifies: at the fastest rebound drag takes 1 − L/u of the speed per
@@ -91,11 +89,7 @@ def test_the_drag_rung_is_selected_where_the_train_has_drag(with_drag):
 def test_k_d_intervals_cover_at_their_nominal_rates(with_drag):
     _, drag, _ = with_drag
     k_d = [result.estimates["k_d"] for result in drag]
-    for level, rate in (("68", 0.6827), ("95", 0.9545)):
-        inside = sum(getattr(e, f"low{level}") <= K_D <= getattr(e, f"high{level}")
-                     for e in k_d)
-        low, high = binomial_range(TRIALS, rate)
-        assert low <= inside <= min(high, TRIALS), (level, inside)
+    assert_covers_at_both_levels(k_d, K_D)
     # Width: the 68 % interval's half-width against the spread of the estimates (an
     # inflated interval would cover too).
     half = np.median([0.5 * (e.high68 - e.low68) for e in k_d])
@@ -104,7 +98,7 @@ def test_k_d_intervals_cover_at_their_nominal_rates(with_drag):
     # The constant restitution under drag is recovered too.
     e = [result.estimates["e"] for result in drag]
     inside = sum(x.low95 <= EPS <= x.high95 for x in e)
-    assert inside >= binomial_range(TRIALS, 0.9545)[0]
+    assert inside >= normal_binomial_range(TRIALS, 0.9545)[0]
 
 
 def test_without_drag_the_drag_rung_is_not_kept(without_drag):
@@ -186,10 +180,10 @@ def test_k_d_under_the_scenes_prior_is_narrowed_by_the_data_and_covers_the_truth
     assert all(any(n.startswith("air drag: k_d fitted with the scene's prior") for n in f.notes)
                for f in fits)
     inside = sum(e.low95 <= prior.value <= e.high95 for e in k_d)
-    assert inside >= binomial_range(PRIOR_TRIALS, 0.9545)[0]
+    assert inside >= normal_binomial_range(PRIOR_TRIALS, 0.9545)[0]
     assert np.median([e.stderr for e in k_d]) < prior.uncertainty
     e = [fit.estimates["e"] for fit in fits]
-    assert sum(x.low95 <= EPS <= x.high95 for x in e) >= binomial_range(PRIOR_TRIALS, 0.9545)[0]
+    assert sum(x.low95 <= EPS <= x.high95 for x in e) >= normal_binomial_range(PRIOR_TRIALS, 0.9545)[0]
 
 
 # --- rolling friction on a cart: the friction rung where the train has friction ---------------
@@ -254,15 +248,11 @@ def test_the_friction_rung_is_kept_where_the_cart_has_friction_and_covers_it():
     tables = [table[["time", "time_uncertainty"]] for table in cart_trains(FRICTION_TRIALS)]
     _, friction, kept = friction_rungs(tables, scene)
     assert all(result.success for result in friction)
-    assert kept.sum() >= binomial_range(FRICTION_TRIALS, 0.9)[0], kept
+    assert kept.sum() >= normal_binomial_range(FRICTION_TRIALS, 0.9)[0], kept
     assert all(result.estimates["g_eff"].status == "fixed" for result in friction)
     f = [result.estimates["friction"] for result in friction]
     assert all(e.unit == "m/s^2" for e in f)
-    for level, rate in (("68", 0.6827), ("95", 0.9545)):
-        inside = sum(getattr(e, f"low{level}") <= CART_FRICTION <= getattr(e, f"high{level}")
-                     for e in f)
-        low, high = binomial_range(FRICTION_TRIALS, rate)
-        assert low <= inside <= min(high, FRICTION_TRIALS), (level, inside)
+    assert_covers_at_both_levels(f, CART_FRICTION)
     half = np.median([0.5 * (e.high68 - e.low68) for e in f])
     spread = np.std([e.value for e in f], ddof=1)
     assert 0.7 * spread <= half <= 1.4 * spread, (half, spread)
@@ -285,7 +275,7 @@ def test_measured_speeds_on_an_incline_prior_bound_the_friction():
     _, friction, _ = friction_rungs(cart_trains(trials), scene)
     f = [result.estimates["friction"] for result in friction]
     inside = sum(e.low95 <= CART_FRICTION <= e.high95 for e in f)
-    assert inside >= binomial_range(trials, 0.9545)[0], [(e.low95, e.high95) for e in f]
+    assert inside >= normal_binomial_range(trials, 0.9545)[0], [(e.low95, e.high95) for e in f]
 
 
 def _friction_batch(scene):

@@ -20,6 +20,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from coverage_checks import assert_covers_at_both_levels, normal_binomial_range
+
 from dashpot.fit import prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
 from dashpot.fit.noise_likelihood import NoiseProblem, _speed_filter
@@ -36,10 +38,6 @@ FRICTION = 0.03 * G_EFF  # m/s², 3 % of g_eff
 EPS, SPEED, BOUNCES, SCATTER, TIMING = 0.8, 0.5, 15, 0.003, 1e-3
 FIRST_SEED = 20261125 + 16
 
-
-def binomial_range(trials, rate):
-    sd = math.sqrt(trials * rate * (1.0 - rate))
-    return trials * rate - 3.0 * sd, trials * rate + 3.0 * sd
 
 
 # --- the filter against independent likelihoods ----------------------------------------------
@@ -268,14 +266,10 @@ def test_the_friction_rung_is_kept_where_the_speeds_see_friction_at_five_sigma(p
     constant, friction, kept = precise_speeds
     trials = kept.size
     assert all(fit.success for fit in friction)
-    assert kept.sum() >= binomial_range(trials, 0.9)[0], [
+    assert kept.sum() >= normal_binomial_range(trials, 0.9)[0], [
         round(c.bic - d.bic, 1) for c, d in zip(constant, friction)]
     f = [fit.estimates["friction"] for fit in friction]
-    for level, rate in (("68", 0.6827), ("95", 0.9545)):
-        inside = sum(getattr(e, f"low{level}") <= FRICTION <= getattr(e, f"high{level}")
-                     for e in f)
-        low, high = binomial_range(trials, rate)
-        assert low <= inside <= min(high, trials), (level, inside)
+    assert_covers_at_both_levels(f, FRICTION)
     half = np.median([0.5 * (e.high68 - e.low68) for e in f])
     spread = np.std([e.value for e in f], ddof=1)
     # The spread of 24 estimates is known to ±1/√(2·23) ≈ 15 %: 3σ either way.
@@ -292,11 +286,7 @@ def test_the_95_percent_interval_of_friction_covers_at_its_rate_at_one_percent_s
     _, friction, _ = friction_rungs(cart_tables(24, FRICTION, 0.005, FIRST_SEED + 24))
     f = [fit.estimates["friction"] for fit in friction]
     assert all(fit.success for fit in friction)
-    for level, rate in (("68", 0.6827), ("95", 0.9545)):
-        inside = sum(getattr(e, f"low{level}") <= FRICTION <= getattr(e, f"high{level}")
-                     for e in f)
-        low, high = binomial_range(len(f), rate)
-        assert low <= inside <= min(high, len(f)), (level, inside)
+    assert_covers_at_both_levels(f, FRICTION)
 
 
 @pytest.mark.slow
@@ -309,10 +299,10 @@ def test_an_incline_run_without_friction_does_not_keep_the_friction_rung():
     speeds to 0.005 m/s), the truth inside 23 of the 24 95 % intervals."""
     _, friction, kept = friction_rungs(cart_tables(24, 0.0, 0.0025, FIRST_SEED + 48))
     assert all(fit.success for fit in friction)
-    assert kept.sum() <= binomial_range(24, 0.05)[1], kept
+    assert kept.sum() <= normal_binomial_range(24, 0.05)[1], kept
     # The truth, f = 0 at the bound, inside the 95 % intervals at their nominal rate.
     f = [fit.estimates["friction"] for fit in friction]
-    assert sum(e.low95 <= 0.0 for e in f) >= binomial_range(24, 0.9545)[0]
+    assert sum(e.low95 <= 0.0 for e in f) >= normal_binomial_range(24, 0.9545)[0]
 
 
 # --- the paper's soft-bumper cart through the motion reader ------------------------------------
@@ -345,11 +335,7 @@ def test_the_paper_cart_from_a_motion_sensor_recovers_its_contact_with_the_speed
     assert all(fit.success for fit in with_speeds)
     for name in ("omega0", "beta"):
         estimates = [fit.estimates[name] for fit in with_speeds]
-        for level, rate in (("68", 0.6827), ("95", 0.9545)):
-            inside = sum(getattr(e, f"low{level}") <= cart[name] <= getattr(e, f"high{level}")
-                         for e in estimates)
-            low, high = binomial_range(24, rate)
-            assert low <= inside <= min(high, 24), (name, level, inside)
+        assert_covers_at_both_levels(estimates, cart[name], name)
     ratio = (np.median([fit.estimates["omega0"].stderr for fit in times_only])
              / np.median([fit.estimates["omega0"].stderr for fit in with_speeds]))
     assert ratio >= 5.0, ratio
