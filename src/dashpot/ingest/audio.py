@@ -80,9 +80,10 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _fill_impacts,
-                    _fixed_delays, _louder_between, _probe, _robust_trend, _secondary_delays,
-                    _secondary_levels, _select_bounces, _trim_growing_end)
+from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoed_end,
+                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between, _probe,
+                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
+                    _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
                        _process, _Settings, _Stream)
@@ -299,13 +300,24 @@ def _impact_table(path, stream, sample_rate, duration):
         raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     filled, retimed = [], {}
 
-    def probe(moment, tolerance, not_before=None):
-        return _probe(path, stream, moment, tolerance, timing, not_before)
+    def probe(moment, tolerance, not_before=None, predicted_sound=False):
+        return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound)
 
+    delays = _secondary_delays(rough, chain)
+    levels = _secondary_levels(rough, amplitude, chain, delays)
+    uncovered = 0
     if chain.size >= 4:
+        # Members that are the ring bursts of impacts hidden under the burst before them
+        # are replaced by those impacts.
+        causes, spreads, loudness, flats = _hidden_causes(
+            times[order], amplitudes[order], delays, levels, rough, amplitude, probe)
+        for position in np.flatnonzero(np.isfinite(spreads)):
+            times[order[position]], sigmas[order[position]] = causes[position], spreads[position]
+            amplitudes[order[position]] = loudness[position]
+            clipped_flags[order[position]] = bool(flats[position])
+        uncovered = int(np.isfinite(spreads).sum())
         # The last impacts may have no trigger of their own: look for them in the file where
         # the trend, fitted on the timed impacts, puts them.
-        delays = _secondary_delays(rough, chain)
         coefficients, scatter = _robust_trend(times[order])
         filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients,
                                         scatter, delays, probe, duration)
@@ -336,14 +348,12 @@ def _impact_table(path, stream, sample_rate, duration):
     if times.size >= 5:
         _, scatter = _robust_trend(times)
         grown = _trim_growing_end(times, sigmas, scatter)
-        delays = _secondary_delays(rough, chain)
-        kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays,
-                                          _secondary_levels(rough, amplitude, chain, delays))
+        kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays, levels)
+        kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
+                                  duration)
         dropped_end, dropped_secondaries = times.size - grown, grown - kept
         times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
         clipped_flags = clipped_flags[:kept]
-    delays = _secondary_delays(rough, chain)
-    levels = _secondary_levels(rough, amplitude, chain, delays)
     # Where each ring or echo recurring after the impacts would start, and how loud it may be
     # (as in _drop_trailing_secondaries; unknown loudness: any).
     secondaries = (times[:, None] + delays[None, :]).ravel()
@@ -391,6 +401,10 @@ def _impact_table(path, stream, sample_rate, duration):
                      + (f"; {untimed_count} of them have no onset of their own above it and are "
                         f"left out (missed impacts: the intervals around each span two bounces)"
                         if untimed_count else ""))
+    if uncovered:
+        notes.append(f"{uncovered} impacts found under the ring's burst of the impact before "
+                     f"them (in the error of a linear prediction of that sound): the selection "
+                     f"had taken their own bursts, one recurring delay later")
     if filled:
         notes.append(f"{len(filled)} faint impacts found where the interval trend predicts them "
                      f"(their sound jumps over the decaying sound before it less than a "
@@ -402,7 +416,8 @@ def _impact_table(path, stream, sample_rate, duration):
     if dropped_secondaries:
         notes.append(f"{dropped_secondaries} transients at the end left out: they come at the "
                      f"delay at which a ring's burst, a ring or an echo recurs after the impacts, "
-                     f"no louder than such a secondary")
+                     f"no louder than such a secondary, or lack the secondary every impact "
+                     f"before them sets off")
     if moved:
         notes.append(f"{moved} impacts timed again at their first burst: their sound opened "
                      f"with a burst before the rising edge fitted first")

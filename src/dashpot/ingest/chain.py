@@ -6,6 +6,10 @@ References
 ----------
 .. [5] T. Erickson, "Modeling a bouncing ball with exponential functions and infinite
    series", Mathematics Teacher 113(3), 233-236 (2020) (geometric shrinking of the intervals).
+.. [6] J. Glover, V. Lazzarini and J. Timoney, "Real-time detection of musical onsets with
+   linear prediction and sinusoidal modeling", EURASIP J. Adv. Signal Process. 2011, 68
+   (2011).
+.. [7] J. Makhoul, "Linear prediction: a tutorial review", Proc. IEEE 63(4), 561-580 (1975).
 """
 
 from __future__ import annotations
@@ -20,8 +24,8 @@ from ..plausibility import ratio_trend
 from . import envelope as _envelope
 from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
-                       _MERGE_SECONDS, _RING_GAP_SECONDS, _WEAK_JUMP_FACTOR,
-                       _onset_picks)
+                       _MERGE_SECONDS, _NOISE_FLOOR, _RING_GAP_SECONDS,
+                       _WEAK_JUMP_FACTOR, _onset_picks)
 from .onset import _onset_posterior
 
 
@@ -55,6 +59,9 @@ _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this dif
 _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
 # pulled early by up to the jitter (a ring or echo before them)
 _SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
+_CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one delay before its burst
+_MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
+_OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 
 
@@ -746,7 +753,140 @@ def _read_segment(path, start, stop):
         return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
 
 
-def _probe(path, stream, predicted, tolerance, timing, not_before=None):
+_PREDICTOR_ORDER = 12  # poles: two per mode, for a few modes of the impact, its ring, an echo
+
+
+def _sound_predictor(filtered, stop, order=_PREDICTOR_ORDER):
+    """Linear predictor of the sound before `stop`, per channel.
+
+    A struck ball rings in a few modes, a sum of damped sinusoids, which a linear predictor
+    with two poles per mode continues exactly; a new impact is an impulse into the same
+    resonances and stands out in the prediction error however loud the ring it starts on
+    [6]_. The predictor is fitted per channel by least squares on ``filtered[:stop]`` (the
+    covariance method [7]_), the sound a probed stretch follows.
+
+    Parameters
+    ----------
+    filtered : ndarray, shape (frames, channels)
+        High-passed samples (full scale).
+    stop : int
+        The predictor is fitted on the samples before this one (at least 4 × `order`).
+    order : int, default 12
+        Past samples a prediction uses.
+
+    Returns
+    -------
+    ndarray, shape (channels, order + 1)
+        Error filter a = (1, −c) of each channel: the prediction of y[n] is
+        Σ_k c[k] y[n − 1 − k], its error Σ_k a[k] y[n − k].
+    """
+    channels = filtered.shape[1]
+    taps = np.zeros((channels, order + 1))
+    taps[:, 0] = 1.0
+    for channel in range(channels):
+        column = filtered[:stop, channel]
+        past = np.lib.stride_tricks.sliding_window_view(column, order)[:-1, ::-1]
+        # Normal equations, with a ridge of 1e-9 of their scale so that silence (all-zero
+        # samples) still gives a solution.
+        gram = past.T @ past
+        gram[np.diag_indices(order)] += 1e-9 * max(np.trace(gram), _NOISE_FLOOR**2) / order
+        taps[channel, 1:] = -np.linalg.solve(gram, past.T @ column[order:])
+    return taps
+
+
+def _prediction_error(filtered, taps, noise, rho):
+    """Error of the predictor `taps` (:func:`_sound_predictor`) on `filtered` (frames,
+    channels; 0 on the first samples), and its variance on the noise alone per channel
+    (full scale²): for AR(1) noise of innovation RMS σ and lag-1 correlation ρ,
+    Σ_jk a_j a_k σ² ρ^|j−k| / (1 − ρ²)."""
+    order = taps.shape[1] - 1
+    error = np.zeros_like(filtered)
+    for channel in range(filtered.shape[1]):
+        error[order:, channel] = signal.lfilter(taps[channel], 1.0,
+                                                filtered[:, channel])[order:]
+    lags = np.abs(np.arange(order + 1)[:, None] - np.arange(order + 1)[None, :])
+    floor = np.einsum("ci,cij,cj->c", taps, rho[:, None, None] ** lags[None], taps) \
+        * noise**2 / np.maximum(1.0 - rho**2, 1e-6)
+    return error, np.maximum(floor, _NOISE_FLOOR**2)
+
+
+def _new_sound(filtered, taps, start, length):
+    """The sound from `start` on less the predictor's free continuation of the sound before
+    it: what started there (length, channels)."""
+    order = taps.shape[1] - 1
+    out = np.empty((length, filtered.shape[1]))
+    for channel in range(filtered.shape[1]):
+        state = signal.lfiltic([1.0], taps[channel], filtered[start - order:start, channel][::-1])
+        free = signal.lfilter([1.0], taps[channel], np.zeros(length), zi=state)[0]
+        out[:, channel] = filtered[start:start + length, channel] - free
+    return out
+
+
+def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
+    """Impacts hidden under a ring's burst, found one burst delay before their own burst.
+
+    Once the intervals shrink to a few times a ring's burst delay, an impact may start on
+    the loud burst of the one before and barely raise the power: only its own burst,
+    `delay` later, rises clearly, and the chain follows the bursts, whose intervals are the
+    impacts'. A member is such a burst where the error of a predictor of the sound
+    (``probe(moment, tolerance, predicted_sound=True)``) shows an onset one recurring
+    secondary delay before it (within 0.5 ms), later than 1 ms after the member before it,
+    at least half as loud as the impacts before, and loud enough for the member to be its
+    secondary (the member at most twice the usual level of that secondary times the
+    onset's amplitude). Only where a transient at least half as loud as those impacts
+    started within 5 ms before is the file probed: a sound of that loudness on a quiet
+    stretch would have been found by the trigger.
+
+    Parameters
+    ----------
+    times, amplitudes : ndarray
+        Fitted onsets (s, increasing) and amplitudes (full scale) of the chain's members.
+    delays, levels : ndarray
+        Delays (s) of the secondaries recurring after the impacts (:func:`_secondary_delays`)
+        and their usual loudness relative to their impact (:func:`_secondary_levels`, NaN:
+        unknown, then not used here); delays under 3 ms are the impact's own first
+        arrivals, not a later burst, and are not used either.
+    sounds, loudness : ndarray
+        Rough onsets (s) and amplitudes (full scale) of all the transients found.
+    probe : callable
+        As for :func:`_fill_impacts`, with the keyword ``predicted_sound``.
+
+    Returns
+    -------
+    times, sigmas, amplitudes, clipped : ndarray
+        The members with those bursts replaced by their causes: times (s), 1σ (s; NaN where
+        a member was not replaced), amplitudes (full scale) and clip flags.
+    """
+    times, amplitudes = times.copy(), amplitudes.copy()
+    sigmas, clipped = np.full(times.size, np.nan), np.zeros(times.size, dtype=bool)
+    order = np.argsort(sounds)
+    sounds, loudness = sounds[order], loudness[order]
+    # From 3 ms on: closer sounds are the impact's own first arrivals, not a later burst.
+    usable = np.isfinite(levels) & (delays >= _CAUSE_DELAY_SECONDS[0])
+    for position in range(1, times.size):
+        recent = np.median(amplitudes[max(0, position - 3):position])
+        for delay, level in zip(delays[usable], levels[usable]):
+            moment = times[position] - delay
+            if moment <= times[position - 1] + _MERGE_SECONDS:
+                continue
+            # Hidden only under a loud sound that started shortly before.
+            lo, hi = np.searchsorted(sounds, [moment - _MASK_SECONDS,
+                                              moment - _CAUSE_SEARCH_SECONDS])
+            if not np.any(loudness[lo:hi] >= recent / _EXTENSION_LOUDNESS):
+                continue
+            result = probe(moment, _CAUSE_SEARCH_SECONDS, predicted_sound=True)
+            if (result is None or abs(result[0] - moment) > _CAUSE_SEARCH_SECONDS
+                    or result[0] <= times[position - 1] + _MERGE_SECONDS
+                    or result[2] < recent / _EXTENSION_LOUDNESS
+                    or amplitudes[position] > _SECONDARY_MARGIN * level * result[2]):
+                continue
+            times[position], sigmas[position], amplitudes[position], clipped[position] = result
+            break
+    return times, sigmas, amplitudes, clipped
+
+
+def _probe(path, stream, predicted, tolerance, timing, not_before=None,
+           predicted_sound=False):
     """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
 
     Parameters
@@ -765,6 +905,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
         Onset (s) of a ring or an echo that captured the impact's onset before: the onset is
         looked for after it, as a sound of its own, whose power jumps 1.8 dB over the mean
         power since `not_before`.
+    predicted_sound : bool, default False
+        Look for the jump in the error of a linear predictor of the sound before the window
+        (:func:`_prediction_error`) instead of the whitened signal: an impact that starts
+        inside a loud ring, whose power barely rises over it, is an impulse there.
 
     Returns
     -------
@@ -795,6 +939,15 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     detector = np.zeros_like(filtered)
     detector[1:] = filtered[1:] - stream.rho * filtered[:-1]
     power = (detector * detector) @ (1.0 / (stream.channels * stream.noise**2))
+    loudness = np.concatenate(([0.0], np.cumsum(power)))
+    taps = None
+    if predicted_sound and centre - reach - offset > 4 * _PREDICTOR_ORDER:
+        # Jumps are looked for in the error of a predictor of the sound before the window:
+        # an impact starting inside a loud ring is an impulse there; its loudness is still
+        # the whitened signal's.
+        taps = _sound_predictor(filtered, centre - reach - offset)
+        detector, floor = _prediction_error(filtered, taps, stream.noise, stream.rho)
+        power = (detector * detector) @ (1.0 / (stream.channels * floor))
     cumulative = np.concatenate(([0.0], np.cumsum(power)))
     earliest = centre - reach
     if not_before is not None:
@@ -807,7 +960,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     quietest = np.min([cumulative[triggers - k * settings.sta]
                        - cumulative[triggers - (k + 1) * settings.sta] for k in range(parts)],
                       axis=0) / settings.sta
-    min_jump = settings.min_jump / _WEAK_JUMP_FACTOR
+    # A sound seen only in the prediction error must jump as much as a strong trigger.
+    min_jump = settings.min_jump / (1.0 if taps is not None else _WEAK_JUMP_FACTOR)
     if not_before is not None:
         # Past the start of a ring or an echo, the level to jump over is that sound's, the
         # mean power since it started, and by the 1.8 dB that tell a sound of its own.
@@ -816,7 +970,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
                               / (triggers - since))
         min_jump = _PROBE_RING_JUMP
     jump = sta / np.maximum(quietest, 1.0)
-    usable = (sta >= settings.min_power) & (jump >= min_jump)
+    loud = (loudness[triggers + settings.sta] - loudness[triggers]) / settings.sta
+    usable = (loud >= settings.min_power) & (jump >= min_jump)
     if not usable.any():
         return None
     trigger = int(triggers[usable][np.argmax(jump[usable])])
@@ -837,14 +992,20 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None):
     own = detector[search:trigger + settings.sta, timing] ** 2
     start = search + int(_onset_picks(own[None, :], np.zeros(1, dtype=np.int64), gap,
                                       settings.sta)[0]) - settings.pre
-    onset, sigma, _ = _onset_posterior(filtered[None, start:start + settings.pre
-                                                + settings.span, timing], settings.pre,
-                                       sample_rate)
-    # Amplitude as for the stream's transients: largest deviation of the raw samples from
-    # their level before the onset, over all channels; a flat top marks clipping.
-    before = raw[rough - settings.pre:rough].mean(axis=0)
+    if taps is None:
+        window = filtered[start:start + settings.pre + settings.span, timing]
+        # Amplitude as for the stream's transients: largest deviation of the raw samples
+        # from their level before the onset, over all channels; a flat top marks clipping.
+        before = raw[rough - settings.pre:rough].mean(axis=0)
+        amplitude = float(np.abs(raw[rough:rough + settings.amplitude] - before).max())
+    else:
+        # On a ring, the new sound is the signal less the ring's predicted continuation:
+        # its onset is fitted, and its amplitude measured, on that (the ring's own samples
+        # would count towards the amplitude of a faint sound starting on it).
+        window = _new_sound(filtered, taps, start, settings.pre + settings.span)[:, timing]
+        amplitude = float(np.abs(_new_sound(filtered, taps, rough, settings.amplitude)).max())
+    onset, sigma, _ = _onset_posterior(window[None, :], settings.pre, sample_rate)
     after = raw[rough:rough + settings.amplitude]
-    amplitude = float(np.abs(after - before).max())
     magnitude = np.abs(after).ravel()
     clipped = bool(magnitude.max() > 0 and (magnitude >= magnitude.max()
                                             * (1 - _CLIP_TOLERANCE)).sum() >= _CLIP_RUN)
@@ -935,6 +1096,37 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels):
                       & (amplitudes[keep - 1] <= expected)):
             break
         keep -= 1
+    return keep
+
+
+def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
+    """Number of impacts to keep: the last one must be followed by its own secondaries.
+
+    An impact sets off the secondaries every impact of the train sets off (a ring's burst,
+    a ring, an echo, at the delays `delays`, s, with the usual levels `levels` relative to
+    the impact, at least a quarter); a burst, ring or echo of the last impact, heard after
+    it like one more bounce, sets off none. Where the four impacts before the last each
+    show a secondary within 0.5 ms of one delay (looked for in the error of a predictor of
+    the sound, ``probe(moment, tolerance, predicted_sound=True)``, at least a quarter of
+    the usual level), the last impact is kept only if it shows one too, or if the recording
+    (`end`, s) stops before that secondary's time is over. At most two are dropped.
+    """
+    keep = times.size
+    usable = np.isfinite(levels) & (levels >= _OWN_SECONDARY_LEVEL)
+
+    def shows(position, delay, level):
+        result = probe(times[position] + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True)
+        return (result is not None
+                and abs(result[0] - times[position] - delay) <= _CAUSE_SEARCH_SECONDS
+                and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitudes[position])
+
+    for delay, level in zip(delays[usable], levels[usable]):
+        while keep > max(5, times.size - 2) and times[keep - 1] + delay + _MASK_SECONDS < end:
+            if not all(shows(position, delay, level) for position in range(keep - 5, keep - 1)):
+                break
+            if shows(keep - 1, delay, level):
+                break
+            keep -= 1
     return keep
 
 

@@ -1,0 +1,167 @@
+"""Impacts hidden under a ring's burst, and trains that end on one (issue 14).
+
+The last bounces of a ping-pong ball come a few ms apart while each impact's ring swells
+again 5-8 ms after it, louder than the impact's first burst: an impact then starts on the
+burst of the one before, its power hardly rises, and only its own burst stands out. The
+detector looks for such impacts in the error of a linear predictor of the sound (a ring is
+a sum of damped sinusoids, which the predictor continues; a new impact is an impulse into
+the same resonances) one burst delay before each burst, and ends the train on the last
+sound that sets off the secondaries every impact sets off.
+
+References: the linear recurrence of damped sinusoids (a sum of K of them obeys an exact
+recurrence of order 2K, the basis of Prony's method; Makhoul, Proc. IEEE 63, 561 (1975)).
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+import dashpot
+from dashpot.ingest.audio import detect_impacts
+from dashpot.ingest.chain import (_drop_unechoed_end, _hidden_causes, _new_sound,
+                                  _prediction_error, _sound_predictor)
+from dashpot.synth.audio import impact_sound, write_audio
+
+RATE = 22050  # Hz
+MODES = ((2000.0, 3.0e-3, 1.0), (3300.0, 1.8e-3, 0.6), (4900.0, 1.1e-3, 0.3))  # Hz, s, weight
+
+
+def ring(n_samples, start, amplitude, phase=0.0):
+    """Sum of the damped sinusoids of MODES starting at sample `start` (0 before)."""
+    t = (np.arange(n_samples) - start) / RATE
+    out = sum(weight * np.exp(-t / decay) * np.sin(2 * np.pi * frequency * t + phase)
+              for frequency, decay, weight in MODES)
+    return np.where(t >= 0, amplitude * out, 0.0)
+
+
+def test_a_ring_is_predicted_and_a_new_impact_on_it_is_an_impulse_of_the_error():
+    n, second = 600, 400
+    first = ring(n, -20, 1.0)  # ringing from before the first sample on
+    signal = first + ring(n, second, 0.5, phase=0.3)
+    taps = _sound_predictor(signal[:, None], second - 5)
+    error, _ = _prediction_error(signal[:, None], taps, np.array([1e-9]), np.array([0.0]))
+    # Three damped sinusoids obey an exact recurrence of order 6 <= 12: on the first ring
+    # alone the error vanishes (to the predictor's ridge); the second impact's error is
+    # where it starts.
+    assert np.abs(error[12:second, 0]).max() < 1e-4 * np.abs(first).max()
+    assert second <= np.argmax(np.abs(error[:, 0])) <= second + 1
+
+
+def test_the_new_sound_is_the_signal_less_the_rings_continuation():
+    n, second = 600, 400
+    later = ring(n, second, 0.5, phase=0.3)
+    signal = ring(n, -20, 1.0) + later
+    taps = _sound_predictor(signal[:, None], second - 5)
+    new = _new_sound(signal[:, None], taps, second - 20, 150)[:, 0]
+    np.testing.assert_allclose(new, later[second - 20:second + 130], atol=1e-4)
+
+
+def test_the_error_floor_is_the_variance_of_the_error_on_the_noise():
+    # AR(1) noise of innovation RMS σ and lag-1 correlation ρ through the error filter:
+    # the closed form against the variance of a long simulated stretch.
+    rng = np.random.default_rng(20270401)
+    sigma, rho, n = 0.01, 0.6, 400_000
+    noise = np.empty(n)
+    innovation = sigma * rng.standard_normal(n)
+    noise[0] = innovation[0] / np.sqrt(1 - rho**2)
+    for k in range(1, n):  # the reference recurrence, written out
+        noise[k] = rho * noise[k - 1] + innovation[k]
+    taps = _sound_predictor(ring(2000, 10, 1.0)[:, None], 1990)
+    error, floor = _prediction_error(noise[:, None], taps, np.array([sigma]), np.array([rho]))
+    measured = error[100:, 0].var()
+    assert floor[0] == pytest.approx(measured, rel=4 * np.sqrt(2 / n) * 10)
+
+
+def fake_probe(sounds, amplitude_of):
+    """A probe that finds the nearest of `sounds` (s) within the tolerance."""
+    def probe(moment, tolerance, not_before=None, predicted_sound=False):
+        nearest = sounds[np.argmin(np.abs(sounds - moment))]
+        if abs(nearest - moment) > tolerance:
+            return None
+        return nearest, 1e-5, amplitude_of(nearest), False
+    return probe
+
+
+def test_members_that_are_bursts_are_replaced_by_the_impacts_one_delay_before():
+    delay = 5.5e-3
+    impacts = np.cumsum(np.r_[0.0, 0.1 * 0.9 ** np.arange(30)])
+    impacts = impacts[np.r_[1.0, np.diff(impacts)] >= 6e-3]
+    bursts = impacts + delay
+    # Impacts starting less than 4.5 ms after the burst of the one before were not found as
+    # transients (hidden under it), but their own bursts were, and the chain took those.
+    hidden = np.r_[False, np.diff(impacts) < delay + 4.5e-3]
+    members = np.where(hidden, bursts, impacts)
+    found = np.sort(np.concatenate((impacts[~hidden], bursts)))
+    loudness = np.where(np.isin(found, bursts), 1.2, 1.0)
+    times, sigmas, amplitudes, _ = _hidden_causes(
+        members, np.where(hidden, 1.2, 1.0), np.array([delay]), np.array([1.2]), found,
+        loudness, fake_probe(np.concatenate((impacts, bursts)), lambda t: 1.0))
+    assert hidden.sum() >= 5
+    np.testing.assert_allclose(times, impacts)
+    assert np.isnan(sigmas[~hidden]).all() and np.isfinite(sigmas[hidden]).all()
+    # No loud sound in the 5 ms before the moment where the cause would be: nothing is
+    # probed, whatever the file holds there.
+    quiet = _hidden_causes(members, np.ones(impacts.size), np.array([delay]), np.array([1.2]),
+                           impacts[:1], np.ones(1), fake_probe(impacts, lambda t: 1.0))[0]
+    np.testing.assert_array_equal(quiet, members)
+    # A member far louder than the burst an onset before it would set off is an impact.
+    loud = _hidden_causes(members, np.full(impacts.size, 10.0), np.array([delay]),
+                          np.array([1.2]), found, loudness,
+                          fake_probe(np.concatenate((impacts, bursts)), lambda t: 1.0))[0]
+    np.testing.assert_array_equal(loud, members)
+
+
+def test_a_train_ends_on_the_last_sound_that_sets_off_the_secondaries():
+    delay = 6.0e-3
+    impacts = 1.0 + np.cumsum(0.05 * 0.9 ** np.arange(12))
+    bursts = impacts + delay
+    with_last_burst = np.r_[impacts, bursts[-1]]
+    probe = fake_probe(bursts, lambda t: 1.0)
+    amplitudes = np.ones(with_last_burst.size)
+    end = with_last_burst[-1] + 1.0
+    keep = _drop_unechoed_end(with_last_burst, amplitudes, np.array([delay]), np.array([1.0]),
+                              probe, end)
+    assert keep == impacts.size
+    # The impacts themselves all set off their bursts: none is dropped.
+    assert _drop_unechoed_end(impacts, amplitudes[:-1], np.array([delay]), np.array([1.0]),
+                              probe, end) == impacts.size
+    # A recording that stops before the last one's burst could sound cannot say.
+    assert _drop_unechoed_end(with_last_burst, amplitudes, np.array([delay]), np.array([1.0]),
+                              probe, with_last_burst[-1] + delay) == with_last_burst.size
+
+
+BURST_SEEDS = range(20270311, 20270323)  # drawn once for this test
+
+
+@pytest.fixture(scope="module")
+def burst_trains(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("bursts")
+    total = found = false = 0
+    for seed in BURST_SEEDS:
+        rng = np.random.default_rng(seed)
+        sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                           omega0=rng.uniform(2000, 4000), g=9.81,
+                                           v0=rng.uniform(0.5, 0.9), n_max=400)
+        keep = np.cumprod(np.r_[True, sequence.intervals >= 6e-3]).astype(bool)
+        speeds = sequence.impact_speeds[keep]
+        samples, onsets = impact_sound(
+            sequence.impact_times[keep], speeds, sample_rate=RATE, seed=seed,
+            snr_db=30 + 20 * np.log10(speeds.max() / speeds.min()), ring_level=0.0,
+            burst_delays=[rng.uniform(5e-3, 7e-3)], burst_levels=[rng.uniform(1.0, 1.4)])
+        path = write_audio(os.fspath(folder / f"train{seed}.wav"), samples, RATE,
+                           subtype="FLOAT")
+        times = detect_impacts(path)["time"].to_numpy()
+        distance = np.abs(onsets[:, None] - times[None, :])
+        total += onsets.size
+        found += int((distance.min(axis=1) < 1e-3).sum())
+        false += int((distance.min(axis=0) >= 1e-3).sum())
+    return total, found, false
+
+
+def test_impacts_under_the_burst_before_them_are_found(burst_trains):
+    # Before the prediction error was looked at: recall 0.929 and 16 false impacts (the
+    # bursts) in these 476 impacts.
+    total, found, false = burst_trains
+    assert found / total >= 0.96
+    assert false <= total / 100
