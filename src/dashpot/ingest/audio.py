@@ -85,8 +85,8 @@ from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoe
                     _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
                     _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
-from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _NOISE_FLOOR, _STA_SECONDS, MIN_SAMPLE_RATE,
-                       _process, _Settings, _Stream)
+from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
+                       _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
 from .onset import _BURST_REACH_SECONDS, _first_burst, _onset_posterior
 
 
@@ -96,6 +96,8 @@ __all__ = ["read_audio", "detect_impacts"]
 _SECONDARY_REACH_SECONDS = 2e-3
 _RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pass to settle
 _JOIN_READS_SECONDS = 0.05
+_FILL_PASSES = 3  # passes of the search for impacts the trend predicts, at most
+_END_IMPACTS = 4  # the last impacts, whose change lets a further pass go on past them
 
 # --------------------------------------------------------------------------------------------
 # Public entry point
@@ -298,7 +300,7 @@ def _impact_table(path, stream, sample_rate, duration):
         rough, strength / stream.settings.min_power, amplitude, strong, chain)
     if problem:
         raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
-    filled, retimed = [], {}
+    filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
     def probe(moment, tolerance, not_before=None, predicted_sound=False):
         return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound)
@@ -317,29 +319,20 @@ def _impact_table(path, stream, sample_rate, duration):
             clipped_flags[order[position]] = bool(flats[position])
         uncovered = int(np.isfinite(spreads).sum())
         # The last impacts may have no trigger of their own: look for them in the file where
-        # the trend, fitted on the timed impacts, puts them.
-        coefficients, scatter = _robust_trend(times[order])
-        filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients,
-                                        scatter, delays, probe, duration)
-        for position, result in retimed.items():
-            if result is None:  # no onset of its own: left out below, a gap in the train
-                continue
-            moment, spread, loudness, flat = result
-            times[order[position]], sigmas[order[position]] = moment, spread
-            amplitudes[order[position]] = loudness
-            clipped_flags[order[position]] = flat
-        untimed = np.array([order[position] for position, result in retimed.items()
-                            if result is None], dtype=np.int64)
-        if untimed.size:
-            keep = np.setdiff1d(np.arange(times.size), untimed)
-            times, sigmas, amplitudes = times[keep], sigmas[keep], amplitudes[keep]
-            clipped_flags = [clipped_flags[k] for k in keep]
-    if filled:
-        extra = np.array([row[:3] for row in filled])
-        times = np.concatenate([times, extra[:, 0]])
-        sigmas = np.concatenate([sigmas, extra[:, 1]])
-        amplitudes = np.concatenate([amplitudes, extra[:, 2]])
-        clipped_flags = clipped_flags + [row[3] for row in filled]
+        # the trend, fitted on the timed impacts, puts them. Where impacts were timed again
+        # or left out, the trend's predictions past them change: further passes follow, and
+        # go on past the last impact only where the last ones were among those changed.
+        stop = duration
+        for _ in range(_FILL_PASSES):
+            count = times.size
+            times, sigmas, amplitudes, clipped_flags, added, again = _fill_pass(
+                times, sigmas, amplitudes, clipped_flags, delays, probe, stop)
+            filled += added
+            retimed += list(again.values())
+            if not again:
+                break
+            if max(again) < count - _END_IMPACTS:
+                stop = times.max() + _MERGE_SECONDS
 
     order = np.argsort(times)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
@@ -395,7 +388,7 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"their own (lost under ringing or echo, or too faint); the intervals "
                      f"around them span two or more bounces")
     if retimed:
-        untimed_count = sum(row is None for row in retimed.values())
+        untimed_count = sum(row is None for row in retimed)
         notes.append(f"{len(retimed)} impacts timed again: their first onset was that of a ring "
                      f"or echo of an earlier impact starting just before them"
                      + (f"; {untimed_count} of them have no onset of their own above it and are "
@@ -427,6 +420,34 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"bound")
     table.attrs.update(source=str(path), sensor="audio", notes=notes)
     return table
+
+
+def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, probe, duration):
+    """One pass of :func:`_fill_impacts` over the impacts, applied: times (s), 1σ (s),
+    amplitudes, clip flags with the impacts it timed again, left out or added; the added
+    rows and the retimed ones."""
+    order = np.argsort(times)
+    coefficients, scatter = _robust_trend(times[order])
+    filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients, scatter,
+                                    delays, probe, duration)
+    times, sigmas, amplitudes = times.copy(), sigmas.copy(), amplitudes.copy()
+    clipped_flags = list(clipped_flags)
+    for position, result in retimed.items():
+        if result is None:  # no onset of its own: left out below, a gap in the train
+            continue
+        times[order[position]], sigmas[order[position]] = result[0], result[1]
+        amplitudes[order[position]], clipped_flags[order[position]] = result[2], result[3]
+    untimed = [order[position] for position, result in retimed.items() if result is None]
+    keep = np.setdiff1d(np.arange(times.size), untimed)
+    times, sigmas, amplitudes = times[keep], sigmas[keep], amplitudes[keep]
+    clipped_flags = [clipped_flags[k] for k in keep]
+    if filled:
+        extra = np.array([row[:3] for row in filled])
+        times = np.concatenate([times, extra[:, 0]])
+        sigmas = np.concatenate([sigmas, extra[:, 1]])
+        amplitudes = np.concatenate([amplitudes, extra[:, 2]])
+        clipped_flags = clipped_flags + [row[3] for row in filled]
+    return times, sigmas, amplitudes, clipped_flags, filled, retimed
 
 
 def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, loudest):
