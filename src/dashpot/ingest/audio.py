@@ -81,9 +81,9 @@ from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoed_end,
-                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between, _probe,
-                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
-                    _trim_growing_end)
+                    _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes,
+                    _louder_between, _probe, _robust_trend, _secondary_delays,
+                    _secondary_levels, _select_bounces, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
@@ -258,48 +258,24 @@ def _impact_table(path, stream, sample_rate, duration):
     amplitude = np.array([c["amplitude"] for c in candidates])
     strong = np.array([c["strong"] for c in candidates])
     precise = _fitted_onsets(stream)
-    chain, skipped = _select_bounces(rough, strength / stream.settings.min_power, amplitude,
-                                     strong, precise)
-    if chain.size < 3:
-        # Two transients cannot be told from an impact and its ring or echo: without a third,
-        # no interval ratio confirms a bounce.
-        strongest = int(np.argmax(strength))
-        raise InputError(path, f"{'only one impact' if chain.size < 2 else 'only two transients'}"
-                               f" found (the loudest at {rough[strongest]:.3f} s): not a bounce "
-                               f"sequence, which needs at least three impacts")
-
-    chosen = [candidates[i] for i in chain]
-    channels = stream.channels
-    windows = np.stack([c["windows"] for c in chosen])  # (impacts, channels, width)
-    # Timing channel: the best median SNR of the impacts' onsets (the precision of an onset
-    # scales with its SNR), so that one fit per impact suffices.
-    pre = windows[:, :, : stream.settings.pre]
-    post = windows[:, :, stream.settings.pre:]
-    snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
-        pre.std(axis=2), _NOISE_FLOOR)
-    timing = int(np.argmax(np.median(snr, axis=0)))
-    # Impacts already fitted on the timing channel during the selection keep that fit.
-    onset, sigma = np.zeros(chain.size), np.zeros(chain.size)
-    done = np.array([precise.fits.get(int(i), (0.0, 0.0, -1))[2] == timing for i in chain],
-                    dtype=bool)
-    for position in np.flatnonzero(done):
-        onset[position], sigma[position], _ = precise.fits[int(chain[position])]
-    if not done.all():
-        onset[~done], sigma[~done], _ = _onset_posterior(windows[~done, timing],
-                                                         stream.settings.pre, sample_rate)
-    starts = np.array([c["window_starts"][timing] for c in chosen])
-
-    times = (starts + onset) / sample_rate
-    sigmas = sigma / sample_rate
-    amplitudes = np.array([c["amplitude"] for c in chosen])
-    clipped_flags = [c["clipped"] for c in chosen]
-    order = np.argsort(times)
-    # Only a chain whose intervals shrink as a bouncing ball's do is a bounce train: random
-    # clicks also hold chains within the ratio bounds.
-    problem = bounce_train_problem(times[order], sigmas[order]) or _louder_between(
-        rough, strength / stream.settings.min_power, amplitude, strong, chain)
+    # A chain that fails the check of a bounce train is chosen again once the transients
+    # explained as the rings, bursts and echoes of louder ones (at the delays at which they
+    # recur after the first choice's impacts) are set aside: where secondaries come at
+    # evenly spaced delays, they form a chain of their own as long as the train's tail.
+    selectable = np.arange(len(candidates))
+    for attempt in range(2):
+        chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem = _choose(
+            path, stream, candidates, rough, strength, amplitude, strong, precise, selectable)
+        if not problem or attempt:
+            break
+        explained = _explained_secondaries(rough, amplitude, chain)
+        if not explained.any():
+            break
+        selectable = np.flatnonzero(~explained)
+    set_aside = len(candidates) - selectable.size
     if problem:
         raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
+    order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
     def probe(moment, tolerance, not_before=None, predicted_sound=False):
@@ -368,9 +344,10 @@ def _impact_table(path, stream, sample_rate, duration):
 
     notes = [f"time: onset of each impact transient (Bayesian change-point fit of the rising "
              f"edge of its first burst), {sample_rate} Hz recording"]
-    if channels > 1:
-        notes.append(f"{channels} channels: transients detected on all of them, times taken "
-                     f"from channel {timing} (the best signal-to-noise ratio at the onsets)")
+    if stream.channels > 1:
+        notes.append(f"{stream.channels} channels: transients detected on all of them, times "
+                     f"taken from channel {timing} (the best signal-to-noise ratio at the "
+                     f"onsets)")
     if stream.dc_offset > 1e-3:
         notes.append(f"DC offset of about {stream.dc_offset:.3g} (full scale) removed by the "
                      f"high-pass; amplitudes are measured from the local level")
@@ -394,6 +371,10 @@ def _impact_table(path, stream, sample_rate, duration):
                      + (f"; {untimed_count} of them have no onset of their own above it and are "
                         f"left out (missed impacts: the intervals around each span two bounces)"
                         if untimed_count else ""))
+    if set_aside:
+        notes.append(f"{set_aside} transients set aside before the impacts were chosen: they "
+                     f"come at the delays at which rings, bursts or echoes recur after louder "
+                     f"sounds, and the chain through them was no bounce train")
     if uncovered:
         notes.append(f"{uncovered} impacts found under the ring's burst of the impact before "
                      f"them (in the error of a linear prediction of that sound): the selection "
@@ -420,6 +401,59 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"bound")
     table.attrs.update(source=str(path), sensor="audio", notes=notes)
     return table
+
+
+def _choose(path, stream, candidates, rough, strength, amplitude, strong, precise, selectable):
+    """The chain of impacts among the transients `selectable` (indices), timed: chain (indices
+    into the transients), impacts skipped, times (s), 1σ (s), amplitudes, clip flags, the
+    timing channel, and why it is not a bounce train ("" if it is)."""
+    sample_rate = stream.settings.sample_rate
+
+    def fitted(indices):
+        return precise(selectable[indices])
+
+    chain, skipped = _select_bounces(rough[selectable], strength[selectable]
+                                     / stream.settings.min_power, amplitude[selectable],
+                                     strong[selectable], fitted)
+    chain = selectable[chain]
+    if chain.size < 3:
+        # Two transients cannot be told from an impact and its ring or echo: without a third,
+        # no interval ratio confirms a bounce.
+        strongest = int(np.argmax(strength))
+        raise InputError(path, f"{'only one impact' if chain.size < 2 else 'only two transients'}"
+                               f" found (the loudest at {rough[strongest]:.3f} s): not a bounce "
+                               f"sequence, which needs at least three impacts")
+
+    chosen = [candidates[i] for i in chain]
+    windows = np.stack([c["windows"] for c in chosen])  # (impacts, channels, width)
+    # Timing channel: the best median SNR of the impacts' onsets (the precision of an onset
+    # scales with its SNR), so that one fit per impact suffices.
+    pre = windows[:, :, : stream.settings.pre]
+    post = windows[:, :, stream.settings.pre:]
+    snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
+        pre.std(axis=2), _NOISE_FLOOR)
+    timing = int(np.argmax(np.median(snr, axis=0)))
+    # Impacts already fitted on the timing channel during the selection keep that fit.
+    onset, sigma = np.zeros(chain.size), np.zeros(chain.size)
+    done = np.array([precise.fits.get(int(i), (0.0, 0.0, -1))[2] == timing for i in chain],
+                    dtype=bool)
+    for position in np.flatnonzero(done):
+        onset[position], sigma[position], _ = precise.fits[int(chain[position])]
+    if not done.all():
+        onset[~done], sigma[~done], _ = _onset_posterior(windows[~done, timing],
+                                                         stream.settings.pre, sample_rate)
+    starts = np.array([c["window_starts"][timing] for c in chosen])
+
+    times = (starts + onset) / sample_rate
+    sigmas = sigma / sample_rate
+    amplitudes = np.array([c["amplitude"] for c in chosen])
+    clipped_flags = [c["clipped"] for c in chosen]
+    order = np.argsort(times)
+    # Only a chain whose intervals shrink as a bouncing ball's do is a bounce train: random
+    # clicks also hold chains within the ratio bounds.
+    problem = bounce_train_problem(times[order], sigmas[order]) or _louder_between(
+        rough, strength / stream.settings.min_power, amplitude, strong, chain)
+    return chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem
 
 
 def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, probe, duration):

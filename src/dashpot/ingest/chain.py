@@ -711,18 +711,38 @@ def _secondary_delays(times, chain):
         return np.zeros(0)
     delays = (times[others][:, None] - impacts[None, :]).ravel()
     delays = delays[(delays > _MERGE_SECONDS) & (delays < 2 * _SECONDARY_SECONDS)]
-    values, counts = np.unique(np.round(delays * 1e3).astype(np.int64), return_counts=True)
+    counts = np.bincount(np.round(delays * 1e3).astype(np.int64))
     # Neighbouring milliseconds belong together (a delay of 9.4 ms rounds to 9 or 10); a peak
-    # of the pooled histogram is a candidate delay.
-    pooled = counts + np.concatenate(([0], counts[:-1])) * (np.diff(values, prepend=-9) == 1)
-    dense = np.zeros(values.size + 2)
+    # of the pooled histogram (each millisecond with the one before) is a candidate delay.
+    pooled = counts + np.concatenate(([0], counts[:-1]))
+    dense = np.zeros(pooled.size + 2)
     dense[1:-1] = pooled
     peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= max(3, chain.size / 4))
     found = []
-    for value in values[peaks] / 1e3:
+    for value in np.flatnonzero(peaks) / 1e3:
         close = delays[np.abs(delays - value + 0.5e-3) <= 1e-3]
         found.append(float(np.median(close)))
     return np.array(found)
+
+
+def _explained_secondaries(times, amplitude, chain):
+    """Which transients are secondaries of louder ones: within 0.3 ms of a delay at which
+    rings, bursts or echoes recur after the impacts of `chain` (:func:`_secondary_delays`)
+    after a transient at least as loud, and no louder than twice that secondary's usual
+    level (:func:`_secondary_levels`) times its amplitude. `times` (s, increasing) and
+    `amplitude` (full scale) are those of all the transients."""
+    delays = _secondary_delays(times, chain)
+    levels = _secondary_levels(times, amplitude, chain, delays)
+    explained = np.zeros(times.size, dtype=bool)
+    for delay, level in zip(delays, levels):
+        if not np.isfinite(level):
+            continue
+        lo, hi = np.searchsorted(times, [times - delay - _CAUSE_TOLERANCE,
+                                         times - delay + _CAUSE_TOLERANCE])
+        for k in np.flatnonzero(hi > lo):
+            cause = amplitude[lo[k]:hi[k]].max()
+            explained[k] |= amplitude[k] <= min(cause, _SECONDARY_MARGIN * level * cause)
+    return explained
 
 
 def _fixed_delays(times, chain):
