@@ -20,8 +20,9 @@ import pytest
 
 import dashpot
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_unechoed_end, _explained_secondaries, _hidden_causes,
-                                  _new_sound, _prediction_error, _sound_predictor)
+from dashpot.ingest.chain import (_drop_unechoed_end, _explained_secondaries, _fill_impacts,
+                                  _hidden_causes, _new_sound, _prediction_error, _robust_trend,
+                                  _sound_predictor)
 from dashpot.synth.audio import impact_sound, write_audio
 
 RATE = 22050  # Hz
@@ -213,3 +214,27 @@ def test_secondaries_evenly_spaced_after_the_impacts_do_not_hide_the_train(tmp_p
         total += onsets.size
         found += int((np.abs(onsets[:, None] - times[None, :]).min(axis=1) < 1e-3).sum())
     assert found / total >= 0.94
+
+
+def test_an_impact_an_echo_falls_on_is_kept_where_the_ball_must_have_bounced():
+    # Impacts shrinking by 0.9, impact 15 not timed; an echo of impact 3 falls within 0.1 ms
+    # of it. Between impacts 14 and 16 the ball bounced: a sound on time there, louder than
+    # that echo is after its impact, is the impact; one no louder is the echo (a gap).
+    impacts = 1.0 + np.cumsum(0.2 * 0.9 ** np.arange(24))
+    echo = impacts[15] - impacts[3] + 0.1e-3
+    timed = np.delete(impacts, 15)
+    coefficients, scatter = _robust_trend(timed)
+    level = 0.4
+
+    def probe_with(amplitude):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False):
+            if not_before is None and abs(impacts[15] - predicted) <= tolerance:
+                return impacts[15], 1e-5, amplitude, False
+            return None
+        return probe
+
+    for amplitude, found in ((0.8, True), (0.3, False)):
+        added, _ = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                 np.array([echo]), probe_with(amplitude), impacts[-1] + 1.0,
+                                 np.array([level]))
+        assert ([row[0] for row in added] == [impacts[15]]) is found

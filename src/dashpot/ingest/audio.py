@@ -302,7 +302,7 @@ def _impact_table(path, stream, sample_rate, duration):
         for _ in range(_FILL_PASSES):
             count = times.size
             times, sigmas, amplitudes, clipped_flags, added, again = _fill_pass(
-                times, sigmas, amplitudes, clipped_flags, delays, probe, stop)
+                times, sigmas, amplitudes, clipped_flags, delays, levels, probe, stop)
             filled += added
             retimed += list(again.values())
             if not again:
@@ -456,14 +456,14 @@ def _choose(path, stream, candidates, rough, strength, amplitude, strong, precis
     return chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem
 
 
-def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, probe, duration):
+def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, levels, probe, duration):
     """One pass of :func:`_fill_impacts` over the impacts, applied: times (s), 1σ (s),
     amplitudes, clip flags with the impacts it timed again, left out or added; the added
     rows and the retimed ones."""
     order = np.argsort(times)
     coefficients, scatter = _robust_trend(times[order])
     filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients, scatter,
-                                    delays, probe, duration)
+                                    delays, probe, duration, levels)
     times, sigmas, amplitudes = times.copy(), sigmas.copy(), amplitudes.copy()
     clipped_flags = list(clipped_flags)
     for position, result in retimed.items():

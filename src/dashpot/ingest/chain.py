@@ -1180,7 +1180,7 @@ def _spans_missed_bounces(times, interval, allowed):
     return False
 
 
-def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
+def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, levels=None):
     """Impacts the bounce trend predicts where none was timed, found by `probe`.
 
     Parameters
@@ -1196,6 +1196,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
         clipped) or None (:func:`_probe`).
     end : float
         End of the recording (s).
+    levels : ndarray, optional
+        Usual loudness of the secondaries at `delays` relative to their impact
+        (:func:`_secondary_levels`; NaN or not given: unknown).
 
     Returns
     -------
@@ -1224,7 +1227,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     it) is timed again on an onset of its own rising out of it, where there is one, and kept
     as timed where there is none. A probed onset must lie within
     the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
-    not itself come at a secondary's delay after an earlier impact (an onset there is probed
+    not itself come at a secondary's delay after an earlier impact, unless it fills an
+    interval of two bounces between impacts (the ball bounced there) and is louder than that
+    secondary usually is after its impact (an onset there is probed
     past in the same way; an impact that a ring lands on exactly is then lost: it cannot be
     told from the ring). Where a ring died down before the impact (a ring's short burst), the
     impact may also rise over the quietest stretch before it, as any probed onset, at least
@@ -1237,25 +1242,35 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
     predictions after it step over it; past the last impact two in a row end the search.
     """
     step = _trend_step(coefficients, np.diff(times).min())
+    usual = np.full(delays.size, np.inf) if levels is None else np.where(
+        np.isfinite(levels), levels, np.inf)  # unknown level: any loudness
     anchors, loudness = list(times), list(amplitudes)
     origin = list(range(len(anchors)))  # index into `times`, or -1 for a predicted anchor
     # From the fourth impact on, each one is predicted from the three intervals before it.
     added, retimed, i, missing = [], {}, 3, 0
 
-    def secondary(moment, before):
+    def secondary(moment, before, amplitude=None):
+        # At a recurring delay after an earlier impact (and, given the sound's `amplitude`,
+        # no louder than that secondary usually is after its impact).
+        if delays.size == 0:
+            return False
         earlier = np.asarray(anchors[:before + 1])
-        return delays.size > 0 and bool(np.abs(moment - earlier[:, None] - delays[None, :])
-                                        .min() < _PROBE_SECONDARY_SECONDS)
+        close = np.abs(moment - earlier[:, None] - delays[None, :]) < _PROBE_SECONDARY_SECONDS
+        if amplitude is not None:
+            close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
+        return bool(close.any())
 
-    def accept(result, predicted, tolerance, before=None):
+    def accept(result, predicted, tolerance, before=None, bounded=False):
         # In time order between its neighbours: where the ratios scatter widely the tolerance
-        # can exceed the interval itself.
+        # can exceed the interval itself. Within an interval of two bounces between impacts
+        # (`bounded`) the ball did bounce there: a sound on time, louder than a ring or an
+        # echo of an earlier impact falling there would be, is its impact.
         if before is None:
             before = anchors[i + 1] if i + 1 < len(anchors) else np.inf
         return (result is not None and abs(result[0] - predicted) <= tolerance
                 and anchors[i] < result[0] < before
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
-                and not secondary(result[0], i))
+                and not secondary(result[0], i, result[2] if bounded else None))
 
     def peel(predicted, tolerance, onset, before=None):
         # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
@@ -1323,9 +1338,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end):
             i += 1
             continue
         result = probe(predicted, tolerance)
-        if result is not None and secondary(result[0], i):
+        bounded = i + 1 < len(anchors) and origin[i + 1] >= 0
+        if result is not None and secondary(result[0], i) and not (
+                bounded and accept(result, predicted, tolerance, bounded=True)):
             result = peel(predicted, tolerance, result[0])
-        if accept(result, predicted, tolerance):
+        if accept(result, predicted, tolerance, bounded=bounded):
             added.append(result)
             anchors.insert(i + 1, result[0])
             loudness.insert(i + 1, result[2])
