@@ -17,7 +17,7 @@ import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS
 from dashpot.ingest import chain as chaining
-from dashpot.ingest import envelope
+from dashpot.ingest import envelope, onset
 from dashpot.ingest.audio import detect_impacts, read_audio
 from dashpot.plausibility import MAX_RATIO_SCATTER, ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
@@ -242,6 +242,52 @@ def test_no_false_impact(synthetic_results):
     assert synthetic_results["extra"] == 0
 
 
+def test_a_faint_sound_of_its_own_before_an_impact_is_not_its_onset(tmp_path):
+    """Every impact follows a faint click of its own (5-15 % of the impact's peak, 0.15 ms
+    long) that ends 0.25-1.35 ms before the impact starts, as faint sounds before the rise of
+    real impacts do: no impact is timed at its click, and all are timed within 0.2 ms of
+    their true onset. Fresh seeds; intervals of 20 ms and more, the weakest impact 30 dB
+    over the noise."""
+    rate = 44100
+    tone = np.arange(int(1.5e-4 * rate))
+    click = np.sin(2 * np.pi * 8000 * tone / rate) * np.hanning(tone.size)
+    errors = []
+    for k in range(4):
+        seed = 20261125 + 700 + k
+        rng = np.random.default_rng(seed)
+        times, speeds = _train(seed, shortest=0.02)
+        snr_db = 30.0 + 20 * np.log10(speeds.max() / speeds.min())
+        samples, onsets = impact_sound(times, speeds, snr_db=snr_db, ring_level=0.0, seed=seed)
+        for moment in onsets:
+            start = int(round(moment * rate))
+            peak = np.abs(samples[start:start + int(1e-3 * rate)]).max()
+            at = int(round((moment - rng.uniform(0.4e-3, 1.5e-3)) * rate))
+            samples[at:at + tone.size] += rng.uniform(0.05, 0.15) * peak * click
+        path = write_audio(tmp_path / f"clicks{k}.wav", samples, rate, subtype="FLOAT")
+        found = detect_impacts(path)["time"].to_numpy()
+        nearest = np.abs(found[None, :] - onsets[:, None]).argmin(axis=1)
+        errors.append(found[nearest] - onsets)
+    errors = np.concatenate(errors)
+    assert (errors >= -0.2e-3).all(), f"{(errors < -0.2e-3).sum()} impacts timed at a click"
+    assert (np.abs(errors) <= 0.2e-3).all()
+
+
+def test_one_sound_tells_a_lead_into_the_rise_from_a_sound_of_its_own():
+    """Between two candidate onsets 50 samples apart (44.1 kHz), a sound that grows into the
+    rise is one sound with it; a click that falls back to the background before the rise is
+    not."""
+    rng = np.random.default_rng(20261125 + 800)
+    noise = np.abs(rng.standard_normal(200))  # background RMS 1
+    phase = 2 * np.pi * 2000 * np.arange(50) / 44100
+    lead, click = noise.copy(), noise.copy()
+    lead[100:150] += np.linspace(8, 20, 50) * np.abs(np.sin(phase + 0.3))
+    click[100:106] += 8.0
+    assert onset._one_sound(lead, 100.0, 150.0, 1.0, 44100)
+    assert not onset._one_sound(click, 100.0, 150.0, 1.0, 44100)
+    # Closer than 0.1 ms the two onsets are one.
+    assert onset._one_sound(click, 100.0, 103.5, 1.0, 44100)
+
+
 def test_onset_pick_moves_past_a_sound_that_starts_before_the_transient():
     # Power of a window ending just after the trigger: noise, then 1 ms of a ring 10 dB up,
     # then the first 0.5 ms of a transient 18 dB up (44.1 kHz samples).
@@ -406,14 +452,22 @@ BELOW_25_MS_TODAY = {"pingpong": 0.0243, "bouncy": 0.0178}
 @pytest.mark.parametrize("name", [
     pytest.param("pingpong", marks=pytest.mark.xfail(strict=True, reason=(
         "measured: scatter of successive interval ratios about their running median 0.0017 "
-        "/ 0.0060 / 0.0196 in the >= 85 / 44-85 / 25-44 ms bands against the 20 %-of-peak "
+        "/ 0.0053 / 0.0034 in the >= 85 / 44-85 / 25-44 ms bands against the 20 %-of-peak "
         "threshold onset's 0.0014 / 0.0055 / 0.0022, and 0.0244 below 25 ms (0.0243 at the "
-        "issue's filing; 0.0040 / 0.0104 / 0.0201 and 0.0233 before impacts were timed at "
-        "their first burst). On impacts 29, 32, 39 and 41 the change-point fit times a sound "
-        "0.5-0.6 ms before the impact's rise through a fifth of its peak; timing those on "
-        "that rise as well helps ping-pong (0.0013 / 0.0053 / 0.0053) but puts the bouncy "
-        "ball's >= 85 ms band over its threshold's (0.0082 against 0.0079), whose faint "
-        "starts the fit times well"))),
+        "issue's filing; 0.0017 / 0.0060 / 0.0196 before onsets fitted on a faint sound of "
+        "its own 0.5-0.6 ms before the rise, or late on the rise, were timed at the rise's "
+        "edge). Left: the loud impacts open with a quieter low-frequency swing 0.2-0.6 ms "
+        "before the rise, one sound with it, timed where it leaves the background, which "
+        "depends on the impact's loudness against the background (impacts 0-3: 0.55 / 0.53 "
+        "/ 0.24 / 0.32 ms before the rise through a fifth of the peak; 4-5, timed at a first "
+        "burst, 0.01-0.07 ms); timing every such lead at the rise passes the >= 85 ms band "
+        "(0.0013) but worsens ping-pong below 25 ms (0.0287) and puts the bouncy ball's "
+        ">= 85 ms band over its threshold's (0.0083 against 0.0079), whose leads of the same "
+        "kind are timed consistently. In the 25-44 ms band impacts 33-35 are fitted 0.12-0.14 "
+        "ms before the rise's crossing against 0.00-0.04 ms for their neighbours, and "
+        "impacts 38, 39 and 41, fitted 0.26-0.6 ms early on a faint sound, sit on a background "
+        "against which a fifth of their peak is only 2-3 times its RMS (a crossing the "
+        "background may make), so they keep their fit"))),
     "bouncy"])
 def test_interval_ratios_scatter_no_more_than_a_plain_threshold_onset(name):
     path = {"pingpong": PINGPONG, "bouncy": BOUNCY}[name]
@@ -434,21 +488,19 @@ def test_interval_ratios_scatter_no_more_than_a_plain_threshold_onset(name):
 RESTITUTION_SCATTER = {"pingpong": 0.003, "bouncy": 0.007}
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured: observed ratio scatter about the running median against the scatter the "
-    "stated 1σ and the restitution scatter predict, >= 85 / 44-85 / 25-44 ms bands: "
-    "ping-pong 0.0017 / 0.0060 / 0.0196 against 0.0034 / 0.0063 / 0.0076, bouncy ball "
-    "0.0075 / 0.0205 / 0.0243 against 0.0066 / 0.0069 / 0.0105 (median 1σ 0.053 / 0.069 "
-    "ms with the rise of the sound counted). Ping-pong's 25-44 ms band and the bouncy "
-    "ball's 44-85 and 25-44 ms bands would need a 1σ of 0.2-0.3 ms on their faint "
-    "impacts, a few times their rise (10-50 %) of 0.2-0.4 ms and 10-50 times "
-    "rise / SNR (0.009-0.018 ms), and their scatter comes from a few impacts off by "
-    "0.5-1.5 ms rather than from Gaussian timing noise: adding, as a further uniform "
-    "uncertainty (width/√12), the gap from the fitted onset to the rise through a fifth of "
-    "the peak leaves the 44-85 / 25-44 ms bands 0.95 / 2.1 times the prediction on "
-    "ping-pong and 2.9 / 2.0 on the bouncy ball; the whole gap as 1σ, 0.85 / 1.0 and "
-    "2.4 / 1.0"))
-@pytest.mark.parametrize("name", ["pingpong", "bouncy"])
+@pytest.mark.parametrize("name", [
+    "pingpong",
+    pytest.param("bouncy", marks=pytest.mark.xfail(strict=True, reason=(
+        "measured: observed ratio scatter about the running median against the scatter the "
+        "stated 1σ and the restitution scatter predict, >= 85 / 44-85 / 25-44 ms bands: "
+        "0.0074 / 0.0205 / 0.0243 against 0.0066 / 0.0069 / 0.0105 (ping-pong, which "
+        "passes: 0.0017 / 0.0053 / 0.0034 against 0.0034 / 0.0063 / 0.0072). Each failing "
+        "band is one departure of a ratio: -0.059 at the intervals 66.7 -> 57.6 ms and "
+        "-0.055 at 29.1 -> 25.5 ms (next ratio +0.036), which the 20 %-of-peak threshold "
+        "onset shows as well (-0.062; -0.092 and +0.071), on impacts stated to 0.005-0.07 "
+        "ms: a change of the flight itself larger than the restitution scatter of 0.7 % "
+        "rather than of the timing, which no honest 1σ covers; without that one ratio the "
+        "bands are 1.4 and 1.3 times the prediction")))])
 def test_stated_uncertainties_explain_the_interval_ratio_scatter_on_real_sound(name):
     """The stated 1σ is honest on real sound: with the restitution's own scatter it accounts
     for the observed scatter of the interval ratios to within a factor 1.5, in every band."""

@@ -1,5 +1,8 @@
 """Onset time of an impact transient: the posterior of a Bayesian change-point model of its
-rising edge (step 4 of :mod:`dashpot.ingest.audio`).
+rising edge (step 4 of :mod:`dashpot.ingest.audio`), and which edge is the impact's: that of
+its first burst (:func:`_first_burst`), or that of its rise through a fifth of its peak
+(:func:`_rise_crossing`) unless an earlier fitted onset leads into it as one sound
+(:func:`_one_sound`).
 
 References
 ----------
@@ -95,7 +98,7 @@ def _onset_posterior(windows, n_pre, sample_rate):
     0.06-1 ms.
     """
     n_windows, width = windows.shape
-    back = max(4, int(np.ceil(_ONSET_BACK_SECONDS * sample_rate)))
+    back = _onset_reach(sample_rate)
     span = width - n_pre
     # Noise before the onset: level, lag-1 correlation, innovation variance.
     quiet = windows[:, : n_pre - back]
@@ -218,6 +221,12 @@ def _onset_posterior(windows, n_pre, sample_rate):
     return onset, sigma, snr
 
 
+def _onset_reach(sample_rate):
+    """Samples before (and after) its rough onset within which the fit may put the onset:
+    0.1 ms, at least 4."""
+    return max(4, int(np.ceil(_ONSET_BACK_SECONDS * sample_rate)))
+
+
 def _rise_samples(magnitude, noise_rms):
     """Samples from the first crossing of the low to that of the high level, less one.
 
@@ -314,3 +323,60 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     fainter = burst_peak < magnitude[:, onset:onset + int(round(1e-3 * sample_rate))].max(axis=1)
     found = above.any(axis=1) & (level >= _BURST_BACKGROUND * floor) & lasting & fainter
     return np.where(found, first, -1)
+
+
+# --------------------------------------------------------------------------------------------
+# The edge of the impact's rise
+
+_ONE_SOUND_SECONDS = 1e-4  # window of the short-time RMS that tells one sound from two
+_ONE_SOUND_LEVEL = 2.0  # ... which stays above this many RMS of the sound before: one sound
+
+
+def _rise_crossing(magnitude, onset, sample_rate):
+    """Where each impact's sound rises through a fifth of its peak, from just before the onset.
+
+    Parameters
+    ----------
+    magnitude : ndarray, shape (K, W)
+        Magnitude of the high-passed waveform (level removed) around each impact.
+    onset : int
+        Index in each row of the onset fitted so far.
+    sample_rate : float
+        Hz.
+
+    Returns
+    -------
+    crossing : ndarray of int, shape (K,)
+        First index from 0.25 ms before `onset` (closer before it a rise is the fitted edge's
+        own; earlier ones are first bursts, :func:`_first_burst`) at which the magnitude
+        reaches the level; -1 where it does not.
+    level : ndarray, shape (K,)
+        A fifth of the peak of the magnitude from 2 ms before `onset` to 3 ms after it (the
+        impact's peak, as in :func:`_first_burst`), in the units of `magnitude`.
+    """
+    before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
+    start = onset - int(round(_BURST_MIN_LEAD_SECONDS * sample_rate))
+    level = _BURST_LEVEL * magnitude[:, onset - before:onset + after].max(axis=1)
+    above = magnitude[:, start:] >= level[:, None]
+    return np.where(above.any(axis=1), start + np.argmax(above, axis=1), -1), level
+
+
+def _one_sound(magnitude, early, late, background, sample_rate):
+    """Whether the sound from sample `early` to sample `late` (fractional indices into the
+    1-d `magnitude`) is one sound: its RMS over every 0.1 ms stays at least twice the RMS
+    `background` of the sound before it. A stretch shorter than 0.1 ms is one sound.
+
+    Notes
+    -----
+    A transient rises out of the background and keeps rising into its peak; a faint sound of
+    its own before it (a click, or a fluctuation of the background the fit took for an edge)
+    falls back to the background before the impact's edge. Over 0.1 ms a Gaussian
+    background alone exceeds twice its RMS in 0.3 % of the windows at 44.1 kHz (4 samples:
+    chi-square with 4 degrees of freedom over 4 reaching 4) and 2 % at 22.05 kHz (2 samples).
+    """
+    width = max(2, int(round(_ONE_SOUND_SECONDS * sample_rate)))
+    first, last = int(np.ceil(early)), int(np.floor(late))
+    if last - first < width:
+        return True
+    power = np.convolve(magnitude[first:last] ** 2, np.ones(width) / width, mode="valid")
+    return bool(power.min() >= (_ONE_SOUND_LEVEL * background) ** 2)
