@@ -335,7 +335,7 @@ def test_capstone_soft_bumper_above_50_hz(tmp_path, rate, noise):
     "and each run's; the stated sigma is smaller now) and 1.65 -> 1.49 for each run's beta: "
     "the speeds of a run share the fitted leg accelerations (1.1-1.7 % each), so a run's "
     "impact speeds are correlated by 0.9, its rebound speeds by 0.8-0.95, and one against "
-    "the other by -0.4; the impact table holds one sigma per value and the fit counts them "
+    "the other by -0.1 to -0.5; the impact table holds one sigma per value and the fit counts them "
     "as independent, stating sigma(k) 1.3 times too small"))
 def test_capstone_three_runs_recover_the_truth(capstone_analysis):
     record = read_fit(capstone_analysis / "cart.h5")
