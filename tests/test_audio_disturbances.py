@@ -207,7 +207,7 @@ def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_o
     timed[20:24] += 6.5e-3
     coefficients, scatter = _robust_trend(np.delete(timed, np.arange(20, 24)))
 
-    def probe(predicted, tolerance, not_before=None):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False):
         # The impacts' own onsets are in the file, where the trend puts them.
         nearest = impacts[np.abs(impacts - predicted).argmin()]
         return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
@@ -217,7 +217,7 @@ def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_o
     assert sorted(retimed) == [20, 21, 22, 23]
     np.testing.assert_allclose([retimed[k][0] for k in range(20, 24)], impacts[20:24])
 
-    def silent(predicted, tolerance, not_before=None):
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False):
         return None
 
     # No onset where the trend puts them: the bursts are left out (gaps), never kept as
@@ -237,7 +237,7 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     timed = np.append(impacts, impacts[-1] + burst)
     coefficients, scatter = _robust_trend(impacts)
 
-    def silent(predicted, tolerance, not_before=None):
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False):
         return None
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
@@ -258,7 +258,7 @@ def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():
     timed[-1] += 1.5e-3
     coefficients, scatter = _robust_trend(impacts[:-1])
 
-    def probe(predicted, tolerance, not_before=None):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False):
         return (timed[-1], 1e-5, 1.0, False)  # the only onset near: the impact itself
 
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
@@ -323,7 +323,7 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     timed[12] -= 0.9e-3
     coefficients, scatter = _robust_trend(impacts)
 
-    def probe(predicted, tolerance, not_before=None):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False):
         # The file holds the impacts' onsets; past a ring's start only a later onset counts.
         later = impacts[impacts > (not_before if not_before is not None else -np.inf)]
         nearest = later[np.abs(later - predicted).argmin()]
@@ -335,7 +335,7 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     assert retimed[12][0] == impacts[12]
 
     # Where no onset of its own rises out of the ring, the impact stays as timed.
-    def ring_only(predicted, tolerance, not_before=None):
+    def ring_only(predicted, tolerance, not_before=None, predicted_sound=False):
         return None if not_before is not None else probe(predicted, tolerance)
 
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,

@@ -238,3 +238,22 @@ def test_an_impact_an_echo_falls_on_is_kept_where_the_ball_must_have_bounced():
                                  np.array([echo]), probe_with(amplitude), impacts[-1] + 1.0,
                                  np.array([level]))
         assert ([row[0] for row in added] == [impacts[15]]) is found
+
+
+def test_an_impact_the_trend_predicts_is_looked_for_in_the_prediction_error_too():
+    # The last three impacts start on the loud bursts of the ones before: the whitened power
+    # shows no onset of theirs, the error of a predictor of the sound does.
+    impacts = 1.0 + np.cumsum(0.1 * 0.9 ** np.arange(20))
+    timed = impacts[:-3]
+    coefficients, scatter = _robust_trend(timed)
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False):
+        nearest = impacts[np.abs(impacts - predicted).argmin()]
+        if not predicted_sound or abs(nearest - predicted) > tolerance:
+            return None
+        return nearest, 1e-5, 1.0, False
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.zeros(0), probe, impacts[-1] + 1.0)
+    np.testing.assert_allclose([row[0] for row in added], impacts[-3:])
+    assert not retimed

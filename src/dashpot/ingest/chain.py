@@ -1342,6 +1342,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if result is not None and secondary(result[0], i) and not (
                 bounded and accept(result, predicted, tolerance, bounded=True)):
             result = peel(predicted, tolerance, result[0])
+        if not accept(result, predicted, tolerance, bounded=bounded):
+            # An impact starting on the loud burst or ring of the one before barely raises the
+            # power; in the error of a predictor of that sound it is an impulse.
+            result = probe(predicted, tolerance, predicted_sound=True)
         if accept(result, predicted, tolerance, bounded=bounded):
             added.append(result)
             anchors.insert(i + 1, result[0])
