@@ -20,9 +20,10 @@ import pytest
 
 import dashpot
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_unechoed_end, _explained_secondaries, _fill_impacts,
-                                  _hidden_causes, _new_sound, _prediction_error, _robust_trend,
-                                  _sound_predictor)
+from dashpot.ingest.chain import (_drop_trailing_secondaries, _drop_unechoed_end,
+                                  _explained_secondaries, _fill_impacts, _hidden_causes,
+                                  _new_sound, _prediction_error, _robust_trend,
+                                  _sets_off_secondaries, _sound_predictor)
 from dashpot.synth.audio import impact_sound, write_audio
 
 RATE = 22050  # Hz
@@ -257,3 +258,32 @@ def test_an_impact_the_trend_predicts_is_looked_for_in_the_prediction_error_too(
                                    np.zeros(0), probe, impacts[-1] + 1.0)
     np.testing.assert_allclose([row[0] for row in added], impacts[-3:])
     assert not retimed
+
+
+def test_a_sound_that_sets_off_an_impacts_secondaries_is_an_impact():
+    # Impacts 10 ms apart at the end of a train, each with a burst 6 ms later at 0.8 of it;
+    # the last impact comes 6 ms after the one before, exactly where that one's burst is.
+    delay, level = 6.0e-3, 0.8
+    impacts = 1.0 + np.r_[np.arange(8) * 10e-3, 7 * 10e-3 + delay]
+    bursts = impacts + delay
+    probe = fake_probe(bursts, lambda t: level)
+    end = impacts[-1] + 1.0
+    # The last impact sets off its burst: it is an impact, not the burst before it.
+    assert _sets_off_secondaries(probe, impacts[-1], 1.0, np.array([delay]),
+                                 np.array([level]), end)
+    keep = _drop_trailing_secondaries(
+        impacts, np.ones(impacts.size), np.array([delay]), np.array([level]),
+        lambda k: _sets_off_secondaries(probe, impacts[k], 1.0, np.array([delay]),
+                                        np.array([level]), end))
+    assert keep == impacts.size
+    # Without its own burst it is taken for the burst of the impact before.
+    silent_after = fake_probe(bursts[:-1], lambda t: level)
+    assert not _sets_off_secondaries(silent_after, impacts[-1], 1.0, np.array([delay]),
+                                     np.array([level]), end)
+    assert _drop_trailing_secondaries(
+        impacts, np.ones(impacts.size), np.array([delay]), np.array([level]),
+        lambda k: _sets_off_secondaries(silent_after, impacts[k], 1.0, np.array([delay]),
+                                        np.array([level]), end)) == impacts.size - 1
+    # Nothing to test where the recording ends before the secondary would come.
+    assert not _sets_off_secondaries(probe, impacts[-1], 1.0, np.array([delay]),
+                                     np.array([level]), impacts[-1] + delay)

@@ -83,7 +83,8 @@ from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoed_end,
                     _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes,
                     _louder_between, _probe, _robust_trend, _secondary_delays,
-                    _secondary_levels, _select_bounces, _trim_growing_end)
+                    _secondary_levels, _select_bounces, _sets_off_secondaries,
+                    _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
@@ -319,7 +320,11 @@ def _impact_table(path, stream, sample_rate, duration):
     if times.size >= 5:
         _, scatter = _robust_trend(times)
         grown = _trim_growing_end(times, sigmas, scatter)
-        kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays, levels)
+        # (a sound that sets off the secondaries of an impact is one, whatever falls on it).
+        kept = _drop_trailing_secondaries(
+            times[:grown], amplitudes[:grown], delays, levels,
+            lambda k: _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels,
+                                            duration))
         kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
                                   duration)
         dropped_end, dropped_secondaries = times.size - grown, grown - kept

@@ -1091,7 +1091,7 @@ def _secondary_levels(times, amplitude, chain, delays):
     return levels
 
 
-def _drop_trailing_secondaries(times, amplitudes, delays, levels):
+def _drop_trailing_secondaries(times, amplitudes, delays, levels, impact=None):
     """Number of impacts to keep: the train does not end on rings, bursts or echoes.
 
     Past its last impact a ball's train falls silent, but the secondaries of the last impacts
@@ -1102,7 +1102,9 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels):
     louder than twice what that secondary is after its impact (`levels`, the median
     ratio, :func:`_secondary_levels`): the sums of the last intervals span the delays
     closely, so the delay alone would take true last impacts too, but those are about as
-    loud as the impacts before them. At most a quarter of the impacts go.
+    loud as the impacts before them. At most a quarter of the impacts go, and none for which
+    `impact` (a function of its index, optional) is true: a sound that sets off the
+    secondaries of an impact (:func:`_sets_off_secondaries`) is one, whatever falls on it.
     """
     keep = times.size
     usable = np.isfinite(levels)
@@ -1113,10 +1115,32 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels):
         offsets = times[keep - 1] - times[:keep - 1, None] - delays[None, :]
         expected = _SECONDARY_MARGIN * amplitudes[:keep - 1, None] * levels[None, :]
         if not np.any((np.abs(offsets) < _PROBE_SECONDARY_SECONDS)
-                      & (amplitudes[keep - 1] <= expected)):
+                      & (amplitudes[keep - 1] <= expected)) or (
+                impact is not None and impact(keep - 1)):
             break
         keep -= 1
     return keep
+
+
+def _shows_secondary(probe, moment, amplitude, delay, level):
+    """Whether a sound at `moment` (s) of `amplitude` (full scale) is followed, `delay` (s)
+    later to within 0.5 ms, by a sound at least a quarter as loud as the secondary of usual
+    loudness `level` (relative) there, looked for in the error of a predictor of the sound
+    (``probe(moment, tolerance, predicted_sound=True)``)."""
+    result = probe(moment + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True)
+    return (result is not None and abs(result[0] - moment - delay) <= _CAUSE_SEARCH_SECONDS
+            and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
+
+
+def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end):
+    """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
+    as its impact that the recording (to `end`, s) holds: a sound that does is an impact,
+    whatever ring or echo of an earlier one falls on it; False where none can be tested."""
+    testable = [(delay, level) for delay, level in zip(delays, levels)
+                if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
+                and moment + delay + _MASK_SECONDS < end]
+    return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level)
+                                  for delay, level in testable)
 
 
 def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
@@ -1135,10 +1159,7 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     usable = np.isfinite(levels) & (levels >= _OWN_SECONDARY_LEVEL)
 
     def shows(position, delay, level):
-        result = probe(times[position] + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True)
-        return (result is not None
-                and abs(result[0] - times[position] - delay) <= _CAUSE_SEARCH_SECONDS
-                and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitudes[position])
+        return _shows_secondary(probe, times[position], amplitudes[position], delay, level)
 
     for delay, level in zip(delays[usable], levels[usable]):
         while keep > max(5, times.size - 2) and times[keep - 1] + delay + _MASK_SECONDS < end:
@@ -1238,8 +1259,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact or after the predicted time, is a ring's burst or an echo standing in for an
     impact that was passed over (it barely rose over the sound before it): the impact is
     probed at the predicted time and, found, replaces it; not found, it is left out (None).
-    An impact that is not found stays in the sequence as a predicted anchor, so that the
-    predictions after it step over it; past the last impact two in a row end the search.
+    A sound at a secondary's delay that sets off the secondaries of an impact itself
+    (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
+    time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
+    impact starting on the loud burst or ring of the one before). An impact that is not
+    found stays in the sequence as a predicted anchor, so that the predictions after it step
+    over it; past the last impact two in a row end the search.
     """
     step = _trend_step(coefficients, np.diff(times).min())
     usual = np.full(delays.size, np.inf) if levels is None else np.where(
@@ -1260,7 +1285,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
         return bool(close.any())
 
-    def accept(result, predicted, tolerance, before=None, bounded=False):
+    def own(result):
+        # A sound that sets off the secondaries of an impact is one.
+        return result is not None and _sets_off_secondaries(probe, result[0], result[2],
+                                                             delays, usual, end)
+
+    def accept(result, predicted, tolerance, before=None, bounded=False, impact=False):
         # In time order between its neighbours: where the ratios scatter widely the tolerance
         # can exceed the interval itself. Within an interval of two bounces between impacts
         # (`bounded`) the ball did bounce there: a sound on time, louder than a ring or an
@@ -1270,7 +1300,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         return (result is not None and abs(result[0] - predicted) <= tolerance
                 and anchors[i] < result[0] < before
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
-                and not secondary(result[0], i, result[2] if bounded else None))
+                and (impact or not secondary(result[0], i, result[2] if bounded else None)))
 
     def peel(predicted, tolerance, onset, before=None):
         # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
@@ -1339,14 +1369,17 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             continue
         result = probe(predicted, tolerance)
         bounded = i + 1 < len(anchors) and origin[i + 1] >= 0
+        impact = False
         if result is not None and secondary(result[0], i) and not (
                 bounded and accept(result, predicted, tolerance, bounded=True)):
-            result = peel(predicted, tolerance, result[0])
-        if not accept(result, predicted, tolerance, bounded=bounded):
+            impact = accept(result, predicted, tolerance, impact=True) and own(result)
+            if not impact:
+                result = peel(predicted, tolerance, result[0])
+        if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse.
             result = probe(predicted, tolerance, predicted_sound=True)
-        if accept(result, predicted, tolerance, bounded=bounded):
+        if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
             loudness.insert(i + 1, result[2])
