@@ -22,8 +22,8 @@ import dashpot
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_trailing_secondaries, _drop_unechoed_end,
                                   _explained_secondaries, _fill_impacts, _hidden_causes,
-                                  _new_sound, _prediction_error, _robust_trend,
-                                  _sets_off_secondaries, _sound_predictor)
+                                  _new_sound, _one_per_impact, _prediction_error,
+                                  _robust_trend, _sets_off_secondaries, _sound_predictor)
 from dashpot.synth.audio import impact_sound, write_audio
 
 RATE = 22050  # Hz
@@ -287,3 +287,10 @@ def test_a_sound_that_sets_off_an_impacts_secondaries_is_an_impact():
     # Nothing to test where the recording ends before the secondary would come.
     assert not _sets_off_secondaries(probe, impacts[-1], 1.0, np.array([delay]),
                                      np.array([level]), impacts[-1] + delay)
+
+
+def test_one_impact_timed_twice_is_reported_once_at_its_most_precise_time():
+    times = np.array([0.3, 0.1, 0.1004, 0.2, 0.2008, 0.2015, 0.25])
+    sigmas = np.array([1.0, 2.0, 1.0, 3.0, 1.0, 5.0, 1.0]) * 1e-5
+    # 0.2, 0.2008 and 0.2015 s chain within 1 ms of each other: one impact.
+    np.testing.assert_array_equal(_one_per_impact(times, sigmas), [2, 4, 6, 0])

@@ -82,9 +82,9 @@ from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoed_end,
                     _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes,
-                    _louder_between, _probe, _robust_trend, _secondary_delays,
-                    _secondary_levels, _select_bounces, _sets_off_secondaries,
-                    _trim_growing_end)
+                    _louder_between, _one_per_impact, _probe, _robust_trend,
+                    _secondary_delays, _secondary_levels, _select_bounces,
+                    _sets_off_secondaries, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
@@ -313,7 +313,7 @@ def _impact_table(path, stream, sample_rate, duration):
             if max(again) < count - _END_IMPACTS:
                 stop = times.max() + _MERGE_SECONDS
 
-    order = np.argsort(times)
+    order = _one_per_impact(times, sigmas)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
     clipped_flags = [clipped_flags[k] for k in order]
     dropped_end = dropped_secondaries = 0

@@ -1033,6 +1033,18 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
             float(sigma[0]) / sample_rate, amplitude, clipped)
 
 
+def _one_per_impact(times, sigmas):
+    """Indices of `times` (s) in time order, one per impact: times less than 1 ms apart (the
+    merge window) are one impact timed twice, on its own onset and on a ring or an echo
+    that a later pass timed it from, and only the most precise (smallest 1σ, `sigmas`) is
+    kept."""
+    order = np.argsort(times, kind="stable")
+    group = np.cumsum(np.r_[True, np.diff(times[order]) >= _MERGE_SECONDS])
+    best = order[np.lexsort((sigmas[order], group))]  # by group, the most precise first
+    kept = best[np.r_[True, np.diff(np.sort(group)) > 0]]
+    return kept[np.argsort(times[kept])]
+
+
 def _robust_trend(impact_times, rounds=3):
     """:func:`_trend` of the impacts, leaving out ratios more than 3 scatters off the trend.
 
