@@ -41,8 +41,18 @@ runs them over the file.
    the trend predicts it: that would be circular evidence for the fit that follows.
    The train then ends before its intervals grow (:func:`_trim_growing_end`) and does not
    end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
-   that is no louder than such a secondary (:func:`_drop_trailing_secondaries`).
-   There is no fixed dead time.
+   that is no louder than such a secondary (:func:`_drop_trailing_secondaries`), nor on one
+   that sets off none of the secondaries every impact before it sets off
+   (:func:`_drop_unechoed_end`). An impact that starts on the loud ring of the one before
+   barely raises the power; it is looked for in the error of a linear predictor of that
+   sound [6]_ (a ring is a sum of damped sinusoids, which the predictor continues; a new
+   impact is an impulse into the same resonances): one recurring burst delay before each
+   burst the chain took (:func:`_hidden_causes`), and wherever the trend predicts an impact
+   the whitened power does not show. A sound that sets off an impact's secondaries is an
+   impact whatever ring or echo falls on it (:func:`_sets_off_secondaries`). A chain refused
+   as no bounce train is chosen once more without the transients at a recurring secondary
+   delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
+   form a chain of their own). There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -53,7 +63,10 @@ runs them over the file.
    1-2 ms later, and the fit, whose window sits on one rising edge, may have timed the
    second. Each impact's stretch of the file is read again, and where a burst rises through
    a fifth of the impact's peak from 2 ms to 0.25 ms before the fitted onset and lasts into
-   it, the onset is fitted again on that burst (:func:`_retime_on_first_burst`).
+   it, the onset is fitted again on that burst (:func:`_retime_on_first_burst`). An onset
+   fitted on a faint sound of its own that dies away before the impact's rise through a
+   fifth of its peak, or late on that rise, is timed at the rise's edge; where the rise is
+   not clear of the sound before it, the 1σ covers the gap to it.
 
 References
 ----------
@@ -68,6 +81,9 @@ References
    (1944) (mean-square frequency from the variance of the derivative).
 .. [5] T. Erickson, "Modeling a bouncing ball with exponential functions and infinite
    series", Mathematics Teacher 113(3), 233-236 (2020) (geometric shrinking of the intervals).
+.. [6] J. Glover, V. Lazzarini and J. Timoney, "Real-time detection of musical onsets with
+   linear prediction and sinusoidal modeling", EURASIP J. Adv. Signal Process. 2011, 68
+   (2011).
 """
 
 from __future__ import annotations
