@@ -1146,11 +1146,12 @@ def _shows_secondary(probe, moment, amplitude, delay, level):
 
 def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end):
     """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
-    as its impact that the recording (to `end`, s) holds: a sound that does is an impact,
-    whatever ring or echo of an earlier one falls on it; False where none can be tested."""
+    as its impact, 3 ms or more after it, that the recording (to `end`, s) holds: a sound
+    that does is an impact, whatever ring or echo of an earlier one falls on it; False where
+    none can be tested."""
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
-                and moment + delay + _MASK_SECONDS < end]
+                and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end]
     return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level)
                                   for delay, level in testable)
 
@@ -1168,7 +1169,9 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     (`end`, s) stops before that secondary's time is over. At most two are dropped.
     """
     keep = times.size
-    usable = np.isfinite(levels) & (levels >= _OWN_SECONDARY_LEVEL)
+    # From 3 ms on: closer sounds are the impact's own first arrivals, not a secondary.
+    usable = (np.isfinite(levels) & (levels >= _OWN_SECONDARY_LEVEL)
+              & (delays >= _CAUSE_DELAY_SECONDS[0]))
 
     def shows(position, delay, level):
         return _shows_secondary(probe, times[position], amplitudes[position], delay, level)
