@@ -297,8 +297,9 @@ def _impact_table(path, stream, sample_rate, duration):
     order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
-    def probe(moment, tolerance, not_before=None, predicted_sound=False):
-        return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound)
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound,
+                      expected)
 
     delays = _secondary_delays(rough, chain)
     levels = _secondary_levels(rough, amplitude, chain, delays)

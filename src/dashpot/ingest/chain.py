@@ -906,7 +906,7 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
 
 
 def _probe(path, stream, predicted, tolerance, timing, not_before=None,
-           predicted_sound=False):
+           predicted_sound=False, expected=False):
     """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
 
     Parameters
@@ -928,7 +928,11 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     predicted_sound : bool, default False
         Look for the jump in the error of a linear predictor of the sound before the window
         (:func:`_prediction_error`) instead of the whitened signal: an impact that starts
-        inside a loud ring, whose power barely rises over it, is an impulse there.
+        inside a loud ring, whose power barely rises over it, is an impulse there. A sound
+        seen only there must jump as much as a strong trigger (9 dB), or, where `expected`
+        (a secondary looked for at its known delay), as a weak one (6 dB).
+    expected : bool, default False
+        See `predicted_sound`.
 
     Returns
     -------
@@ -981,7 +985,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
                        - cumulative[triggers - (k + 1) * settings.sta] for k in range(parts)],
                       axis=0) / settings.sta
     # A sound seen only in the prediction error must jump as much as a strong trigger.
-    min_jump = settings.min_jump / (1.0 if taps is not None else _WEAK_JUMP_FACTOR)
+    min_jump = settings.min_jump / (1.0 if taps is not None and not expected
+                                    else _WEAK_JUMP_FACTOR)
     if not_before is not None:
         # Past the start of a ring or an echo, the level to jump over is that sound's, the
         # mean power since it started, and by the 1.8 dB that tell a sound of its own.
@@ -1139,7 +1144,8 @@ def _shows_secondary(probe, moment, amplitude, delay, level):
     later to within 0.5 ms, by a sound at least a quarter as loud as the secondary of usual
     loudness `level` (relative) there, looked for in the error of a predictor of the sound
     (``probe(moment, tolerance, predicted_sound=True)``)."""
-    result = probe(moment + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True)
+    result = probe(moment + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True,
+                   expected=True)
     return (result is not None and abs(result[0] - moment - delay) <= _CAUSE_SEARCH_SECONDS
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
