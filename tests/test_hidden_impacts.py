@@ -78,7 +78,7 @@ def test_the_error_floor_is_the_variance_of_the_error_on_the_noise():
 
 def fake_probe(sounds, amplitude_of):
     """A probe that finds the nearest of `sounds` (s) within the tolerance."""
-    def probe(moment, tolerance, not_before=None, predicted_sound=False):
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
         nearest = sounds[np.argmin(np.abs(sounds - moment))]
         if abs(nearest - moment) > tolerance:
             return None

@@ -1139,13 +1139,14 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels, impact=None):
     return keep
 
 
-def _shows_secondary(probe, moment, amplitude, delay, level):
+def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
     """Whether a sound at `moment` (s) of `amplitude` (full scale) is followed, `delay` (s)
     later to within 0.5 ms, by a sound at least a quarter as loud as the secondary of usual
     loudness `level` (relative) there, looked for in the error of a predictor of the sound
-    (``probe(moment, tolerance, predicted_sound=True)``)."""
+    (``probe(moment, tolerance, predicted_sound=True, expected=expected)``: `expected`
+    confirms it with a weak trigger's jump, else a strong one's)."""
     result = probe(moment + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True,
-                   expected=True)
+                   expected=expected)
     return (result is not None and abs(result[0] - moment - delay) <= _CAUSE_SEARCH_SECONDS
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
@@ -1158,7 +1159,8 @@ def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end):
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
                 and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end]
-    return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level)
+    return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level,
+                                                   expected=True)
                                   for delay, level in testable)
 
 
