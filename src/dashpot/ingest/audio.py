@@ -66,7 +66,10 @@ runs them over the file.
    it, the onset is fitted again on that burst (:func:`_retime_on_first_burst`). An onset
    fitted on a faint sound of its own that dies away before the impact's rise through a
    fifth of its peak, or late on that rise, is timed at the rise's edge; where the rise is
-   not clear of the sound before it, the 1σ covers the gap to it.
+   not clear of the sound before it, the 1σ covers the gap to it. The stated 1σ counts the
+   fit's at half its width on a sharp edge (rising within a sample), where its posterior
+   reaches back over slower starts the edge did not take, and covers the onset's ambiguity
+   where a ring, burst or echo of an earlier impact starts near it (:func:`_stated_sigmas`).
 
 References
 ----------
@@ -104,9 +107,10 @@ from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoe
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
-from .onset import (_BURST_BACKGROUND, _BURST_BACKGROUND_SECONDS, _BURST_MIN_LEAD_SECONDS,
-                    _BURST_REACH_SECONDS, _first_burst, _one_sound, _onset_posterior,
-                    _onset_reach, _rise_crossing)
+from .onset import (_AMBIGUITY_REACH_SECONDS, _BURST_BACKGROUND, _BURST_BACKGROUND_SECONDS,
+                    _BURST_MIN_LEAD_SECONDS, _BURST_REACH_SECONDS, _edge_samples, _first_burst,
+                    _one_sound, _onset_posterior, _onset_reach, _rise_crossing, _rise_samples,
+                    _stated_sigma)
 
 
 __all__ = ["read_audio", "detect_impacts"]
@@ -159,7 +163,10 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
           the local noise (level and colour) and the steepness of the edge, plus the width of
           the sound's rise (a real impact sound may take a millisecond to rise from the
           noise; the onset lies somewhere within it) and floors for the edge model's misfit
-          and sub-sample error (see :func:`_onset_posterior`);
+          and sub-sample error (see :func:`_onset_posterior`); on a sharp edge, where the
+          posterior overstates the error, at half its width, and with 0.1 ms in quadrature
+          where a ring, burst or echo of an earlier impact starts near the onset (see
+          :func:`dashpot.ingest.onset._stated_sigma`);
         * ``amplitude`` (full scale = 1): the largest deviation of the raw samples from their
           level just before the onset within 3 ms after it, over all channels (DC offset
           excluded; a lower bound where the recording clipped);
@@ -542,7 +549,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     the rise put 0.04 into an interval ratio, and onsets fitted up to 0.18 ms late on the rise
     about 0.01.
 
-    Returns the times (s), their 1σ (s) and how many were moved to a first burst.
+    Returns the times (s), their stated 1σ (s; :func:`_stated_sigmas`) and how many were
+    moved to a first burst.
     """
     settings, sample_rate = stream.settings, stream.settings.sample_rate
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
@@ -612,7 +620,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
         moved.append(int(k))
         checks.append(check)
     if not moved:
-        return times, sigmas, 0
+        return times, _stated_sigmas(times, sigmas, starts, inside, filtered - levels[:, None],
+                                     noise_rms, secondaries, sample_rate), 0
     onset, sigma, _ = _onset_posterior(np.stack(windows), settings.pre, sample_rate)
     for k, offset, refit, spread, check in zip(moved, offsets, onset, sigma, checks):
         if check is not None:
@@ -631,4 +640,35 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
                 continue
         times[k] = (offset + refit) / sample_rate
         sigmas[k] = spread / sample_rate
-    return times, sigmas, sum(check is None for check in checks)
+    return (times, _stated_sigmas(times, sigmas, starts, inside, filtered - levels[:, None],
+                                  noise_rms, secondaries, sample_rate),
+            sum(check is None for check in checks))
+
+
+def _stated_sigmas(times, sigmas, starts, inside, centred, noise_rms, secondaries,
+                   sample_rate):
+    """The 1σ stated for the impacts' onsets (:func:`_stated_sigma`), from their fits' 1σ.
+
+    `times` and `sigmas` (s) are the onsets and their fits' 1σ; `centred` holds the
+    high-passed stretches (level removed) read for the impacts `inside` (row i: impact
+    ``inside[i]``, from sample ``starts[inside[i]]``; as in :func:`_retime_on_first_burst`),
+    `noise_rms` the RMS of the noise in its units; `secondaries` (s, sorted) are where the
+    rings, bursts and echoes of the impacts start. An impact whose stretch was not read keeps
+    its fit's 1σ.
+    """
+    sigmas = sigmas.copy()
+    if inside.size == 0:
+        return sigmas
+    span = int(round(1e-3 * sample_rate))  # the first millisecond of each sound
+    first = np.clip(np.floor(times[inside] * sample_rate - starts[inside]).astype(np.int64),
+                    0, centred.shape[1] - span)
+    sound = centred[np.arange(inside.size)[:, None], first[:, None] + np.arange(span)]
+    noise = np.full(inside.size, noise_rms)
+    rise, edge = _rise_samples(np.abs(sound), noise), _edge_samples(sound, noise)
+    lead = np.full(inside.size, np.nan)
+    latest = np.searchsorted(secondaries, times[inside] + _AMBIGUITY_REACH_SECONDS[1],
+                             side="right") - 1
+    known = latest >= 0
+    lead[known] = times[inside[known]] - secondaries[latest[known]]
+    sigmas[inside] = _stated_sigma(sigmas[inside], rise, edge, lead, sample_rate)
+    return sigmas
