@@ -1400,8 +1400,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 result = peel(predicted, tolerance, result[0])
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
-            # power; in the error of a predictor of that sound it is an impulse.
+            # power; in the error of a predictor of that sound it is an impulse (but so is
+            # the start of that burst or ring: at a secondary's delay, it is one).
             result = probe(predicted, tolerance, predicted_sound=True)
+            bounded = impact = False
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
