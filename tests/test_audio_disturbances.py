@@ -28,17 +28,22 @@ from dashpot.synth.audio import impact_sound, write_audio
 HELD_OUT_SEEDS = range(640_211, 640_311)  # 100 trains, drawn once; never used in development
 RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faster than 44.1 kHz
 MATCH = 1e-3  # s: a detection within this of a true onset is that impact
-# The targets are not met yet; the figures the expected failures state:
-MEASURED = ("measured on this block: recall 0.944 (3763 of 3985 impacts timed within 1 ms), 64 "
-            "false impacts (8.0 per 500; 12 of them after the last impact, 40 at a ring burst's "
-            "delay after an impact), 2 of 100 trains refused as not a bounce train (57 impacts), "
-            "1σ / 2σ coverage 0.919 / 0.964 (the 68.3 % / 95.4 % quantiles of |error| / σ are "
-            "0.60 / 1.36: the stated 1σ is wide on these sharp synthetic edges); before impacts "
-            "were timed at their first burst: recall 0.945 (3765), 62 false (40 at a ring "
-            "burst's delay), the development block unchanged by it; before the onset "
-            "grid, the end-of-train checks and the retiming past rings: recall 0.942, 75 false "
-            "(23 after the last impact), 0.876 / 0.923; before the chain's handling of ring "
-            "bursts and missed last impacts: recall 0.915, 84 false, 4 refused, 0.880 / 0.928")
+# The recall and false-impact targets are not met yet; the figures the expected failures state:
+MEASURED = ("measured on this block: recall 0.976 (3889 of 3985 impacts timed within 1 ms), 43 "
+            "false impacts (5.4 per 500; 14 of them after the last impact), no train refused, "
+            "1σ / 2σ coverage 0.696 / 0.964 (which the coverage test below now checks). The "
+            "development block (seeds 20261125-20261324, 200 trains, 7536 impacts) went from "
+            "383 missed and 109 false to 130 and 51 with impacts looked for in the error of a "
+            "linear predictor of the ring before them, sounds judged by the secondaries they "
+            "set off, a second choice of chain without explained secondaries and a repeated "
+            "search; most of what is left is in the last bounces, where each impact starts "
+            "within a few ms of a ring burst, ring or echo of the ones before and the trend's "
+            "predictions drift with them. Before this: recall 0.944, 64 false (12 after the "
+            "last impact), 2 refused (57 impacts), 0.919 / 0.964; before impacts were timed "
+            "at their first burst: recall 0.945, 62 false; before the onset grid, the "
+            "end-of-train checks and the retiming past rings: recall 0.942, 75 false, 0.876 / "
+            "0.923; before the chain's handling of ring bursts and missed last impacts: recall "
+            "0.915, 84 false, 4 refused, 0.880 / 0.928")
 
 
 def disturbed_train(seed, rate=RATE):
@@ -116,7 +121,6 @@ def test_nothing_after_the_last_impact_is_reported(held_out):
     assert held_out["after_rest"] == 0
 
 
-@pytest.mark.xfail(strict=True, reason=MEASURED)
 def test_uncertainties_cover_at_their_stated_rates(held_out):
     n = held_out["n"]
     assert abs(held_out["within_1"] - 0.683) <= _binomial_band(0.683, n)
