@@ -2,11 +2,9 @@
 
 A file is loaded as one or more tables of string cells: a text table (the separator sniffed
 among tab, semicolon and comma; the decimal mark a comma when the separator is not and numbers
-like ``1,25`` occur; leading ``#`` comment lines skipped; Tracker's data export [7]_: a first
-line that is a single word above a separated header names the track, as does each such line
-above the header of a further track listed below it, and Tracker 6's row of track names
-starting with the delimiter (after ``#multi:``) names the track of each column below it; each
-track's columns then carry its name as their run label), every CSV member of a zip
+like ``1,25`` occur; leading ``#`` comment lines skipped; Tracker's data export layouts, a
+track named above its header or several side by side, are told apart in :mod:`.tracker`, each
+track's columns carrying its name as their run label), every CSV member of a zip
 archive (phyphox's export [2]_), or every sheet of a workbook — Excel ``.xlsx``, legacy Excel
 97-2003 ``.xls`` (BIFF8) or OpenDocument ``.ods`` — read through pandas' calamine engine.
 Headers are read in the exporting program's words (name, unit in brackets, run label in front
@@ -21,12 +19,6 @@ References
    ``0.000000000E0``, separators comma/tab/semicolon with decimal point or comma, one CSV per
    set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
    with ``NaN``.
-.. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
-   "Datatable view": the data export is tab-delimited text, a first line with the track name,
-   a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
-   blank at a track's first and last steps. Tracker 6 ``ExportDataDialog``: with several
-   tracks a ``#multi:`` line, a row of track names starting with the delimiter, the header
-   with a delimiter after each column, blanks where a track has no point.
 """
 
 from __future__ import annotations
@@ -226,25 +218,6 @@ def _parse_cells(path, text, separator, decimal, member):
     return np.char.strip(cells)
 
 
-def _stacked_tracks(text, separator):
-    """Tracks below the first in a Tracker export that lists them one below the other.
-
-    Each starts with a line naming it (no separator in it, a letter in it) right above a
-    header whose first column is a time. Returns [(name, where its name line starts, the
-    text of its header and rows)] in order; [] for a single track.
-    """
-    if separator is None:
-        return []
-    sep = re.escape(separator)
-    times = "|".join(re.escape(name) for name in sorted(_TIME_NAMES, key=len, reverse=True))
-    marker = re.compile(rf"^[ ]*(?P<name>[^\r\n{sep}]*[^\W\d][^\r\n{sep}]*?)[ ]*\r?\n"
-                        rf"(?=[ ]*(?:{times})[ ]*(?:\([^)\r\n]*\))?[ ]*{sep})",
-                        re.MULTILINE | re.IGNORECASE)
-    found = list(marker.finditer(text))
-    ends = [m.start() for m in found[1:]] + [len(text)]
-    return [(m["name"].strip(), m.start(), text[m.end():end]) for m, end in zip(found, ends)]
-
-
 def _text_table(path, raw, member):
     """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark).
 
@@ -261,28 +234,23 @@ def _text_table(path, raw, member):
     head = [line for line in lines[comments:comments + 60] if line.strip()][:20]
     if not head:
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
-    tracker = _tracker_layout(lines[comments:])
+    # Tracker's layouts build on this module's cell conventions (imported here, not above).
+    from .tracker import multi_track_layout, stacked_tracks, titled_track
+
+    tracker = multi_track_layout(lines[comments:])
     if tracker is not None:
         separator, text, owner, tracks = tracker
         head = text.splitlines()[:20]
     else:
         separator = _sniff_separator(head)
     title = None
-    if (tracker is None and separator is None and len(head) > 2
-            and not _is_number([head[0].strip()], ".")[0]):
-        # Tracker's data export: a first line naming the track ('mass_A'), then the header.
-        below = _sniff_separator(head[1:])
-        header_below = below is not None and not np.any(
-            _is_number([f.strip() for f in next(csv.reader([head[1]], delimiter=below))], "."))
-        if header_below and below not in head[0]:
-            separator, title = below, head[0].strip()
-            rest = lines[comments:]
-            first = next(k for k, line in enumerate(rest) if line.strip())
-            text = "\n".join(rest[first + 1:])
-            head = head[1:]
+    if tracker is None and separator is None:
+        titled = titled_track(head, lines[comments:])
+        if titled is not None:
+            separator, title, text, head = titled
     body = "\n".join(head[1:])
     decimal = "," if separator != "," and re.search(r"\d,\d", body) else "."
-    blocks = _stacked_tracks(text, separator) if title else []
+    blocks = stacked_tracks(text, separator) if title else []
     if blocks:
         # Several tracks one below the other, each under its name: side by side here, each
         # track with its own time column.
@@ -319,44 +287,6 @@ def _text_table(path, raw, member):
                      for column, label in zip(table.columns, owner)]
     table.tracks = tracks
     return table
-
-
-def _tracker_layout(lines):
-    """Tracker 6's data export layout of `lines`, or None if they are not one.
-
-    Tracker writes ``#multi:`` when the export holds several tracks (skipped with the
-    comments), then a row of track names that starts with the delimiter, each name above the
-    first of its columns, then the header (``t`` and each track's columns, with a delimiter
-    after each), then one row per frame with blanks where a track has no point [7]_.
-
-    Returns (separator, the text from the header on, each column's track name ('' for the
-    time column), the track names in order).
-    """
-    first = [k for k, line in enumerate(lines[:60]) if line.strip()][:3]
-    if len(first) < 3:
-        return None
-    for separator in ("\t", ";", ","):
-        names = next(csv.reader([lines[first[0]]], delimiter=separator))
-        header = next(csv.reader([lines[first[1]]], delimiter=separator))
-        if len(names) < 2 or names[0].strip() or len(header) < 2:
-            continue
-        named = [n.strip() for n in names if n.strip()]
-        words = [h.strip() for h in header[1:] if h.strip()]
-        if (not named or header[0].strip().lower() not in _TIME_NAMES or not words
-                or np.any(_is_number(named + words, "."))):
-            continue
-        width = len(header)
-        while width > 1 and not header[width - 1].strip():
-            width -= 1  # the delimiter Tracker writes after the last column name
-        # Each column's track: the name written above it or above a column to its left.
-        written = np.array([n.strip() for n in names[:width]] + [""] * (width - len(names)),
-                           dtype=object)
-        named_at = np.where(written != "", np.arange(width), 0)
-        owner = written[np.maximum.accumulate(named_at)].astype(str)
-        tracks = tuple(dict.fromkeys(owner[1:][owner[1:] != ""]))
-        text = "\n".join([separator.join(header[:width])] + lines[first[1] + 1:])
-        return separator, text, list(owner), tracks
-    return None
 
 
 def _finish_table(path, cells, decimal, variant, member):
