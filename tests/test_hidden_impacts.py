@@ -20,7 +20,8 @@ import pytest
 
 import dashpot
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_trailing_secondaries, _drop_unechoed_end,
+from dashpot.ingest.chain import (_drop_faint_end, _drop_trailing_secondaries,
+                                  _drop_unechoed_end,
                                   _explained_secondaries, _fill_impacts, _hidden_causes,
                                   _new_sound, _one_per_impact, _prediction_error,
                                   _robust_trend, _sets_off_secondaries, _sound_predictor)
@@ -294,3 +295,24 @@ def test_one_impact_timed_twice_is_reported_once_at_its_most_precise_time():
     sigmas = np.array([1.0, 2.0, 1.0, 3.0, 1.0, 5.0, 1.0]) * 1e-5
     # 0.2, 0.2008 and 0.2015 s chain within 1 ms of each other: one impact.
     np.testing.assert_array_equal(_one_per_impact(times, sigmas), [2, 4, 6, 0])
+
+
+@pytest.mark.parametrize("seed", [20261126 + k for k in range(5)])
+def test_a_train_does_not_end_on_a_sound_far_fainter_than_its_speed_gives(seed):
+    # Impact sound ∝ impact speed (synthetic amplitudes ±20 %), speed ∝ the flight before it;
+    # a ring or echo of the last impacts at 30 % of the last impact's amplitude, one bounce
+    # after it, is no bounce; a true last impact after a missed one (an interval of two
+    # bounces) is kept, and so is a train without such a sound.
+    rng = np.random.default_rng(seed)
+    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
+                                       omega0=rng.uniform(2000, 4000), g=9.81,
+                                       v0=rng.uniform(0.5, 0.9), n_max=30)
+    # Flights long against the contact (as in the disturbed trains: intervals from 6 ms).
+    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
+    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+    amplitudes = 0.5 * speeds / speeds.max() * rng.uniform(0.8, 1.2, speeds.size)
+    assert _drop_faint_end(times, amplitudes) == times.size
+    spanning = np.delete(np.arange(times.size), times.size - 2)
+    assert _drop_faint_end(times[spanning], amplitudes[spanning]) == spanning.size
+    ring = np.append(times, times[-1] + (times[-1] - times[-2]))
+    assert _drop_faint_end(ring, np.append(amplitudes, 0.3 * amplitudes[-1])) == times.size

@@ -99,9 +99,9 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _drop_trailing_secondaries, _drop_unechoed_end,
-                    _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes,
-                    _louder_between, _one_per_impact, _probe, _robust_trend,
+from .chain import (_SECONDARY_MARGIN, _drop_faint_end, _drop_trailing_secondaries,
+                    _drop_unechoed_end, _explained_secondaries, _fill_impacts, _fixed_delays,
+                    _hidden_causes, _louder_between, _one_per_impact, _probe, _robust_trend,
                     _secondary_delays, _secondary_levels, _select_bounces,
                     _sets_off_secondaries, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
@@ -340,7 +340,7 @@ def _impact_table(path, stream, sample_rate, duration):
     order = _one_per_impact(times, sigmas)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
     clipped_flags = [clipped_flags[k] for k in order]
-    dropped_end = dropped_secondaries = 0
+    dropped_end = dropped_secondaries = dropped_faint = 0
     if times.size >= 5:
         _, scatter = _robust_trend(times)
         grown = _trim_growing_end(times, sigmas, scatter)
@@ -351,7 +351,10 @@ def _impact_table(path, stream, sample_rate, duration):
                                             duration))
         kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
                                   duration)
+        # Nor does it end on a sound far fainter than the impact speed its flight gives.
+        faint = _drop_faint_end(times[:kept], amplitudes[:kept])
         dropped_end, dropped_secondaries = times.size - grown, grown - kept
+        dropped_faint, kept = kept - faint, faint
         times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
         clipped_flags = clipped_flags[:kept]
     # Where each ring or echo recurring after the impacts would start, and how loud it may be
@@ -423,6 +426,10 @@ def _impact_table(path, stream, sample_rate, duration):
                      f"delay at which a ring's burst, a ring or an echo recurs after the impacts, "
                      f"no louder than such a secondary, or lack the secondary every impact "
                      f"before them sets off")
+    if dropped_faint:
+        notes.append(f"{dropped_faint} transients at the end left out: more than 6 dB fainter "
+                     f"than an impact after the interval before them is (the sound grows with "
+                     f"the impact speed, and the speed with the flight before the impact)")
     if moved:
         notes.append(f"{moved} impacts timed again at their first burst: their sound opened "
                      f"with a burst before the rising edge fitted first")

@@ -1086,6 +1086,32 @@ def _trim_growing_end(times, sigmas, scatter):
     return keep
 
 
+def _drop_faint_end(times, amplitudes, bounces=10, at_most=2):
+    """Number of impacts to keep: the train does not end on a sound fainter than its impact.
+
+    The sound of an impact grows with the impact speed (its peak force, for a linear contact,
+    is proportional to it), and the impact speed with the flight before it (v = g·T/2 for a
+    flight of T s): along a train, amplitude / interval is about constant. The last impact is
+    expected at that constant (the median over the `bounces` impacts before it) times the
+    shorter of its interval and the one before it (an interval spanning missed bounces holds
+    a shorter flight than itself). A last sound more than 6 dB (:data:`_EXTENSION_LOUDNESS`)
+    under that is a ring, echo or click after the ball's last bounce, not a bounce; at most
+    `at_most` are dropped. The interval holds the contact too (about 1 ms for a hard ball),
+    so the law holds while the flights are long against it (intervals of several ms); on
+    shorter last intervals it expects too loud a sound and may drop a true last impact.
+    """
+    keep = times.size
+    while keep > max(5, times.size - at_most):
+        intervals = np.diff(times[:keep])
+        speed_law = np.median(amplitudes[max(1, keep - 1 - bounces):keep - 1]
+                              / intervals[max(0, keep - 2 - bounces):keep - 2])
+        flight = min(intervals[-1], intervals[-2])
+        if amplitudes[keep - 1] * _EXTENSION_LOUDNESS >= speed_law * flight:
+            break
+        keep -= 1
+    return keep
+
+
 def _secondary_levels(times, amplitude, chain, delays):
     """Loudness of the secondaries recurring at `delays` (s) after the impacts of `chain`,
     relative to their impact: per delay, the median ratio of the amplitude of the loudest
