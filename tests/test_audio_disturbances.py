@@ -338,9 +338,11 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     assert sorted(retimed) == [12] and not added
     assert retimed[12][0] == impacts[12]
 
-    # Where no onset of its own rises out of the ring, the impact stays as timed.
+    # Where no onset of its own rises out of the ring (nor shows in the error of a predictor
+    # of it), the impact stays as timed.
     def ring_only(predicted, tolerance, not_before=None, predicted_sound=False):
-        return None if not_before is not None else probe(predicted, tolerance)
+        return None if not_before is not None or predicted_sound else probe(predicted,
+                                                                             tolerance)
 
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([delay]), ring_only, impacts[-1] + 1.0)

@@ -1294,8 +1294,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact rises out of them); where no onset of its own rises out of them, the impact is
     reported missing (a gap), not placed at the predicted time. An impact within the tolerance
     whose onset is that of such a secondary (the sound began less than the tolerance before
-    it) is timed again on an onset of its own rising out of it, where there is one, and kept
-    as timed where there is none. A probed onset must lie within
+    it) is timed again on an onset of its own rising out of it, where there is one, or else
+    on an impulse in the error of a predictor of that sound (``predicted_sound=True``) past
+    0.3 ms after its start (a ring's burst is the impact's own modes excited again, which
+    the predictor continues), and kept as timed where there is neither. A probed onset must lie within
     the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
     not itself come at a secondary's delay after an earlier impact, unless it fills an
     interval of two bounces between impacts (the ball bounced there) and is louder than that
@@ -1363,6 +1365,20 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             onset = result[0]
         return None
 
+    def on_secondary(predicted, tolerance, onset, before):
+        # An impact starting on a ring's burst (the impact's own modes, excited again) or an
+        # echo barely raises the power, but the predictor of the sound continues that
+        # sound's modes and the impact is an impulse in its error: looked for there, past
+        # the secondary's own onset (a probed onset within 0.3 ms of it is that onset).
+        lo = max(predicted - tolerance, onset + _PROBE_SECONDARY_SECONDS)
+        hi = predicted + tolerance
+        if hi <= lo:
+            return None
+        result = probe(0.5 * (lo + hi), 0.5 * (hi - lo), predicted_sound=True)
+        if result is None or result[0] < lo:
+            return None
+        return result if accept(result, predicted, tolerance, before) else None
+
     for _ in range(20 * len(anchors) + 10):  # a bound on the probes, whatever the trend does
         predicted, interval = _predict_next(anchors[max(0, i - 3):i + 1], step)
         if interval < _MERGE_SECONDS or predicted > end:
@@ -1395,8 +1411,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     and secondary(following, i)):
                 # On the trend, but its onset is that of a ring or an echo of an earlier
                 # impact beginning within the tolerance before it: timed again where an onset
-                # of its own rises out of that sound; kept as timed where none does.
+                # of its own rises out of that sound, or shows in the error of a predictor of
+                # it; kept as timed where none does.
                 result = peel(predicted, tolerance, following, before)
+                if result is None:
+                    result = on_secondary(predicted, tolerance, following, before)
                 if result is not None:
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = result[0]
