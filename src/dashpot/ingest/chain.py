@@ -1313,7 +1313,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     A sound at a secondary's delay that sets off the secondaries of an impact itself
     (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
     time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
-    impact starting on the loud burst or ring of the one before). An impact that is not
+    impact starting on the loud burst or ring of the one before), past the start of that
+    burst or ring where the first impulse found there is at a secondary's delay. An impact that is not
     found stays in the sequence as a predicted anchor, so that the predictions after it step
     over it; past the last impact two in a row end the search.
     """
@@ -1446,9 +1447,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
-            # the start of that burst or ring: at a secondary's delay, it is one).
+            # the start of that burst or ring: at a secondary's delay, it is one, and the
+            # impact is looked for past it).
             result = probe(predicted, tolerance, predicted_sound=True)
             bounded = impact = False
+            if result is not None and secondary(result[0], i):
+                result = on_secondary(predicted, tolerance, result[0], None)
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
