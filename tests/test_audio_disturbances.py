@@ -16,7 +16,7 @@ binomial standard deviations).
 import numpy as np
 import pytest
 
-import dashpot
+from audio_trains import hybrid_train
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
@@ -52,12 +52,7 @@ def disturbed_train(seed, rate=RATE):
     """(samples, true onsets, options) of one train with the disturbances of issue 14, sampled
     at `rate` (Hz)."""
     rng = np.random.default_rng(seed)
-    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                       omega0=rng.uniform(2000, 4000), g=9.81,
-                                       v0=rng.uniform(0.5, 0.9), n_max=400)
-    # Up to the bounces 6 ms apart: short trains keep the block within the suite's time.
-    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
-    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+    times, speeds = hybrid_train(rng)
     weakest_db = rng.uniform(20.0, 45.0)
     options = dict(apex_click_db=-40.0, rest_click_period=rng.uniform(0.08, 0.1),
                    rest_click_duration=0.6, echo_delay=rng.uniform(5e-3, 0.2),

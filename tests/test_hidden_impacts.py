@@ -18,7 +18,7 @@ import os
 import numpy as np
 import pytest
 
-import dashpot
+from audio_trains import hybrid_train
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_end, _drop_trailing_secondaries,
                                   _drop_unechoed_end,
@@ -144,13 +144,9 @@ def burst_trains(tmp_path_factory):
     total = found = false = 0
     for seed in BURST_SEEDS:
         rng = np.random.default_rng(seed)
-        sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                           omega0=rng.uniform(2000, 4000), g=9.81,
-                                           v0=rng.uniform(0.5, 0.9), n_max=400)
-        keep = np.cumprod(np.r_[True, sequence.intervals >= 6e-3]).astype(bool)
-        speeds = sequence.impact_speeds[keep]
+        impacts, speeds = hybrid_train(rng)
         samples, onsets = impact_sound(
-            sequence.impact_times[keep], speeds, sample_rate=RATE, seed=seed,
+            impacts, speeds, sample_rate=RATE, seed=seed,
             snr_db=30 + 20 * np.log10(speeds.max() / speeds.min()), ring_level=0.0,
             burst_delays=[rng.uniform(5e-3, 7e-3)], burst_levels=[rng.uniform(1.0, 1.4)])
         path = write_audio(os.fspath(folder / f"train{seed}.wav"), samples, RATE,
@@ -199,14 +195,10 @@ def test_secondaries_evenly_spaced_after_the_impacts_do_not_hide_the_train(tmp_p
     total = found = 0
     for seed in EVEN_SEEDS:
         rng = np.random.default_rng(seed)
-        sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                           omega0=rng.uniform(2000, 4000), g=9.81,
-                                           v0=rng.uniform(0.5, 0.9), n_max=400)
-        keep = np.cumprod(np.r_[True, sequence.intervals >= 6e-3]).astype(bool)
-        speeds = sequence.impact_speeds[keep]
+        impacts, speeds = hybrid_train(rng)
         delay = rng.uniform(5e-3, 8e-3)
         samples, onsets = impact_sound(
-            sequence.impact_times[keep], speeds, sample_rate=RATE, seed=seed,
+            impacts, speeds, sample_rate=RATE, seed=seed,
             snr_db=30 + 20 * np.log10(speeds.max() / speeds.min()),
             ring_level=rng.uniform(0.25, 0.4), ring_delay=2 * delay, burst_delays=[delay],
             burst_levels=[rng.uniform(0.5, 1.2)])
@@ -304,12 +296,8 @@ def test_a_train_does_not_end_on_a_sound_far_fainter_than_its_speed_gives(seed):
     # after it, is no bounce; a true last impact after a missed one (an interval of two
     # bounces) is kept, and so is a train without such a sound.
     rng = np.random.default_rng(seed)
-    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                       omega0=rng.uniform(2000, 4000), g=9.81,
-                                       v0=rng.uniform(0.5, 0.9), n_max=30)
     # Flights long against the contact (as in the disturbed trains: intervals from 6 ms).
-    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
-    times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+    times, speeds = hybrid_train(rng, n_max=30)
     amplitudes = 0.5 * speeds / speeds.max() * rng.uniform(0.8, 1.2, speeds.size)
     assert _drop_faint_end(times, amplitudes) == times.size
     spanning = np.delete(np.arange(times.size), times.size - 2)

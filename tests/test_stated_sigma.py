@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-import dashpot
+from audio_trains import hybrid_train
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.onset import (_AMBIGUITY_SECONDS, _SUBSAMPLE_FLOOR, _edge_samples,
                                   _stated_sigma)
@@ -44,12 +44,7 @@ def plain_trains(tmp_path_factory):
     errors, sigmas = [], []
     for k in range(8):
         seed = 20261126 + 7919 * k
-        rng = np.random.default_rng(seed)
-        sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                           omega0=rng.uniform(2000, 4000), g=9.81,
-                                           v0=rng.uniform(0.5, 0.9), n_max=400)
-        keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
-        times, speeds = sequence.impact_times[keep], sequence.impact_speeds[keep]
+        times, speeds = hybrid_train(np.random.default_rng(seed))
         samples, onsets = impact_sound(times, speeds, sample_rate=RATE, seed=seed,
                                        snr_db=35.0 + 20 * np.log10(speeds.max() / speeds.min()))
         table = detect_impacts(write_audio(folder / f"t{k}.wav", samples, RATE, subtype="FLOAT"))

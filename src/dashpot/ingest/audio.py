@@ -344,7 +344,8 @@ def _impact_table(path, stream, sample_rate, duration):
     if times.size >= 5:
         _, scatter = _robust_trend(times)
         grown = _trim_growing_end(times, sigmas, scatter)
-        # (a sound that sets off the secondaries of an impact is one, whatever falls on it).
+        # The last sounds at a secondary's delay are left out unless they set off the
+        # secondaries of an impact themselves (then they are one, whatever falls on them).
         kept = _drop_trailing_secondaries(
             times[:grown], amplitudes[:grown], delays, levels,
             lambda k: _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels,
