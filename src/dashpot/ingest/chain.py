@@ -1297,8 +1297,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     it) is timed again on an onset of its own rising out of it, where there is one, or else
     on an impulse in the error of a predictor of that sound (``predicted_sound=True``) past
     0.3 ms after its start (a ring's burst is the impact's own modes excited again, which
-    the predictor continues), and kept as timed where there is neither. A probed onset must lie within
-    the tolerance of the prediction, be at most 6 dB fainter than the impacts before it, and
+    the predictor continues), and kept as timed where there is neither. A probed onset must
+    lie within the tolerance of the prediction, be at most 6 dB fainter than the impacts
+    before it, and
     not itself come at a secondary's delay after an earlier impact, unless it fills an
     interval of two bounces between impacts (the ball bounced there) and is louder than that
     secondary usually is after its impact (an onset there is probed
@@ -1314,9 +1315,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
     time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
     impact starting on the loud burst or ring of the one before), past the start of that
-    burst or ring where the first impulse found there is at a secondary's delay. An impact that is not
-    found stays in the sequence as a predicted anchor, so that the predictions after it step
-    over it; past the last impact two in a row end the search.
+    burst or ring where the first impulse found there is at a secondary's delay. An impact
+    that is not found stays in the sequence as a predicted anchor, so that the predictions
+    after it step over it; past the last impact two in a row end the search.
     """
     step = _trend_step(coefficients, np.diff(times).min())
     usual = np.full(delays.size, np.inf) if levels is None else np.where(
