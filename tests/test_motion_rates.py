@@ -99,3 +99,23 @@ def test_soft_cart_speeds_are_unbiased(tmp_path):
         assert values.size >= 90, name
         error = values.std(ddof=1) / np.sqrt(values.size)
         assert abs(values.mean()) <= 3.0 * error, (name, values.mean(), error)
+
+
+@pytest.mark.parametrize("seed", [20282894, 20281991, 20281870])
+def test_soft_cart_runs_once_misread(tmp_path, seed):
+    """Three-run exports of the paper's cart at 50 Hz in which one run was read badly wrong
+    (about 1 export in 300; seeds found by a pull study over many exports, not tuned on):
+    impacts timed up to 116σ off, leg accelerations of 5.9 and 10.8 m/s² for 2.9. Causes: the
+    direction of the bumper taken from a vote of velocity steps that long contacts tie (37 of
+    74), a noise sample of the resting cart taken for a last bounce (the rest, which places
+    the bumper, then lost), a noise reversal while the cart was held taken for a contact.
+    Every run's impacts are now found and timed within 4σ, and both leg accelerations agree
+    with the incline's within 5σ."""
+    train = bounce_sequence("hybrid", beta=1.87, omega0=22.448887927243977, g=G_EFF, v0=1.0,
+                            n_max=30)
+    path = tmp_path / "capstone.csv"
+    truth = write_motion_sensor(path, train, runs=3, sample_rate=50.0, seed=seed)
+    _check_runs(path, truth, 0.36)
+    for leg in read_impacts(path).attrs["accelerations"]:
+        for side in ("toward", "away"):
+            assert abs(leg[side] - G_EFF) <= 5.0 * leg[side + "_sd"], (leg, side)

@@ -212,6 +212,25 @@ def _motion_run(run, bumper_position, notes, legs):
         notes.append(f"run '{run.label or 0}': the cart hardly moves; no impacts")
         return empty
     orientation = 1.0 if np.median(steps) >= 0 else -1.0
+    # That vote is weak where contacts are long: a soft bumper's contact steps (against the
+    # bumper) can be as many as the free steps, whose sign the noise also flips (a cart at
+    # 50 Hz: g·Δt ≈ σ of a step). A vote within 3σ of a coin's (binomial) is then settled by
+    # the rest: a cart (or ball) ends at rest against the bumper, on the side of the moving
+    # samples it bounced toward; with no clear rest the vote stands.
+    toward_votes = int(np.sum(steps > 0))
+    if abs(toward_votes - 0.5 * steps.size) <= 1.5 * np.sqrt(steps.size) and \
+            "position" in run.columns:
+        still_from = _rest_start(x, sigma_x)
+        moved_x = x[:still_from][moving[:still_from]]
+        if n - still_from >= 10 and moved_x.size >= 3:
+            side = float(np.median(x[still_from:]) - np.median(moved_x))
+            if abs(side) > 4.0 * sigma_x:
+                rest_orientation = 1.0 if side > 0 else -1.0
+                if rest_orientation != orientation:
+                    notes.append(f"run '{run.label or 0}': direction of the bumper from the "
+                                 f"final rest ({toward_votes} of {steps.size} velocity steps "
+                                 f"while moving point the other way: long contacts)")
+                orientation = rest_orientation
     w, s = orientation * w_raw, orientation * x  # both grow toward the bumper
     # Toward (+1), away (−1) or neither (0, within noise: apex, rest) at each sample.
     # The first and last central differences are one-sided, with twice the noise.
@@ -250,8 +269,17 @@ def _motion_run(run, bumper_position, notes, legs):
         resting_from = _rest_start(s, sigma_x)
     else:
         resting_from = 0
-    keep = reversal & ((i <= i[resolved][-1]) | (ends[np.minimum(i + 1, count - 1)]
-                                                 < resting_from))
+    # Before the first resolved reversal a train has no slower contact (bounces only lose
+    # speed): an unresolved reversal there is the noise of a cart held still before its
+    # release (a sample beyond the threshold each way), unless the record starts with it
+    # (a record begun just before a contact).
+    held_noise = reversal & ~resolved & (i < i[resolved][0]) & (i > 0)
+    if held_noise.any():
+        notes.append(f"run '{run.label or 0}': {int(held_noise.sum())} reversal(s) of the "
+                     f"velocity within the noise before the first clear impact left out (the "
+                     f"cart still before its release)")
+    keep = reversal & ~held_noise & ((i <= i[resolved][-1])
+                                     | (ends[np.minimum(i + 1, count - 1)] < resting_from))
     toward_runs, away_runs = i[keep], away_of[keep]
     is_impact = resolved[keep]
     real_reversal = np.ones(is_impact.size, dtype=bool)  # False: a contact put in below
@@ -267,7 +295,11 @@ def _motion_run(run, bumper_position, notes, legs):
     whole = np.searchsorted(bridged_starts, starts, side="right") - 1  # original -> bridged
     peaks = _first_extreme(w, bridged_starts, bridged_ends, "max")[whole[toward_runs]]
     troughs = _first_extreme(w, bridged_starts, bridged_ends, "min")[whole[away_runs]]
-    later_toward = np.flatnonzero((values == 1) & (i > away_runs[-1]))
+    # A motion toward the bumper after the final rest began is noise (a sample of the resting
+    # cart beyond the threshold), not a last small bounce: ending the last flight there
+    # would take the rest for flight and leave no resting tail to place the bumper by.
+    moving_until = resting_from if "position" in run.columns else n
+    later_toward = np.flatnonzero((values == 1) & (i > away_runs[-1]) & (starts < moving_until))
     if later_toward.size:  # the flight after the last resolved impact ends at the next contact
         last_end = _first_extreme(w, starts, ends, "max")[later_toward[0]] - guard - 1
     else:
@@ -1035,13 +1067,17 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
        consecutive readings); the vendor's own velocity column is used only when there is no
        position (then integrated for one).
     2. Orientation: the median change of velocity while moving points toward the bumper
-       (free motion accelerates toward it and is most of the record).
+       (free motion accelerates toward it and is most of the record). Where long contacts
+       make that vote a near tie (within 3σ of a coin's), the final rest settles it: the
+       cart rests against the bumper, on the side of the moving samples it bounced toward.
     3. Reversals toward → away at most two (plus guard) samples apart end the flights. One
        with at least two samples beyond ±4σ_v toward the bumper and two away is *resolved*: a
        resting cart's noise cannot produce that (four samples beyond 4σ with the right signs).
        Reversals after the last resolved one count while the position still leaves the bumper
        by more than 4σ_x (the last, short flights); reversals at the top of the incline go
-       the other way and are apexes.
+       the other way and are apexes. An unresolved reversal before the first resolved one
+       (not at the record's start) is the noise of the held cart and is left out, as is a
+       motion toward the bumper after the final rest began.
     4. Flights, first pass: from the peak velocity away from the bumper after a contact
        (where it ended) to the peak velocity toward it before the next (where it starts),
        each peak sought over the whole motion in that direction, through dips of at most two
