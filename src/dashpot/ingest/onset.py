@@ -265,6 +265,14 @@ _BURST_BACKGROUND = 4.0  # ... at least this many RMS of the sound before it
 _BURST_BACKGROUND_SECONDS = 1e-3  # the stretch before the reach whose RMS is that sound's
 
 
+def _burst_level(magnitude, onset, sample_rate):
+    """A fifth of each row's peak magnitude from 2 ms before `onset` (an index) to 3 ms after
+    it: the level an impact's first burst, and its rise, pass through (units of
+    `magnitude`, shape (K, W))."""
+    before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
+    return _BURST_LEVEL * magnitude[:, max(onset - before, 0):onset + after].max(axis=1)
+
+
 def _first_burst(magnitude, onset, noise_rms, sample_rate):
     """Sample where each impact's first burst rises through a fifth of the impact's peak.
 
@@ -309,7 +317,7 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
     last = onset - int(round(_BURST_MIN_LEAD_SECONDS * sample_rate))
     if lo - quiet < 0 or last <= lo or hi <= onset:
         return np.full(magnitude.shape[0], -1)
-    level = _BURST_LEVEL * magnitude[:, lo:hi].max(axis=1)
+    level = _burst_level(magnitude, onset, sample_rate)
     floor = np.maximum(noise_rms, np.sqrt(np.mean(magnitude[:, lo - quiet:lo] ** 2, axis=1)))
     above = magnitude[:, lo:last] >= level[:, None]
     first = lo + np.argmax(above, axis=1)
@@ -339,12 +347,8 @@ def _rise_crossing(magnitude, onset, sample_rate):
 
     Parameters
     ----------
-    magnitude : ndarray, shape (K, W)
-        Magnitude of the high-passed waveform (level removed) around each impact.
-    onset : int
-        Index in each row of the onset fitted so far.
-    sample_rate : float
-        Hz.
+    magnitude, onset, sample_rate
+        As for :func:`_first_burst`.
 
     Returns
     -------
@@ -356,9 +360,8 @@ def _rise_crossing(magnitude, onset, sample_rate):
         A fifth of the peak of the magnitude from 2 ms before `onset` to 3 ms after it (the
         impact's peak, as in :func:`_first_burst`), in the units of `magnitude`.
     """
-    before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
     start = onset - int(round(_BURST_MIN_LEAD_SECONDS * sample_rate))
-    level = _BURST_LEVEL * magnitude[:, onset - before:onset + after].max(axis=1)
+    level = _burst_level(magnitude, onset, sample_rate)
     above = magnitude[:, start:] >= level[:, None]
     return np.where(above.any(axis=1), start + np.argmax(above, axis=1), -1), level
 
