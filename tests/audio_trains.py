@@ -1,14 +1,16 @@
-"""The bounce trains the synthetic audio tests record.
+"""What the synthetic audio tests share: the bounce trains they record, and stand-ins for a
+probe of the file.
 
-A ball of the hybrid contact model whose damping, natural frequency and first impact speed
-are drawn from the given generator, up to the bounces 6 ms apart: the last intervals a
-recording can time against rings a few ms long, and short trains keep the tests within the
-suite's time.
+The trains: a ball of the hybrid contact model whose damping, natural frequency and first
+impact speed are drawn from the given generator, up to the bounces 6 ms apart: the last
+intervals a recording can time against rings a few ms long, and short trains keep the tests
+within the suite's time.
 """
 
 import numpy as np
 
 import dashpot
+from dashpot.ingest.chain import _robust_trend
 
 
 def hybrid_train(rng, n_max=400):
@@ -19,3 +21,21 @@ def hybrid_train(rng, n_max=400):
                                        v0=rng.uniform(0.5, 0.9), n_max=n_max)
     keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
     return sequence.impact_times[keep], sequence.impact_speeds[keep]
+
+
+def onset_near(sounds, predicted, tolerance, amplitude=1.0):
+    """What a probe of the file finds near `predicted` (s) where the file holds `sounds` (s):
+    the nearest within `tolerance` (s), as (time, 1σ, amplitude, clipped), or None."""
+    nearest = sounds[np.abs(sounds - predicted).argmin()]
+    return (nearest, 1e-5, amplitude, False) if abs(nearest - predicted) <= tolerance else None
+
+
+def timed_at_a_secondary(cause, lead):
+    """Impacts shrinking by 0.9 (times, s), where a secondary of impact `cause` recurs `lead`
+    (s) before impact 12, whose onset was taken at that secondary's start: the impacts, the
+    secondary's delay (s), the impacts as timed, and the trend of the impacts
+    (:func:`dashpot.ingest.chain._robust_trend`)."""
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    timed = impacts.copy()
+    timed[12] -= lead
+    return impacts, impacts[12] - impacts[cause] - lead, timed, _robust_trend(impacts)

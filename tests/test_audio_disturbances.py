@@ -16,7 +16,7 @@ binomial standard deviations).
 import numpy as np
 import pytest
 
-from audio_trains import hybrid_train
+from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
@@ -210,8 +210,7 @@ def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_o
 
     def probe(predicted, tolerance, not_before=None, predicted_sound=False):
         # The impacts' own onsets are in the file, where the trend puts them.
-        nearest = impacts[np.abs(impacts - predicted).argmin()]
-        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+        return onset_near(impacts, predicted, tolerance)
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                    np.array([6.5e-3]), probe, impacts[-1] + 1.0)
@@ -318,17 +317,12 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     # Impacts shrinking by 0.9; the ring of impact 10 recurs at a delay that puts it 0.9 ms
     # before impact 12, whose onset was taken at the ring's start: on the trend (to well
     # within its tolerance), but not the impact's own onset.
-    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
-    delay = impacts[12] - impacts[10] - 0.9e-3
-    timed = impacts.copy()
-    timed[12] -= 0.9e-3
-    coefficients, scatter = _robust_trend(impacts)
+    impacts, delay, timed, (coefficients, scatter) = timed_at_a_secondary(10, 0.9e-3)
 
     def probe(predicted, tolerance, not_before=None, predicted_sound=False):
         # The file holds the impacts' onsets; past a ring's start only a later onset counts.
         later = impacts[impacts > (not_before if not_before is not None else -np.inf)]
-        nearest = later[np.abs(later - predicted).argmin()]
-        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+        return onset_near(later, predicted, tolerance)
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                    np.array([delay]), probe, impacts[-1] + 1.0)

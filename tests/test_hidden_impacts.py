@@ -18,7 +18,7 @@ import os
 import numpy as np
 import pytest
 
-from audio_trains import hybrid_train
+from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_end, _drop_trailing_secondaries,
                                   _drop_unechoed_end,
@@ -77,13 +77,10 @@ def test_the_error_floor_is_the_variance_of_the_error_on_the_noise():
     assert floor[0] == pytest.approx(measured, rel=4 * np.sqrt(2 / n) * 10)
 
 
-def fake_probe(sounds, amplitude_of):
-    """A probe that finds the nearest of `sounds` (s) within the tolerance."""
+def fake_probe(sounds, amplitude):
+    """A probe that finds the nearest of `sounds` (s) within the tolerance, of `amplitude`."""
     def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
-        nearest = sounds[np.argmin(np.abs(sounds - moment))]
-        if abs(nearest - moment) > tolerance:
-            return None
-        return nearest, 1e-5, amplitude_of(nearest), False
+        return onset_near(sounds, moment, tolerance, amplitude)
     return probe
 
 
@@ -100,19 +97,19 @@ def test_members_that_are_bursts_are_replaced_by_the_impacts_one_delay_before():
     loudness = np.where(np.isin(found, bursts), 1.2, 1.0)
     times, sigmas, amplitudes, _ = _hidden_causes(
         members, np.where(hidden, 1.2, 1.0), np.array([delay]), np.array([1.2]), found,
-        loudness, fake_probe(np.concatenate((impacts, bursts)), lambda t: 1.0))
+        loudness, fake_probe(np.concatenate((impacts, bursts)), 1.0))
     assert hidden.sum() >= 5
     np.testing.assert_allclose(times, impacts)
     assert np.isnan(sigmas[~hidden]).all() and np.isfinite(sigmas[hidden]).all()
     # No loud sound in the 5 ms before the moment where the cause would be: nothing is
     # probed, whatever the file holds there.
     quiet = _hidden_causes(members, np.ones(impacts.size), np.array([delay]), np.array([1.2]),
-                           impacts[:1], np.ones(1), fake_probe(impacts, lambda t: 1.0))[0]
+                           impacts[:1], np.ones(1), fake_probe(impacts, 1.0))[0]
     np.testing.assert_array_equal(quiet, members)
     # A member far louder than the burst an onset before it would set off is an impact.
     loud = _hidden_causes(members, np.full(impacts.size, 10.0), np.array([delay]),
                           np.array([1.2]), found, loudness,
-                          fake_probe(np.concatenate((impacts, bursts)), lambda t: 1.0))[0]
+                          fake_probe(np.concatenate((impacts, bursts)), 1.0))[0]
     np.testing.assert_array_equal(loud, members)
 
 
@@ -121,7 +118,7 @@ def test_a_train_ends_on_the_last_sound_that_sets_off_the_secondaries():
     impacts = 1.0 + np.cumsum(0.05 * 0.9 ** np.arange(12))
     bursts = impacts + delay
     with_last_burst = np.r_[impacts, bursts[-1]]
-    probe = fake_probe(bursts, lambda t: 1.0)
+    probe = fake_probe(bursts, 1.0)
     amplitudes = np.ones(with_last_burst.size)
     end = with_last_burst[-1] + 1.0
     keep = _drop_unechoed_end(with_last_burst, amplitudes, np.array([delay]), np.array([1.0]),
@@ -259,7 +256,7 @@ def test_a_sound_that_sets_off_an_impacts_secondaries_is_an_impact():
     delay, level = 6.0e-3, 0.8
     impacts = 1.0 + np.r_[np.arange(8) * 10e-3, 7 * 10e-3 + delay]
     bursts = impacts + delay
-    probe = fake_probe(bursts, lambda t: level)
+    probe = fake_probe(bursts, level)
     end = impacts[-1] + 1.0
     # The last impact sets off its burst: it is an impact, not the burst before it.
     assert _sets_off_secondaries(probe, impacts[-1], 1.0, np.array([delay]),
@@ -270,7 +267,7 @@ def test_a_sound_that_sets_off_an_impacts_secondaries_is_an_impact():
                                         np.array([level]), end))
     assert keep == impacts.size
     # Without its own burst it is taken for the burst of the impact before.
-    silent_after = fake_probe(bursts[:-1], lambda t: level)
+    silent_after = fake_probe(bursts[:-1], level)
     assert not _sets_off_secondaries(silent_after, impacts[-1], 1.0, np.array([delay]),
                                      np.array([level]), end)
     assert _drop_trailing_secondaries(
@@ -312,19 +309,13 @@ def test_an_impact_timed_at_a_burst_just_before_it_is_found_in_the_prediction_er
     # start. The impact's power barely rises over the burst (no onset of its own past the
     # burst's start), but in the error of a predictor of the sound it is an impulse: the
     # impact is timed there, not left at the burst's start.
-    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
-    delay = impacts[12] - impacts[11] - 1.5e-3
-    timed = impacts.copy()
-    timed[12] -= 1.5e-3
-    coefficients, scatter = _robust_trend(impacts)
+    impacts, delay, timed, (coefficients, scatter) = timed_at_a_secondary(11, 1.5e-3)
 
     def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
         if not_before is not None:
             return None  # nothing rises 1.8 dB over the burst
         # Plain power: the burst's start stands for the impact; prediction error: the impact.
-        sounds = impacts if predicted_sound else timed
-        nearest = sounds[np.abs(sounds - predicted).argmin()]
-        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+        return onset_near(impacts if predicted_sound else timed, predicted, tolerance)
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                    np.array([delay]), probe, impacts[-1] + 1.0)

@@ -14,6 +14,7 @@ import soundfile as sf
 from scipy import signal
 
 import dashpot
+from audio_trains import onset_near
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS
 from dashpot.ingest import chain as chaining
@@ -315,8 +316,7 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
     kept = np.delete(impacts, [20, 29])  # one missed among the last impacts, one at the end
 
     def probe(predicted, tolerance, not_before=None, predicted_sound=False):
-        nearest = impacts[np.abs(impacts - predicted).argmin()]
-        return (nearest, 1e-5, 1.0, False) if abs(nearest - predicted) <= tolerance else None
+        return onset_near(impacts, predicted, tolerance)
 
     coefficients, scatter = chaining._robust_trend(kept)
     added, retimed = chaining._fill_impacts(kept, np.ones(kept.size), coefficients, scatter,
