@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from cart_trains import measured_cart_run
 from coverage_checks import assert_covers_at_both_levels, normal_binomial_range
 
 from dashpot.fit import prepare_data
@@ -200,21 +201,11 @@ def cart_trains(trials):
     """Cart trains with rolling friction (a_away = g_eff + f, a_toward = g_eff − f), one per
     seed 20261125 + k, drawn by the noise model's simulator; with each impact's and rebound's
     speed as a motion sensor would measure them (Gaussian error CART_SPEED_SIGMA)."""
-    trains = []
-    for k in range(trials):
-        rng = np.random.default_rng(20261125 + k)
-        model = TrainModel(LAWS["constant"].bind(CART_EPS),
-                           lambda v: track_flight(v, CART_G_EFF + CART_FRICTION,
-                                                  CART_G_EFF - CART_FRICTION))
-        drawn = model.simulate(CART_BOUNCES, rng, start_time=0.0, start_speed=CART_SPEED,
-                               process_sigma=SCATTER, jitter=CART_TIMING)
-        count = drawn.times.size  # one train: the arrays are 1-D
-        trains.append(pd.DataFrame({
-            "time": drawn.times, "time_uncertainty": CART_TIMING,
-            "impact_speed": drawn.impact_speeds + rng.normal(0.0, CART_SPEED_SIGMA, count),
-            "rebound_speed": drawn.rebound_speeds + rng.normal(0.0, CART_SPEED_SIGMA, count),
-            "speed_uncertainty": CART_SPEED_SIGMA}))
-    return trains
+    return [measured_cart_run(np.random.default_rng(20261125 + k), eps=CART_EPS,
+                              g_eff=CART_G_EFF, friction=CART_FRICTION, bounces=CART_BOUNCES,
+                              speed=CART_SPEED, scatter=SCATTER, timing=CART_TIMING,
+                              speed_sigma=CART_SPEED_SIGMA)
+            for k in range(trials)]
 
 
 def friction_rungs(tables, scene):

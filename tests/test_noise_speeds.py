@@ -20,6 +20,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from cart_trains import measured_cart_run
 from coverage_checks import assert_covers_at_both_levels, normal_binomial_range
 
 from dashpot.fit import prepare_data
@@ -182,20 +183,10 @@ def _cart_times(trials):
 def cart_tables(trials, friction, speed_sigma, first_seed=FIRST_SEED):
     """Impact tables of cart trains (a_away = g_eff + f, a_toward = g_eff − f) with each
     impact's and rebound's speed measured (Gaussian error `speed_sigma`), one per seed."""
-    tables = []
-    for k in range(trials):
-        rng = np.random.default_rng(first_seed + k)
-        model = TrainModel(LAWS["constant"].bind(EPS),
-                           lambda v: track_flight(v, G_EFF + friction, G_EFF - friction))
-        drawn = model.simulate(BOUNCES, rng, start_time=0.0, start_speed=SPEED,
-                               process_sigma=SCATTER, jitter=TIMING)
-        count = drawn.times.size
-        tables.append(pd.DataFrame({
-            "time": drawn.times, "time_uncertainty": TIMING,
-            "impact_speed": drawn.impact_speeds + rng.normal(0.0, speed_sigma, count),
-            "rebound_speed": drawn.rebound_speeds + rng.normal(0.0, speed_sigma, count),
-            "speed_uncertainty": speed_sigma}))
-    return tables
+    return [measured_cart_run(np.random.default_rng(first_seed + k), eps=EPS, g_eff=G_EFF,
+                              friction=friction, bounces=BOUNCES, speed=SPEED,
+                              scatter=SCATTER, timing=TIMING, speed_sigma=speed_sigma)
+            for k in range(trials)]
 
 
 def friction_rungs(tables):
