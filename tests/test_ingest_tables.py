@@ -17,7 +17,7 @@ import pytest
 
 import dashpot
 from dashpot.errors import InputError
-from dashpot.ingest import IMPACT_COLUMNS
+from dashpot.ingest import IMPACT_COLUMNS, MOTION_SPEED_ERROR_COLUMNS
 from dashpot.ingest.tables import (read_motion_sensor, read_photogate, read_phyphox,
                                    read_timestamps, sniff_table)
 from dashpot.synth.tables import (write_motion_sensor, write_phyphox_collision,
@@ -48,8 +48,9 @@ def suffix(variant):
 
 
 def check_schema(frame, sensor):
-    # The motion sensor grades its impacts in a last 'flag' column; other readers do not.
-    flagged = ("flag",) if sensor == "motion_sensor" else ()
+    # The motion sensor states its speeds' correlated errors and grades its impacts in a last
+    # 'flag' column; other readers do neither.
+    flagged = MOTION_SPEED_ERROR_COLUMNS + ("flag",) if sensor == "motion_sensor" else ()
     assert tuple(frame.columns) == IMPACT_COLUMNS + flagged
     assert frame.attrs["sensor"] == sensor
     assert np.all(np.diff(frame["time"]) > 0) or frame["run"].nunique() > 1
@@ -302,7 +303,8 @@ def test_noisy_rest_gives_no_impact(tmp_path):
     pd.DataFrame({"Latest: Time (s)": t, "Latest: Position (m)": x,
                   "Latest: Velocity (m/s)": v}).to_csv(tmp_path / "rest.csv", index=False)
     frame = read_motion_sensor(tmp_path / "rest.csv")
-    assert len(frame) == 0 and tuple(frame.columns) == IMPACT_COLUMNS + ("flag",)
+    assert len(frame) == 0 and tuple(frame.columns) == (IMPACT_COLUMNS
+                                                        + MOTION_SPEED_ERROR_COLUMNS + ("flag",))
 
 
 def test_long_noisy_rest_tail_after_bouncing(tmp_path, stiff):

@@ -39,6 +39,7 @@ import numpy as np
 import pandas as pd
 
 from . import __version__
+from .ingest import FLIGHT_CORRELATION_COLUMN, is_speed_error_column
 from .atomic import atomic_path
 
 __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
@@ -354,8 +355,13 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
                 out.attrs["input_is_scene_recording"] = bool(
                     Path(input_path).resolve() == Path(recording).resolve())
         out.attrs["verdict"] = scene_fit.verdict
-        table = impacts[[c for c in IMPACT_UNITS if c in impacts]].reset_index(drop=True)
-        group = _table(out, "impacts", table, IMPACT_UNITS, IMPACT_DTYPES)
+        # The speeds' correlated errors where the reader states them (dashpot.ingest).
+        errors = [c for c in impacts.columns if is_speed_error_column(c)]
+        table = impacts[[c for c in IMPACT_UNITS if c in impacts] + errors].reset_index(
+            drop=True)
+        group = _table(out, "impacts", table, {
+            **IMPACT_UNITS, **{c: "1" if c == FLIGHT_CORRELATION_COLUMN else "m/s"
+                               for c in errors}}, IMPACT_DTYPES)
         group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
         # data.excluded counts rows of its own run only.
         run = impacts["run"].to_numpy() if "run" in impacts else np.zeros(len(table))

@@ -5,12 +5,14 @@ position of each impact in the predicted train and the measured speeds.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
 
 from ..bounces import bounce_table
-from .results import FitData
+from ..ingest import SHARED_SPEED_COLUMN
+from .results import FitData, SpeedErrors
 
 
 def prepare_data(impacts, scene):
@@ -38,7 +40,10 @@ def prepare_data(impacts, scene):
     shifts the later impacts by one place in the train. Impacts the motion reader flags
     ``inferred`` (column ``flag``) keep their place in the train but are not fitted; those
     flagged ``few_samples`` are fitted with their (larger) stated σ. Only the first run of a
-    multi-run file is fitted here (:func:`dashpot.fit.fit_runs` fits every run).
+    multi-run file is fitted here (:func:`dashpot.fit.fit_runs` fits every run). Where the
+    table states the speeds' correlated errors (the columns ``impact_speed_shared_<j>`` ...
+    of :mod:`dashpot.ingest`, a motion reader's) ``speed_errors`` holds them and the fits
+    weigh the speeds by that covariance; without those columns nothing changes.
     """
     table = impacts
     notes = []
@@ -115,6 +120,7 @@ def prepare_data(impacts, scene):
     if np.any(np.isfinite(column("impact_speed"))) and not np.any(has_speed):
         notes.append("measured speeds have no uncertainty: not used in the fit")
     rebound_speed = column("rebound_speed")
+    speed_errors = _speed_errors(table, keep, has_speed, speed_sigma, notes)
     origin = float(times[0])  # t - origin is exact for t up to twice the origin (Sterbenz)
     return FitData(times=times[keep] - origin, time_origin=origin, sigma=sigma[keep],
                    index=index,
@@ -123,7 +129,52 @@ def prepare_data(impacts, scene):
                                           rebound_speed, np.nan),
                    speed_sigma=np.where(has_speed, speed_sigma, np.nan), g=g,
                    sigma_known=sigma_known, excluded=np.flatnonzero(~keep), bounces=bounces,
-                   notes=notes)
+                   notes=notes, speed_errors=speed_errors)
+
+
+_SHARED_COLUMN = re.compile(SHARED_SPEED_COLUMN)
+
+
+def _speed_errors(table, keep, has_speed, speed_sigma, notes):
+    """The measured speeds' correlated errors (SpeedErrors) of the impacts kept, from the
+    table's columns of them (:mod:`dashpot.ingest`); None where it has no shared column.
+
+    A shared component missing where its speed is measured counts as 0. Without an
+    ``*_own`` column (or where it is missing) a speed's own σ is what its
+    ``speed_uncertainty`` leaves after the shared components, √(σ² − Σ_j s_j²); an own σ
+    is at least 1 % of ``speed_uncertainty`` (the covariance stays positive definite); a
+    ``flight_correlation`` is kept only where the next row is the next impact kept (a
+    left-out impact between them breaks the flight).
+    """
+    numbers = sorted({int(m.group(2)) for name in table.columns
+                      if (m := _SHARED_COLUMN.fullmatch(str(name)))})
+    if not numbers:
+        return None
+    count = int(keep.sum())
+
+    def values(name):
+        if name not in table:
+            return np.full(count, np.nan)
+        return table[name].to_numpy(float)[keep]
+
+    sigma = np.where(has_speed, speed_sigma, np.nan)
+    shared, own = {}, {}
+    for prefix in ("impact", "rebound"):
+        shared[prefix] = np.nan_to_num(np.column_stack(
+            [values(f"{prefix}_speed_shared_{j}") for j in numbers]))
+        left = np.sqrt(np.maximum(sigma ** 2 - np.sum(shared[prefix] ** 2, axis=1),
+                                  (0.01 * sigma) ** 2))
+        stated = values(f"{prefix}_speed_own")
+        own[prefix] = np.where(np.isfinite(stated), np.maximum(stated, 0.01 * sigma), left)
+    correlation = values("flight_correlation")
+    adjacent = np.append(np.diff(np.flatnonzero(keep)) == 1, False)
+    correlation = np.where(adjacent & np.isfinite(correlation), correlation, 0.0)
+    notes.append(f"measured speeds fitted with the errors the table states them to share "
+                 f"within the run ({len(numbers)} shared component(s), and one flight's "
+                 f"rebound and next impact speed)")
+    return SpeedErrors(shared_in=shared["impact"], shared_out=shared["rebound"],
+                       own_in=np.nan_to_num(own["impact"]),
+                       own_out=np.nan_to_num(own["rebound"]), correlation=correlation)
 
 
 def flight_notes(scene):

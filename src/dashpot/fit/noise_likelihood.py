@@ -44,11 +44,15 @@ observes the state after the bounce and the impact speed u_{n+1} the state after
 From the times alone friction (or drag) is degenerate with ε and v0, both making the
 intervals geometric; v_n and u_{n+1}, measured on either side of one flight, differ by the
 flight's loss alone. Each speed is taken at its stated σ and independent of the times and
-of the other speeds (a motion reader's impact time and the speeds on either side of a flight
-come from fits of the same samples, so they are in fact correlated; the table does not carry
-that). Such a filter evaluates the law and flight at every step (a dashpot model's collisions
-from the surrogate tables of the level) in a compiled loop per step: no step map is
-tabulated, and a scene without speeds takes the times-only filter above, unchanged.
+of the other speeds, unless the table states their correlated errors (a motion reader's
+speeds share the run's fitted leg accelerations and bumper position, and a flight's two
+speeds its parabola: :class:`dashpot.fit.results.SpeedErrors`): then the shared errors and
+each flight's own are states of the filter (:func:`_correlated_speed_filter`, exact for a
+linear Gaussian train). A motion reader's impact times and speeds also come from fits of the
+same samples and are in fact correlated; the table does not carry that. Such a filter
+evaluates the law and flight at every step (a dashpot model's collisions from the surrogate
+tables of the level) in a compiled loop per step: no step map is tabulated, and a scene
+without speeds takes the times-only filter above, unchanged.
 """
 
 from __future__ import annotations
@@ -59,7 +63,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from ..likelihood import TrainFilter, TrainModel, _finite_speed, _observe, _observe_time
+from ..likelihood import (LOG_TWO_PI, TrainFilter, TrainModel, _finite_speed, _observe,
+                          _observe_time)
 from ..physics.effects import FLIGHT_EFFECTS, flight_map, flight_track
 from ..physics.laws import LAWS
 from .accuracy import _trains_solver
@@ -148,7 +153,15 @@ class NoiseProblem:
         self.rebound_speed[~measured] = np.nan
         self.has_speeds = bool(np.any(np.isfinite(self.impact_speed))
                                or np.any(np.isfinite(self.rebound_speed)))
-        if self.has_speeds:
+        self.speed_errors = (self._speed_errors(datasets, count) if self.has_speeds and any(
+            d.speed_errors is not None for d in datasets) else None)
+        if self.speed_errors is not None:
+            self.notes.append(
+                "measured impact and rebound speeds used as observations of the filter's "
+                "state, with the errors the table states them to share within the run (the "
+                "shared errors and each flight's own as states of the filter; taken as "
+                "independent of the times)")
+        elif self.has_speeds:
             self.notes.append(
                 "measured impact and rebound speeds used as observations of the filter's "
                 "state, each with its stated sigma (taken as independent of the times and of "
@@ -177,6 +190,40 @@ class NoiseProblem:
         soft = np.isin(np.arange(len(self.names)), self.soft)
         self.step_lower = np.where(soft, self.lower, self.lower + margin)
         self.step_upper = np.where(soft, self.upper, self.upper - 1e-9 * span)
+
+    def _speed_errors(self, datasets, count):
+        """The arguments `errors` of :func:`_correlated_speed_filter` on the trains' grid.
+
+        A train without stated correlations has no shared component and its speeds' own
+        variances are their σ². A flight's own error (SpeedErrors.flight_correlation ρ,
+        own σ s_out of the rebound speed before it and s_in of the impact speed after it)
+        enters both as √|ρ|·s·w, the rest independent: their covariance is ρ·s_out·s_in. Only
+        between impacts next to each other on the grid (no missed impact between).
+        """
+        rank = max(d.speed_errors.shared_in.shape[1] for d in datasets
+                   if d.speed_errors is not None)
+        trains = len(datasets)
+        shared_in, shared_out = (np.zeros((trains, count, rank)) for _ in range(2))
+        flight_in, flight_out = (np.zeros((trains, count)) for _ in range(2))
+        in_variance, out_variance = self.speed_variance.copy(), self.speed_variance.copy()
+        for row, d in enumerate(datasets):
+            errors = d.speed_errors
+            if errors is None:
+                continue
+            index = d.index
+            width = errors.shared_in.shape[1]
+            shared_in[row, index, :width] = errors.shared_in
+            shared_out[row, index, :width] = errors.shared_out
+            rho = np.where(np.append(np.diff(index) == 1, False), errors.flight_correlation, 0.0)
+            root = np.sqrt(np.abs(rho))
+            after = errors.own_out * root
+            before = np.concatenate([[0.0], np.sign(rho[:-1]) * errors.own_in[1:] * root[:-1]])
+            flight_out[row, index], flight_in[row, index] = after, before
+            measured = np.isfinite(self.speed_variance[row, index])
+            in_variance[row, index] = np.where(measured, errors.own_in ** 2 - before ** 2, np.nan)
+            out_variance[row, index] = np.where(measured, errors.own_out ** 2 - after ** 2,
+                                                np.nan)
+        return shared_in, shared_out, flight_in, flight_out, in_variance, out_variance
 
     # --- layout ---------------------------------------------------------------------------
 
@@ -387,6 +434,12 @@ class NoiseProblem:
         step, a dashpot model's collisions exact or from the surrogate tables of `level`."""
         process, jitter = (np.exp(rows[:, self.index(n)]) for n in ("sigma_eps", "sigma_j"))
         timing_variance = self.detector[trains] ** 2 + jitter[:, None] ** 2
+        if self.speed_errors is not None:
+            return _correlated_speed_filter(
+                self.model(rows, broken, level), self.times[trains], timing_variance,
+                self.impact_speed[trains], self.rebound_speed[trains],
+                tuple(a[trains] for a in self.speed_errors), rows[:, self.index("v0")],
+                process)
         return _speed_filter(self.model(rows, broken, level), self.times[trains],
                              timing_variance, self.impact_speed[trains],
                              self.rebound_speed[trains], self.speed_variance[trains],
@@ -732,6 +785,206 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
         predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
         scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
         speed_scored=speed_scored)
+
+
+def _correlated_speed_filter(model, times, timing_variance, impact_speed, rebound_speed,
+                             errors, start_speed, process):
+    """The filter of :func:`_speed_filter` where the measured speeds' errors are correlated
+    as a motion reader states them (:class:`dashpot.fit.results.SpeedErrors`).
+
+    The state (t, u) is augmented with the run's shared errors z_1..z_r, constant states of
+    prior N(0, 1), and with the current flight's own error w, prior N(0, 1), drawn afresh
+    after each impact speed: the impact speed of impact n observes u + Σ_j a_nj·z_j + b_n·w
+    (w the flight before it) with independent noise of variance σ_in,n², its rebound speed
+    v + Σ_j c_nj·z_j + d_n·w (w the flight after it) with σ_out,n². For a linear Gaussian
+    train this is the exact likelihood (the augmented state's Kalman filter [1]_ §6.2.3: the
+    constant states are the regression effects of de Jong's augmentation); the step,
+    linearization and start are those of :func:`_speed_filter`, and with r = 0 and no own
+    correlation it computes what that does.
+
+    Parameters
+    ----------
+    model, times, timing_variance, impact_speed, rebound_speed, start_speed, process
+        As in :func:`_speed_filter`.
+    errors : tuple of ndarray
+        (shared_in, shared_out) of shape (batch, impacts, r): a_nj, c_nj in m/s;
+        (flight_in, flight_out) of shape (batch, impacts): b_n, d_n in m/s; (in_variance,
+        out_variance) of shape (batch, impacts): σ_in,n², σ_out,n² in m²/s² (NaN where the
+        speed is not measured).
+
+    Returns
+    -------
+    SpeedTrainFilter
+
+    References
+    ----------
+    .. [1] J. Durbin and S. J. Koopman, *Time Series Analysis by State Space Methods*, 2nd
+       ed., Oxford University Press (2012).
+    """
+    batch, count = times.shape
+    shared_in, shared_out = (np.ascontiguousarray(np.broadcast_to(
+        a, (batch, count, np.shape(a)[-1])), dtype=float) for a in errors[:2])
+    flight_in, flight_out, in_variance, out_variance = (
+        np.ascontiguousarray(np.broadcast_to(a, (batch, count)), dtype=float)
+        for a in errors[2:])
+    size = 3 + shared_in.shape[2]  # t, u, z_1..z_r, w
+    state = np.zeros((batch, size))
+    state[:, 0] = np.nan
+    state[:, 1] = start_speed
+    cov = np.zeros((batch, size, size))
+    cov[:, 2:, 2:] = np.eye(size - 2)
+    process = np.ascontiguousarray(np.broadcast_to(np.asarray(process, float), (batch,)))
+    anchored = np.zeros(batch, np.bool_)
+    total = np.zeros(batch)
+    broken = np.zeros(batch, np.bool_)
+    out = np.full((5, batch, count), np.nan)
+    scored = np.zeros((batch, count), np.bool_)
+    speed_out = np.full((2, batch, count, 2), np.nan)
+    speed_scored = np.zeros((batch, count, 2), np.bool_)
+    times, timing_variance, impact_speed, rebound_speed = (
+        np.ascontiguousarray(a, dtype=float)
+        for a in (times, timing_variance, impact_speed, rebound_speed))
+    for n in range(count):
+        _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_speed,
+                          shared_in, flight_in, in_variance, total, out, scored, speed_out,
+                          speed_scored)
+        speed, _ = _finite_speed(np.maximum(state[:, 1], 0.0))
+        rebound, rebound_slope = model.rebound(speed)
+        contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
+            model.contact_time(speed)
+        columns = np.empty((4, batch))
+        columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
+                                                          contact_slope)
+        _augmented_step(state, cov, columns, process, broken, True)
+        _augmented_speed(n, 1, state, cov, rebound_speed, shared_out, flight_out, out_variance,
+                         total, speed_out, speed_scored)
+        if n == count - 1:
+            break
+        flight = model.flight(np.maximum(state[:, 1], 0.0))
+        columns = np.empty((4, batch))
+        columns[0], columns[1], columns[2], columns[3] = (
+            flight.landing_speed, flight.landing_slope, flight.duration, flight.duration_slope)
+        _augmented_step(state, cov, columns, process, broken, False)
+    total = np.where(broken | np.isnan(total), np.inf, total)
+    return SpeedTrainFilter(
+        neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
+        predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
+        scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
+        speed_scored=speed_scored)
+
+
+@numba.njit(cache=True)
+def _augmented_update(x, p, h, noise, measured):
+    """Kalman update of the state `x` (covariance `p`, both in place) with a scalar
+    measurement h·x of variance `noise`; returns (innovation, its variance, −2 ln L term),
+    the term inf and the state unchanged where the innovation has no variance. Entries of x
+    where h is 0 do not enter the prediction (the diffuse start time is NaN until anchored)."""
+    size = x.size
+    predicted = 0.0
+    ph = np.zeros(size)
+    for i in range(size):
+        if h[i] != 0.0:
+            predicted += h[i] * x[i]
+            for j in range(size):
+                ph[j] += p[j, i] * h[i]
+    variance = noise
+    for i in range(size):
+        variance += h[i] * ph[i]
+    r = measured - predicted
+    if not variance > 0.0:
+        return r, variance, math.inf
+    for i in range(size):
+        x[i] += ph[i] / variance * r
+    for i in range(size):
+        for j in range(size):
+            p[i, j] -= ph[i] * ph[j] / variance
+    for i in range(size):  # what rounding may leave below 0 of a variance
+        p[i, i] = max(p[i, i], 0.0)
+    return r, variance, r * r / variance + math.log(variance) + LOG_TWO_PI
+
+
+@numba.njit(cache=True)
+def _augmented_speed(n, which, state, cov, speed, shared, flight, variance, total, speed_out,
+                     speed_scored):
+    """The measured speed of impact n (`which` 0: impact speed, 1: rebound speed) taken
+    into every row's augmented state: u + Σ_j shared_j·z_j + flight·w, noise `variance`."""
+    size = state.shape[1]
+    h = np.zeros(size)
+    for b in range(state.shape[0]):
+        measured, noise = speed[b, n], variance[b, n]
+        if not (math.isfinite(measured) and math.isfinite(noise)):
+            continue
+        h[:] = 0.0
+        h[1] = 1.0
+        for j in range(shared.shape[2]):
+            h[2 + j] = shared[b, n, j]
+        h[size - 1] = flight[b, n]
+        r, s, term = _augmented_update(state[b], cov[b], h, noise, measured)
+        speed_out[0, b, n, which], speed_out[1, b, n, which] = r, s
+        speed_scored[b, n, which] = True
+        total[b] += term
+
+
+@numba.njit(cache=True)
+def _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_speed, shared,
+                      flight, variance, total, out, scored, speed_out, speed_scored):
+    """Impact n of every row of :func:`_correlated_speed_filter`: its time (the diffuse start
+    anchored by the first observed one, as :func:`dashpot.likelihood._observe_time`), its
+    impact speed, then the flight's own error w drawn afresh for the flight after it."""
+    size = state.shape[1]
+    h = np.zeros(size)
+    h[0] = 1.0
+    for b in range(state.shape[0]):
+        out[2, b, n], out[3, b, n] = state[b, 0], state[b, 1]
+        y, timing = times[b, n], timing_variance[b, n]
+        if math.isfinite(y):
+            if anchored[b]:
+                r, s, term = _augmented_update(state[b], cov[b], h, timing, y)
+                out[0, b, n], out[1, b, n] = r, s
+                scored[b, n] = True
+                total[b] += term
+            else:
+                state[b, 0] = y
+                cov[b, 0, :] = 0.0
+                cov[b, :, 0] = 0.0
+                cov[b, 0, 0] = timing
+                anchored[b] = True
+    _augmented_speed(n, 0, state, cov, impact_speed, shared, flight, variance, total,
+                     speed_out, speed_scored)
+    for b in range(state.shape[0]):
+        out[4, b, n] = state[b, 1]
+        state[b, size - 1] = 0.0
+        cov[b, size - 1, :] = 0.0
+        cov[b, :, size - 1] = 0.0
+        cov[b, size - 1, size - 1] = 1.0
+
+
+@numba.njit(cache=True)
+def _augmented_step(state, cov, columns, process, broken, bounce):
+    """(t, u) → (t + D, S) of every row, linearized (∂/∂u: `columns` holding S, dS/du, D,
+    dD/du): the contact and bounce (`bounce`: S = R(u)(1 + η), the process noise entering,
+    D = τ(u)) or the flight (S = L(v), D = T(v)). A row whose step is not finite is marked
+    broken and carried on with the step put at 0."""
+    size = state.shape[1]
+    for b in range(state.shape[0]):
+        speed, slope, duration, duration_slope = (columns[0, b], columns[1, b], columns[2, b],
+                                                  columns[3, b])
+        if not (math.isfinite(state[b, 1]) and math.isfinite(speed) and math.isfinite(slope)
+                and math.isfinite(duration) and math.isfinite(duration_slope)):
+            broken[b] = True
+            speed = slope = duration = duration_slope = 0.0
+        p = cov[b]
+        for j in range(size):  # F·P, then (F·P)·Fᵀ
+            p[0, j] += duration_slope * p[1, j]
+            p[1, j] *= slope
+        for i in range(size):
+            p[i, 0] += duration_slope * p[i, 1]
+            p[i, 1] *= slope
+        if bounce:
+            kick = speed * process[b]
+            p[1, 1] += kick * kick
+        state[b, 0] += duration
+        state[b, 1] = speed
 
 
 @numba.njit(cache=True)

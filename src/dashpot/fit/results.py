@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+import scipy.linalg
 
 from ..scene import Scene
 
@@ -56,6 +57,9 @@ class FitData:
         Time of the first impact of the table in s, subtracted from `times`: the fit works
         with times since the first impact, so that a clock far from zero (Unix-epoch times
         near 1.7e9 s resolve only 0.24 µs) costs no precision in its arithmetic.
+    speed_errors : SpeedErrors or None
+        The measured speeds' correlated errors where the table states them (a motion
+        sensor's); None where it gives one independent σ per value (`speed_sigma`).
     """
 
     times: np.ndarray
@@ -70,6 +74,7 @@ class FitData:
     bounces: pd.DataFrame
     notes: list = field(default_factory=list)
     time_origin: float = 0.0
+    speed_errors: object = None
 
     @property
     def count(self):
@@ -81,9 +86,86 @@ class FitData:
         return bool(np.any(np.isfinite(self.impact_speed)))
 
     @functools.cached_property
+    def speed_whitening(self):
+        """W = L⁻¹ with L Lᵀ the covariance of the measured speeds' errors in the order the
+        fit's residuals take them (every measured impact speed, then every measured rebound
+        speed); None where the speeds' errors are independent (no `speed_errors`)."""
+        if self.speed_errors is None:
+            return None
+        return self.speed_errors.whitening(np.isfinite(self.impact_speed),
+                                           np.isfinite(self.rebound_speed))
+
+    @functools.cached_property
     def interval_flags(self):
         """The bounce table's flag of each interval (read once: every model's fit uses it)."""
         return self.bounces["flag"].to_numpy()
+
+
+FLIGHT_CORRELATION_LIMIT = 0.95
+"""Largest correlation of one flight's own errors a fit takes (5 % of each own variance kept
+independent; see SpeedErrors)."""
+
+
+@dataclass(frozen=True)
+class SpeedErrors:
+    """Correlated errors of one run's measured speeds, as a motion reader states them.
+
+    The error of the impact speed of impact n is Σ_j shared_in[n, j]·z_j + own_in[n]·e_n and
+    that of its rebound speed Σ_j shared_out[n, j]·z_j + own_out[n]·e'_n, with z_j ~ N(0, 1)
+    the run's shared errors (e.g. its fitted leg accelerations and bumper position) and the
+    own errors e, e' ~ N(0, 1) independent but for one flight's: e'_n (the rebound speed of
+    impact n) and e_{n+1} (the impact speed of the next) have correlation `correlation[n]`,
+    both being read from the parabola of the flight between them.
+
+    Attributes
+    ----------
+    shared_in, shared_out : ndarray, shape (impacts, r)
+        Speed shift in m/s per +1σ of each shared error (0 where it has none).
+    own_in, own_out : ndarray, shape (impacts,)
+        1σ of each speed's own error in m/s.
+    correlation : ndarray, shape (impacts,)
+        Correlation of own_out[n] with own_in[n + 1] (0 where none). Taken at most
+        FLIGHT_CORRELATION_LIMIT in size: to first order both speeds are √(2a·h) of the
+        flight's apex height h (a motion reader states 1), which would leave the speeds'
+        covariance singular and a fit weighing exactly the combinations in which the two
+        legs' fitted accelerations cancel.
+    """
+
+    shared_in: np.ndarray
+    shared_out: np.ndarray
+    own_in: np.ndarray
+    own_out: np.ndarray
+    correlation: np.ndarray
+
+    @property
+    def flight_correlation(self):
+        """`correlation` within ±FLIGHT_CORRELATION_LIMIT (see the class docstring)."""
+        return np.clip(self.correlation, -FLIGHT_CORRELATION_LIMIT, FLIGHT_CORRELATION_LIMIT)
+
+    def covariance(self, impact_rows, rebound_rows):
+        """Covariance (m²/s²) of the errors of the impact speeds at `impact_rows` then the
+        rebound speeds at `rebound_rows` (boolean masks over the impacts)."""
+        impact_rows, rebound_rows = np.asarray(impact_rows, bool), np.asarray(rebound_rows, bool)
+        shared = np.concatenate([self.shared_in[impact_rows], self.shared_out[rebound_rows]])
+        own = np.concatenate([self.own_in[impact_rows], self.own_out[rebound_rows]])
+        cov = shared @ shared.T + np.diag(own ** 2)
+        # Rebound speed n and impact speed n + 1: one flight's own error.
+        position_in = np.cumsum(impact_rows) - 1
+        position_out = int(impact_rows.sum()) + np.cumsum(rebound_rows) - 1
+        n = np.flatnonzero(rebound_rows[:-1] & impact_rows[1:] & (self.correlation[:-1] != 0))
+        pair = self.flight_correlation[n] * self.own_out[n] * self.own_in[n + 1]
+        cov[position_out[n], position_in[n + 1]] += pair
+        cov[position_in[n + 1], position_out[n]] += pair
+        return cov
+
+    def whitening(self, impact_rows, rebound_rows):
+        """W = L⁻¹, L the lower Cholesky factor of :meth:`covariance`: W·e has independent
+        unit-variance entries, and |W·e|² = eᵀC⁻¹e (generalized least squares)."""
+        cov = self.covariance(impact_rows, rebound_rows)
+        if cov.size == 0:
+            return np.zeros((0, 0))
+        factor = np.linalg.cholesky(cov)
+        return scipy.linalg.solve_triangular(factor, np.eye(cov.shape[0]), lower=True)
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,28 @@ column                 unit    meaning
                                placed where the flight before it must have ended)
 =====================  ======  =============================================================
 
+Optional columns of the speeds' correlated errors (the motion reader writes
+MOTION_SPEED_ERROR_COLUMNS, between ``run`` and ``flag``; a table without them has
+independent speed errors of σ ``speed_uncertainty``; NaN where the speed is not measured):
+
+============================  ====  ========================================================
+column                        unit  meaning
+============================  ====  ========================================================
+``impact_speed_shared_<j>``   m/s   shift of ``impact_speed`` per +1σ of the run's j-th
+                                    shared error (j = 1, 2, ...; the run's errors are
+                                    independent N(0, 1) and common to all its rows; the
+                                    motion reader's: its two fitted leg accelerations, as
+                                    two independent components, and its bumper position)
+``rebound_speed_shared_<j>``  m/s   the same for ``rebound_speed``
+``impact_speed_own``          m/s   1σ of the rest of ``impact_speed``'s error (without it:
+                                    what ``speed_uncertainty`` leaves after the shared
+                                    parts)
+``rebound_speed_own``         m/s   the same for ``rebound_speed``
+``flight_correlation``        1     correlation of this row's rebound-speed own error with
+                                    the next row's (same run) impact-speed own error: both
+                                    are read from the flight between them (empty: none)
+============================  ====  ========================================================
+
 ``DataFrame.attrs`` holds ``source`` (the file), ``sensor`` (the reader's kind) and ``notes``
 (a list of plain-words remarks, e.g. which time unit was inferred). Bad input raises
 :class:`dashpot.errors.InputError` naming the file, the row where it applies, and the problem.
@@ -29,6 +51,24 @@ IMPACT_COLUMNS = ("time", "time_uncertainty", "amplitude", "impact_speed", "rebo
                   "speed_uncertainty", "run")
 FLAG_COLUMN = "flag"
 """Optional last column of a reader that grades its impacts (the motion sensor's)."""
+SPEED_OWN_COLUMNS = ("impact_speed_own", "rebound_speed_own")
+FLIGHT_CORRELATION_COLUMN = "flight_correlation"
+SHARED_SPEED_COLUMN = r"(impact|rebound)_speed_shared_([1-9][0-9]*)"
+"""Regular expression of the shared-error columns (group 1 the speed, group 2 j)."""
+MOTION_SPEED_ERROR_COLUMNS = (
+    tuple(f"{speed}_speed_shared_{j}" for speed in ("impact", "rebound") for j in (1, 2, 3))
+    + SPEED_OWN_COLUMNS + (FLIGHT_CORRELATION_COLUMN,))
+"""The columns of the speeds' correlated errors the motion reader writes, in order, between
+``run`` and ``flag``."""
+
+
+def is_speed_error_column(name):
+    """True for a column of the speeds' correlated errors (this module's docstring)."""
+    import re
+
+    name = str(name)
+    return (name in SPEED_OWN_COLUMNS or name == FLIGHT_CORRELATION_COLUMN
+            or re.fullmatch(SHARED_SPEED_COLUMN, name) is not None)
 
 from pathlib import Path
 

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import InputError
-from . import FLAG_COLUMN, IMPACT_COLUMNS
+from . import FLAG_COLUMN, IMPACT_COLUMNS, is_speed_error_column
 
 TABLE_KINDS = ("phyphox", "timestamps", "motion_sensor", "photogate")
 """What :func:`sniff_table` can answer, and the ``sensor`` attribute of each reader's table."""
@@ -482,8 +482,10 @@ def _check_times(path, table, times, rows, what="time", unit=" s"):
 
 def _impact_frame(path, sensor, notes, time, time_uncertainty, *, amplitude=None,
                   impact_speed=None, rebound_speed=None, speed_uncertainty=None, run=None,
-                  flag=None):
-    """The impact table of dashpot.ingest, sorted by time, with its attrs."""
+                  flag=None, speed_errors=None):
+    """The impact table of dashpot.ingest, sorted by time, with its attrs; `speed_errors`
+    ({column: values}, the columns of the speeds' correlated errors a reader states) before
+    the flag (which stays last)."""
     n = np.asarray(time).size
     nan = np.full(n, np.nan)
     frame = pd.DataFrame({
@@ -495,6 +497,8 @@ def _impact_frame(path, sensor, notes, time, time_uncertainty, *, amplitude=None
         "speed_uncertainty": nan if speed_uncertainty is None else speed_uncertainty,
         "run": np.zeros(n, dtype=int) if run is None else np.asarray(run, dtype=int),
     }, columns=list(IMPACT_COLUMNS))
+    for name, values in (speed_errors or {}).items():
+        frame[name] = np.asarray(values, dtype=float)
     if flag is not None:
         frame[FLAG_COLUMN] = np.asarray(flag, dtype=object)
     frame = frame.sort_values(["time", "run"], kind="stable").reset_index(drop=True)
@@ -593,11 +597,13 @@ def sniff_table(path):
 
 
 def _impact_columns(table):
-    """{column of IMPACT_COLUMNS: index} for the headers that are exactly those names."""
+    """{column of IMPACT_COLUMNS (or FLAG_COLUMN, or a column of the speeds' correlated
+    errors): index} for the headers that are exactly those names."""
     found = {}
     for j, column in enumerate(table.columns or ()):
         key = column.header.strip().lower()
-        if key in (*IMPACT_COLUMNS, FLAG_COLUMN) and key not in found:
+        if ((key in (*IMPACT_COLUMNS, FLAG_COLUMN) or is_speed_error_column(key))
+                and key not in found):
             found[key] = j
     return found
 

@@ -151,9 +151,79 @@ def _crossing(a, c, b, cov, bumper, var_bumper, incoming):
     return tau, speed, np.sqrt(var_t), np.sqrt(var_v)
 
 
+SHARED_ERRORS = 3
+"""Shared errors of a run's speeds the motion reader states: its two leg accelerations (as
+two independent components) and its bumper position."""
+
+
+def _speed_gradient(a, c, b, bumper):
+    """Gradient of the speed V = √(b² + 2a·(B − c)) at the bumper [5]_ with respect to (a, c,
+    b) of the parabola at an edge, and ∂V/∂B (the derivatives of :func:`_crossing`)."""
+    distance = bumper - c
+    with np.errstate(invalid="ignore", divide="ignore"):
+        speed = np.sqrt(b ** 2 + 2.0 * a * distance)
+        return np.stack([distance / speed, -a / speed, b / speed], axis=-1), a / speed
+
+
+def _shared_components(gradient, covariance, shared, bumper_slope, bumper_sd):
+    """Split the errors of speeds fitted by least squares into run-level shared components
+    and the rest.
+
+    Parameters
+    ----------
+    gradient : ndarray, shape (m, p)
+        ∂v/∂θ of m speeds (m/s) with respect to the fit's p parameters θ.
+    covariance : ndarray, shape (p, p)
+        Covariance of θ.
+    shared : sequence of int
+        Indices of the parameters every speed of the run depends on (the leg accelerations);
+        the others are each flight's own.
+    bumper_slope : ndarray, shape (m,)
+        ∂v/∂B (1/s), B the bumper position, independent of θ with 1σ `bumper_sd` (m).
+
+    Returns
+    -------
+    components : ndarray, shape (m, len(shared) + 1)
+        Shift of each speed per +1σ of each shared error (m/s): the total derivative with
+        respect to the shared parameters, dv/ds = ∂v/∂s + ∂v/∂l·Σ_ls·Σ_ss⁻¹ (the flights' own
+        parameters l follow s as their conditional mean does), times the Cholesky factor of
+        Σ_ss; then ∂v/∂B·σ_B.
+    rest : ndarray, shape (m, m)
+        Covariance of what is left, J·Σ·Jᵀ + σ_B²·∂v/∂B ∂v/∂Bᵀ − components·componentsᵀ: the
+        flights' own errors given the shared parameters (Σ_ll − Σ_ls Σ_ss⁻¹ Σ_sl, block
+        diagonal by flight for flights that share nothing else), so speeds of different
+        flights have none of it in common.
+
+    Notes
+    -----
+    For a linear Gaussian model e = J·δθ, δθ ~ N(0, Σ): δθ_l = Σ_ls Σ_ss⁻¹ δθ_s + δ', δ'
+    independent of δθ_s with covariance Σ_ll − Σ_ls Σ_ss⁻¹ Σ_sl (the conditional Gaussian,
+    e.g. C. M. Bishop, *Pattern Recognition and Machine Learning*, Springer (2006), sec.
+    2.3.1).
+    """
+    gradient = np.nan_to_num(np.asarray(gradient, float))
+    shared = np.asarray(shared, dtype=int)
+    local = np.setdiff1d(np.arange(covariance.shape[0]), shared)
+    s_s = covariance[np.ix_(shared, shared)]
+    size = gradient.shape[0]
+    with np.errstate(all="ignore"):
+        try:
+            factor = np.linalg.cholesky(s_s)
+            follow = np.linalg.solve(s_s, covariance[np.ix_(shared, local)]).T  # Σ_ls Σ_ss⁻¹
+        except np.linalg.LinAlgError:  # a degenerate fit: nothing stated
+            return np.full((size, shared.size + 1), np.nan), np.full((size, size), np.nan)
+        total = gradient[:, shared] + gradient[:, local] @ follow
+        slope = np.nan_to_num(np.asarray(bumper_slope, float))
+        components = np.column_stack([total @ factor, slope * bumper_sd])
+        rest = (gradient @ covariance @ gradient.T + np.outer(slope, slope) * bumper_sd ** 2
+                - components @ components.T)
+    return components, rest
+
+
 def _motion_run(run, bumper_position, notes, legs):
     """Impacts of one run: arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag)."""
-    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
+    empty = (tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=str),)
+             + _no_speed_errors(0))
     full_time = run.time
     full_n = full_time.size
     if full_n < 12:
@@ -450,8 +520,8 @@ def _motion_run(run, bumper_position, notes, legs):
                 ratio += 2.0 * float(np.mean(residual[lag:][same] * residual[:-lag][same])
                                      / np.mean(residual ** 2))
         expand = result["expand"]
-        result["covariance"] = (max(ratio, 1.0) * result["variance"]
-                                * expand @ result["inverse"] @ expand.T)
+        result["scale"] = max(ratio, 1.0) * result["variance"]
+        result["covariance"] = result["scale"] * expand @ result["inverse"] @ expand.T
         result["outliers"] = int(outliers.sum())
         result["samples"] = np.bincount(seg, minlength=impacts + 1)
         result["first"] = np.full(impacts + 1, np.nan)
@@ -479,6 +549,13 @@ def _motion_run(run, bumper_position, notes, legs):
         The leg is the one the edge time falls on: toward the bumper after the apex (the
         reference of a two-leg fit), away from it before.
         """
+        ok, a, c, b, blocks, jac = edge_jacobian(result, segments, edge_times)
+        cov = result["covariance"][blocks[:, :, None], blocks[:, None, :]]
+        return ok, a, c, b, jac @ cov @ np.swapaxes(jac, 1, 2)
+
+    def edge_jacobian(result, segments, edge_times):
+        """(ok, a, c, b, blocks, jac) of each segment's leg at an edge time: `blocks` the
+        indices in theta of (a_leg, c, b) and `jac` ∂(a, c, b at the edge)/∂(those)."""
         usable, column, theta = result["usable"], result["column"], result["theta"]
         ok = usable[segments]
         col = np.clip(column[segments], 0, None)
@@ -489,12 +566,44 @@ def _motion_run(run, bumper_position, notes, legs):
         c = c0 + b0 * delta + 0.5 * a * delta ** 2
         b = b0 + a * delta
         blocks = np.stack([leg, 2 + 2 * col, 3 + 2 * col], axis=-1)
-        cov = result["covariance"][blocks[:, :, None], blocks[:, None, :]]
         jac = np.zeros((segments.size, 3, 3))
         jac[:, 0, 0] = 1.0
         jac[:, 1, 0], jac[:, 1, 1], jac[:, 1, 2] = 0.5 * delta ** 2, 1.0, delta
         jac[:, 2, 0], jac[:, 2, 2] = delta, 1.0
-        return ok, a, c, b, jac @ cov @ np.swapaxes(jac, 1, 2)
+        return ok, a, c, b, blocks, jac
+
+    def speed_errors(result, bumper, var_bumper):
+        """The error structure of each impact's measured speeds (see _shared_components).
+
+        Returns (shared_in, shared_out, own_in, own_out, pair): the shifts (m/s) of the impact
+        and rebound speeds per +1σ of the run's shared errors, shape (impacts,
+        SHARED_ERRORS) (the two leg accelerations, one component and a zero where the legs
+        share one, then the bumper position); the 1σ of each speed's own error; and the
+        covariance (m²/s²) of the own errors of impact k's rebound speed and impact k + 1's
+        impact speed, measured on one flight (NaN for the last impact).
+        """
+        k = np.arange(impacts)
+        expand = result["expand"]
+        n_acc = expand.shape[1] - (expand.shape[0] - 2)
+        rows, measured = [], []
+        for segments, edges in ((k, result["last"][k]), (k + 1, result["first"][k + 1])):
+            ok, a, c, b, blocks, jac = edge_jacobian(result, segments, edges)
+            measured.append(ok)
+            grad, slope = _speed_gradient(a, c, b, bumper)
+            row = np.zeros((impacts, expand.shape[0]))
+            np.add.at(row, (k[:, None], blocks), np.einsum("ki,kij->kj", grad, jac))
+            rows.append((np.where(ok[:, None], row, 0.0), np.where(ok, slope, 0.0)))
+        gradient = np.concatenate([rows[0][0], rows[1][0]]) @ expand
+        slope = np.concatenate([rows[0][1], rows[1][1]])
+        components, rest = _shared_components(gradient, result["scale"] * result["inverse"],
+                                              np.arange(n_acc), slope, np.sqrt(var_bumper))
+        if n_acc == 1:  # one acceleration for both legs: no second component
+            components = np.insert(components, 1, 0.0, axis=1)
+        measured = np.concatenate(measured)
+        components[~measured] = np.nan
+        own = np.where(measured, np.sqrt(np.maximum(np.diag(rest), 0.0)), np.nan)
+        pair = np.append(rest[impacts + k[:-1], k[1:]], np.nan)
+        return components[:impacts], components[impacts:], own[:impacts], own[impacts:], pair
 
     def crossings(result, bumper, var_bumper):
         """Contact start (incoming parabola reaches the bumper) and end (outgoing leaves it)."""
@@ -717,6 +826,7 @@ def _motion_run(run, bumper_position, notes, legs):
                      f"{orientation * bumper:.5g} m where the fitted trajectories meet (biased "
                      f"past the bumper by a long contact)")
     cross = crossings(result, bumper, var_bumper)
+    errors = speed_errors(result, bumper, var_bumper)
     resolved_count = int(is_impact.sum())
     a_away, a_toward = result["theta"][:2]
     sd_away, sd_toward = np.sqrt(np.diag(result["covariance"])[:2])
@@ -757,7 +867,8 @@ def _motion_run(run, bumper_position, notes, legs):
     speed_sd = np.where(np.isfinite(speed_sd), speed_sd, np.fmin(cross["sd_v_in"],
                                                                  cross["sd_v_out"]))
     contacts = (impact_time[timed], time_sd[timed], cross["v_in"][timed], cross["v_out"][timed],
-                speed_sd[timed], flags[timed])
+                speed_sd[timed], flags[timed]) + tuple(part[timed] for part in errors) + (
+                    k[timed],)
     # The train is built up to its last well-sampled reversal; after it the cart's smallest
     # bounces are timed better as excursions from the bumper (below), each flight fitted
     # whole, than by a reversal's one or two samples (a 2 mm error is 20 ms at 0.1 m/s).
@@ -768,7 +879,7 @@ def _motion_run(run, bumper_position, notes, legs):
         # The last bounces: too slow for a velocity reversal beyond the noise, but each still
         # an excursion from the bumper of two samples or more.
         tail = _tail_excursions(full_time, full_s, bumper, var_bumper, full_sigma_x, result,
-                                float(found[0][-1]))
+                                float(found[0][-1]), impacts + 1)
         if tail[0].size:
             notes.append(f"run '{label}': {tail[0].size} later contact(s) between excursions "
                          f"from the bumper of two or more samples, too slow for a velocity "
@@ -814,6 +925,14 @@ def _motion_run(run, bumper_position, notes, legs):
                              f"intervals (median interval ratio {ratio:.3f}), the train ends "
                              f"there")
                 found = tuple(a[:cut] for a in found)
+    # A flight's own error is shared by the rebound speed before it and the impact speed
+    # after it: stated only where the next contact is the one that flight ends at.
+    # Stated as the correlation of those two own errors.
+    origin, own_in, own_out = found[-1], found[8], found[9]
+    follows = np.append(origin[1:] == origin[:-1] + 1, False)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = np.clip(found[10] / (own_out * np.append(own_in[1:], np.nan)), -1.0, 1.0)
+    found = found[:10] + (np.where(follows, correlation, np.nan),)
     final_flags = found[5]
     inferred = int(np.sum(final_flags == "inferred"))
     if inferred:
@@ -829,7 +948,14 @@ def _motion_run(run, bumper_position, notes, legs):
     return found
 
 
-def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
+def _no_speed_errors(count):
+    """The speed-error arrays of `count` contacts that have none stated (see
+    _motion_run's speed_errors): shared components, own σ, flight pair covariance."""
+    return (np.full((count, SHARED_ERRORS), np.nan), np.full((count, SHARED_ERRORS), np.nan),
+            np.full(count, np.nan), np.full(count, np.nan), np.full(count, np.nan))
+
+
+def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after, origin=0):
     """Contacts after time `after` found as excursions of the position from the bumper.
 
     An excursion is a run of two or more consecutive samples more than 4σ short of the bumper
@@ -845,9 +971,13 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
     its parabola leaves the bumper and where it meets it (twice), so that no sample is fitted
     or left out for its own noise.
 
-    Returns arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag).
+    Returns arrays (time, σ_time, impact speed, rebound speed, σ_speed, flag), then the
+    speeds' error structure as _motion_run's speed_errors states it (the shared components on
+    the basis of the run's fit `fitted`: its leg accelerations, which every excursion's fit
+    takes as fixed, and the bumper position), and each contact's `origin` + its number.
     """
-    empty = tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=object),)
+    empty = (tuple(np.empty(0) for _ in range(5)) + (np.empty(0, dtype=object),)
+             + _no_speed_errors(0) + (np.empty(0, dtype=int),))
     margin = 4.0 * np.sqrt(sigma_x ** 2 + var_bumper)
     off = (s < bumper - margin) & (time > after)
     starts, ends, values = _runs_of(off.astype(np.int8))
@@ -871,10 +1001,10 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
         member = np.searchsorted(starts, rows, side="right") - 1
         n_k = np.bincount(member).astype(float)
 
-        def solve(apex):
+        def solve(apex, accelerations=(a_away, a_toward)):
             """Per excursion s − a_leg·τ²/2 = c + b·τ by least squares (closed form)."""
             tau = time[rows] - apex[member]
-            y = s[rows] - 0.5 * np.where(tau >= 0, a_toward, a_away) * tau ** 2
+            y = s[rows] - 0.5 * np.where(tau >= 0, accelerations[1], accelerations[0]) * tau ** 2
             st, stt = np.bincount(member, tau), np.bincount(member, tau ** 2)
             sy, sty = np.bincount(member, y), np.bincount(member, tau * y)
             det = n_k * stt - st ** 2
@@ -890,6 +1020,7 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
         *solution, residual = solve(apex)
         worst = np.zeros(starts.size)
         np.maximum.at(worst, member, np.abs(residual))
+        fit.solve = solve
         return apex, solution, worst
 
     for _ in range(4):  # split excursions that hold two flights (below)
@@ -969,8 +1100,74 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after):
     if not ok.all():  # a parabola that misses the bumper ends the tail there
         last = np.flatnonzero(~ok)[0]
         ok = np.arange(ok.size) < last
+    # The speeds' errors. Every excursion's fit takes the run's leg accelerations as fixed:
+    # its speeds follow them directly and through the refitted c and b (linear in them, so
+    # a central difference is exact up to rounding); the rest is each excursion's own (c,
+    # b), shared by the rebound speed before it and the impact speed after it.
+    solve = fit.solve
+
+    def contact_speeds(accelerations):
+        c_a, b_a, *_ = solve(apex, accelerations)
+        out = []
+        for k, edges, leg in ((k_in, time[ends[:-1]], 1), (k_in + 1, time[starts[1:]], 0)):
+            delta = edges - apex[k]
+            a = accelerations[leg]
+            ce = c_a[k] + b_a[k] * delta + 0.5 * a * delta ** 2
+            be = b_a[k] + a * delta
+            with np.errstate(invalid="ignore"):
+                out.append(np.sqrt(be ** 2 + 2.0 * a * (bumper - ce)))
+        return np.concatenate(out)
+
+    accelerations = np.array([a_away, a_toward])
+    total = np.zeros((2 * k_in.size, 2))
+    with np.errstate(all="ignore"):
+        for j in range(2):  # loop over the two leg accelerations
+            step = np.zeros(2)
+            step[j] = 1e-6 * np.max(np.abs(accelerations))
+            total[:, j] = ((contact_speeds(accelerations + step)
+                            - contact_speeds(accelerations - step)) / (2.0 * step[j]))
+    try:
+        factor = np.linalg.cholesky(fitted["scale"] * fitted["inverse"][:2, :2])
+    except np.linalg.LinAlgError:  # a degenerate fit: nothing stated
+        factor = np.full((2, 2), np.nan)
+    speeds = np.concatenate([v_in, v_out])
+    with np.errstate(all="ignore"):
+        components = np.column_stack([total @ factor,
+                                      np.repeat([a_toward, a_away], k_in.size) / speeds
+                                      * np.sqrt(var_bumper)])
+        # ∂v/∂c and ∂v/∂b of each excursion's own (c, b) about its apex.
+        delta = np.concatenate([time[ends[:-1]] - apex[k_in], time[starts[1:]] - apex[k_in + 1]])
+        b_edge = np.concatenate([b_in, b_out])
+        acc = np.concatenate([np.full(k_in.size, a_toward), np.full(k_in.size, a_away)])
+        g_c = -acc / speeds
+        g_b = (b_edge - acc * delta) / speeds
+        owner = np.concatenate([k_in, k_in + 1])
+        own_var = (g_c ** 2 * var_c[owner] + 2.0 * g_c * g_b * cov_cb[owner]
+                   + g_b ** 2 * var_b[owner])
+        half = k_in.size
+        # Impact j's rebound (excursion j + 1 at its start) and impact j + 1's impact speed
+        # (excursion j + 1 at its end).
+        out_c, out_b, in_c, in_b = g_c[half:-1], g_b[half:-1], g_c[1:half], g_b[1:half]
+        shared_exc = k_in[1:]
+        pair = np.append(out_c * in_c * var_c[shared_exc] + (out_c * in_b + out_b * in_c)
+                         * cov_cb[shared_exc] + out_b * in_b * var_b[shared_exc], np.nan)
+        own = np.sqrt(np.maximum(own_var, 0.0))
     return (impact[ok], sd_t[ok], v_in[ok], v_out[ok], np.fmax(sd_v_in, sd_v_out)[ok],
-            np.full(int(ok.sum()), "ok", dtype=object))
+            np.full(int(ok.sum()), "ok", dtype=object), components[:half][ok],
+            components[half:][ok], own[:half][ok], own[half:][ok], pair[ok],
+            origin + k_in[ok])
+
+
+def _speed_error_columns(shared_in, shared_out, own_in, own_out, correlation):
+    """The impact table's columns of the speeds' error structure (MOTION_SPEED_ERROR_COLUMNS
+    of :mod:`dashpot.ingest`) from the reader's arrays; NaN where a speed is not measured."""
+    columns = {}
+    for prefix, shared in (("impact_speed", shared_in), ("rebound_speed", shared_out)):
+        for j in range(shared.shape[1]):
+            columns[f"{prefix}_shared_{j + 1}"] = shared[:, j]
+    columns["impact_speed_own"], columns["rebound_speed_own"] = own_in, own_out
+    columns["flight_correlation"] = correlation
+    return columns
 
 
 def _chosen_track(path, table, runs, track):
@@ -1035,7 +1232,13 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         ``speed_uncertainty`` (the larger of the two), ``run`` the 0-based order of the run in
         the file (``notes`` map it to the run's label; every run is returned), and ``flag``:
         "ok", "few_samples" (fewer than two free-flight samples on a side of the reversal) or
-        "inferred" (a contact whose reversal the samples do not show). ``attrs
+        "inferred" (a contact whose reversal the samples do not show). The speeds' errors
+        are correlated, and the table states how (the columns of the speeds' correlated
+        errors of :mod:`dashpot.ingest`): a run's speeds share its fitted leg accelerations
+        and bumper position (``impact_speed_shared_1..3``, ``rebound_speed_shared_1..3``:
+        the two accelerations' independent components, then the bumper's), and a flight's
+        rebound speed and the next impact speed its parabola (``impact_speed_own``,
+        ``rebound_speed_own``, ``flight_correlation``); see Notes, step 8. ``attrs
         ['accelerations']`` lists per run the free-motion accelerations toward the bumper on
         the legs toward it and away from it (m/s², with 1σ).
 
@@ -1119,7 +1322,16 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     8. Speeds: each leg's slope at those crossings, √(b² + 2a·D) with D the distance left and
        a that leg's acceleration, so the impact speed of a bounce and the rebound speed of
        the one before are measured separately; 1σ by linear propagation of the fit covariance
-       and of the bumper position's uncertainty.
+       and of the bumper position's uncertainty. Every speed of a run depends on the run's
+       two accelerations, so their errors are shared (a run's impact speeds correlated by
+       about 0.9): each speed's total derivative with respect to them (the flights' own
+       parameters following as their conditional mean does), times the Cholesky factor of
+       their covariance, is stated per impact, with the bumper position's part and the
+       own σ that is left; the own errors of a flight's two speeds, both about √(2a·h) of
+       its apex height h, are correlated (``flight_correlation``, near 1). Speeds timed by
+       the excursions below take the accelerations as fixed; their shared parts follow
+       through each excursion's refit. Their stated error structure matches the scatter of
+       the speeds over noise draws (tests/test_speed_errors.py).
 
     Every reversal is reported. One whose incoming or outgoing flight has fewer than two free
     samples in the fit is flagged "few_samples" and timed by what it has: the incoming
@@ -1183,7 +1395,7 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
                                             and c.name in _POSITION_NAMES]) > 1:
             notes.append(f"run {number}: position read from column '{run.columns['column']}' "
                          f"(the coordinate that moves most)")
-    merged = [np.concatenate([p[q] for p in parts]) for q in range(7)]
+    merged = [np.concatenate([p[q] for p in parts]) for q in range(12)]
     counts = [p[0].size for p in parts]
     if max(counts) == 1:
         where = " in every run" if len(runs) > 1 else ""
@@ -1192,6 +1404,7 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
                                f"a bounce train needs at least two impacts")
     frame = _impact_frame(path, "motion_sensor", notes, merged[0], merged[1],
                           impact_speed=merged[2], rebound_speed=merged[3],
-                          speed_uncertainty=merged[4], flag=merged[5], run=merged[6])
+                          speed_uncertainty=merged[4], flag=merged[5], run=merged[11],
+                          speed_errors=_speed_error_columns(*merged[6:11]))
     frame.attrs["accelerations"] = legs
     return frame

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from . import AUDIO_SUFFIXES
+from . import (AUDIO_SUFFIXES, FLIGHT_CORRELATION_COLUMN, SPEED_OWN_COLUMNS,
+               is_speed_error_column)
 from ._tabular import (_TIME_NAMES, _UNCERTAINTY_NAMES, _check_duplicates, _check_times,
                        _impact_columns, _impact_frame, _is_impact_header, _kind_of,
                        _load_tables, _numbers, _unit_factor)
@@ -141,7 +142,8 @@ def read_timestamps(path, *, unit=None):
 # ---------------------------------------------------------------------------------------------
 
 # Columns that hold a magnitude or a 1σ: never negative.
-_NONNEGATIVE_COLUMNS = ("time_uncertainty", "impact_speed", "rebound_speed", "speed_uncertainty")
+_NONNEGATIVE_COLUMNS = ("time_uncertainty", "impact_speed", "rebound_speed", "speed_uncertainty",
+                        *SPEED_OWN_COLUMNS)
 
 
 def is_impact_table(path):
@@ -240,6 +242,12 @@ def _read_impact_table(path, table):
             k = int(np.flatnonzero(bad)[0])
             refuse(name, k, f"'{table.cells[k, columns[name]]}' is "
                             f"{'infinite' if np.isinf(value[k]) else 'negative'}")
+    if FLIGHT_CORRELATION_COLUMN in values:
+        bad = np.abs(values[FLIGHT_CORRELATION_COLUMN]) > 1.0
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            refuse(FLIGHT_CORRELATION_COLUMN, k, f"correlation "
+                   f"'{table.cells[k, columns[FLIGHT_CORRELATION_COLUMN]]}' is outside [-1, 1]")
     if "run" in columns:
         run = values["run"]
         bad = ~np.isfinite(run) | (run < 0) | (run != np.round(run))
@@ -275,4 +283,5 @@ def _read_impact_table(path, table):
                          impact_speed=values.get("impact_speed"),
                          rebound_speed=values.get("rebound_speed"),
                          speed_uncertainty=values.get("speed_uncertainty"), run=run,
-                         flag=flag)
+                         flag=flag, speed_errors={name: value for name, value in values.items()
+                                                  if is_speed_error_column(name)})
