@@ -200,7 +200,9 @@ def _write_fit(group, fit):
                         "varied": json.dumps(list(fit.varied)),
                         "notes": json.dumps(fit.notes)})
     _parameters_and_residuals(group, fit, "every residual of the fit divided by its 1-sigma: "
-                              "times, then measured impact and rebound speeds, then priors")
+                              "times, then measured impact and rebound speeds (whitened by "
+                              "their covariance where the table states the errors they "
+                              "share), then priors")
     _intervals_table(group, fit)
     _eps_curve(group, fit)
 

@@ -822,11 +822,14 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
        ed., Oxford University Press (2012).
     """
     batch, count = times.shape
-    shared_in, shared_out = (np.ascontiguousarray(np.broadcast_to(
-        a, (batch, count, np.shape(a)[-1])), dtype=float) for a in errors[:2])
-    flight_in, flight_out, in_variance, out_variance = (
-        np.ascontiguousarray(np.broadcast_to(a, (batch, count)), dtype=float)
-        for a in errors[2:])
+
+    def laid_out(a, shape):
+        a = np.asarray(a, dtype=float)
+        return np.ascontiguousarray(a if a.shape == shape else np.broadcast_to(a, shape))
+
+    shared_in, shared_out = (laid_out(a, (batch, count, np.shape(a)[-1])) for a in errors[:2])
+    flight_in, flight_out, in_variance, out_variance = (laid_out(a, (batch, count))
+                                                        for a in errors[2:])
     size = 3 + shared_in.shape[2]  # t, u, z_1..z_r, w
     state = np.zeros((batch, size))
     state[:, 0] = np.nan
@@ -844,10 +847,11 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
     times, timing_variance, impact_speed, rebound_speed = (
         np.ascontiguousarray(a, dtype=float)
         for a in (times, timing_variance, impact_speed, rebound_speed))
+    work = np.zeros((2, size))
     for n in range(count):
         _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_speed,
                           shared_in, flight_in, in_variance, total, out, scored, speed_out,
-                          speed_scored)
+                          speed_scored, work)
         speed, _ = _finite_speed(np.maximum(state[:, 1], 0.0))
         rebound, rebound_slope = model.rebound(speed)
         contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
@@ -855,16 +859,18 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
         columns = np.empty((4, batch))
         columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
                                                           contact_slope)
-        _augmented_step(state, cov, columns, process, broken, True)
-        _augmented_speed(n, 1, state, cov, rebound_speed, shared_out, flight_out, out_variance,
-                         total, speed_out, speed_scored)
+        _augmented_step(n, state, cov, columns, process, broken, True, rebound_speed,
+                        shared_out, flight_out, out_variance, total, speed_out, speed_scored,
+                        work)
         if n == count - 1:
             break
         flight = model.flight(np.maximum(state[:, 1], 0.0))
         columns = np.empty((4, batch))
         columns[0], columns[1], columns[2], columns[3] = (
             flight.landing_speed, flight.landing_slope, flight.duration, flight.duration_slope)
-        _augmented_step(state, cov, columns, process, broken, False)
+        _augmented_step(n, state, cov, columns, process, broken, False, rebound_speed,
+                        shared_out, flight_out, out_variance, total, speed_out, speed_scored,
+                        work)
     total = np.where(broken | np.isnan(total), np.inf, total)
     return SpeedTrainFilter(
         neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
@@ -874,19 +880,21 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
 
 
 @numba.njit(cache=True)
-def _augmented_update(x, p, h, noise, measured):
-    """Kalman update of the state `x` (covariance `p`, both in place) with a scalar
-    measurement h·x of variance `noise`; returns (innovation, its variance, −2 ln L term),
-    the term inf and the state unchanged where the innovation has no variance. Entries of x
-    where h is 0 do not enter the prediction (the diffuse start time is NaN until anchored)."""
-    size = x.size
+def _augmented_update(x, p, b, h, ph, noise, measured):
+    """Kalman update of row b's state x[b] (covariance p[b], both in place) with a scalar
+    measurement h·x[b] of variance `noise` (`ph` scratch space of the state's size); returns
+    (innovation, its variance, −2 ln L term), the term inf and the state unchanged where the
+    innovation has no variance. Entries of the state where h is 0 do not enter the
+    prediction (the diffuse start time is NaN until anchored)."""
+    size = x.shape[1]
     predicted = 0.0
-    ph = np.zeros(size)
+    for j in range(size):
+        ph[j] = 0.0
     for i in range(size):
         if h[i] != 0.0:
-            predicted += h[i] * x[i]
+            predicted += h[i] * x[b, i]
             for j in range(size):
-                ph[j] += p[j, i] * h[i]
+                ph[j] += p[b, j, i] * h[i]
     variance = noise
     for i in range(size):
         variance += h[i] * ph[i]
@@ -894,52 +902,51 @@ def _augmented_update(x, p, h, noise, measured):
     if not variance > 0.0:
         return r, variance, math.inf
     for i in range(size):
-        x[i] += ph[i] / variance * r
-    for i in range(size):
+        gain = ph[i] / variance
+        x[b, i] += gain * r
         for j in range(size):
-            p[i, j] -= ph[i] * ph[j] / variance
-    for i in range(size):  # what rounding may leave below 0 of a variance
-        p[i, i] = max(p[i, i], 0.0)
+            p[b, i, j] -= gain * ph[j]
+        p[b, i, i] = max(p[b, i, i], 0.0)  # what rounding may leave below 0 of a variance
     return r, variance, r * r / variance + math.log(variance) + LOG_TWO_PI
 
 
 @numba.njit(cache=True)
-def _augmented_speed(n, which, state, cov, speed, shared, flight, variance, total, speed_out,
-                     speed_scored):
+def _augmented_speed(n, which, b, state, cov, speed, shared, flight, variance, total,
+                     speed_out, speed_scored, work):
     """The measured speed of impact n (`which` 0: impact speed, 1: rebound speed) taken
-    into every row's augmented state: u + Σ_j shared_j·z_j + flight·w, noise `variance`."""
+    into row b's augmented state: u + Σ_j shared_j·z_j + flight·w, noise `variance`."""
+    measured, noise = speed[b, n], variance[b, n]
+    if not (math.isfinite(measured) and math.isfinite(noise)):
+        return
     size = state.shape[1]
-    h = np.zeros(size)
-    for b in range(state.shape[0]):
-        measured, noise = speed[b, n], variance[b, n]
-        if not (math.isfinite(measured) and math.isfinite(noise)):
-            continue
-        h[:] = 0.0
-        h[1] = 1.0
-        for j in range(shared.shape[2]):
-            h[2 + j] = shared[b, n, j]
-        h[size - 1] = flight[b, n]
-        r, s, term = _augmented_update(state[b], cov[b], h, noise, measured)
-        speed_out[0, b, n, which], speed_out[1, b, n, which] = r, s
-        speed_scored[b, n, which] = True
-        total[b] += term
+    h = work[0]
+    h[:] = 0.0
+    h[1] = 1.0
+    for j in range(shared.shape[2]):
+        h[2 + j] = shared[b, n, j]
+    h[size - 1] = flight[b, n]
+    r, s, term = _augmented_update(state, cov, b, h, work[1], noise, measured)
+    speed_out[0, b, n, which], speed_out[1, b, n, which] = r, s
+    speed_scored[b, n, which] = True
+    total[b] += term
 
 
 @numba.njit(cache=True)
 def _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_speed, shared,
-                      flight, variance, total, out, scored, speed_out, speed_scored):
+                      flight, variance, total, out, scored, speed_out, speed_scored, work):
     """Impact n of every row of :func:`_correlated_speed_filter`: its time (the diffuse start
     anchored by the first observed one, as :func:`dashpot.likelihood._observe_time`), its
     impact speed, then the flight's own error w drawn afresh for the flight after it."""
     size = state.shape[1]
-    h = np.zeros(size)
-    h[0] = 1.0
     for b in range(state.shape[0]):
         out[2, b, n], out[3, b, n] = state[b, 0], state[b, 1]
         y, timing = times[b, n], timing_variance[b, n]
         if math.isfinite(y):
             if anchored[b]:
-                r, s, term = _augmented_update(state[b], cov[b], h, timing, y)
+                h = work[0]
+                h[:] = 0.0
+                h[0] = 1.0
+                r, s, term = _augmented_update(state, cov, b, h, work[1], timing, y)
                 out[0, b, n], out[1, b, n] = r, s
                 scored[b, n] = True
                 total[b] += term
@@ -949,9 +956,8 @@ def _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_sp
                 cov[b, :, 0] = 0.0
                 cov[b, 0, 0] = timing
                 anchored[b] = True
-    _augmented_speed(n, 0, state, cov, impact_speed, shared, flight, variance, total,
-                     speed_out, speed_scored)
-    for b in range(state.shape[0]):
+        _augmented_speed(n, 0, b, state, cov, impact_speed, shared, flight, variance, total,
+                         speed_out, speed_scored, work)
         out[4, b, n] = state[b, 1]
         state[b, size - 1] = 0.0
         cov[b, size - 1, :] = 0.0
@@ -960,31 +966,33 @@ def _augmented_impact(n, state, cov, anchored, times, timing_variance, impact_sp
 
 
 @numba.njit(cache=True)
-def _augmented_step(state, cov, columns, process, broken, bounce):
+def _augmented_step(n, state, cov, columns, process, broken, bounce, speed, shared, flight,
+                    variance, total, speed_out, speed_scored, work):
     """(t, u) → (t + D, S) of every row, linearized (∂/∂u: `columns` holding S, dS/du, D,
-    dD/du): the contact and bounce (`bounce`: S = R(u)(1 + η), the process noise entering,
-    D = τ(u)) or the flight (S = L(v), D = T(v)). A row whose step is not finite is marked
-    broken and carried on with the step put at 0."""
+    dD/du): the contact and bounce of impact n (`bounce`: S = R(u)(1 + η), the process noise
+    entering, D = τ(u)), then its measured rebound speed; or the flight (S = L(v), D = T(v)).
+    A row whose step is not finite is marked broken and carried on with the step put at 0."""
     size = state.shape[1]
     for b in range(state.shape[0]):
-        speed, slope, duration, duration_slope = (columns[0, b], columns[1, b], columns[2, b],
+        value, slope, duration, duration_slope = (columns[0, b], columns[1, b], columns[2, b],
                                                   columns[3, b])
-        if not (math.isfinite(state[b, 1]) and math.isfinite(speed) and math.isfinite(slope)
+        if not (math.isfinite(state[b, 1]) and math.isfinite(value) and math.isfinite(slope)
                 and math.isfinite(duration) and math.isfinite(duration_slope)):
             broken[b] = True
-            speed = slope = duration = duration_slope = 0.0
-        p = cov[b]
+            value = slope = duration = duration_slope = 0.0
         for j in range(size):  # F·P, then (F·P)·Fᵀ
-            p[0, j] += duration_slope * p[1, j]
-            p[1, j] *= slope
+            cov[b, 0, j] += duration_slope * cov[b, 1, j]
+            cov[b, 1, j] *= slope
         for i in range(size):
-            p[i, 0] += duration_slope * p[i, 1]
-            p[i, 1] *= slope
-        if bounce:
-            kick = speed * process[b]
-            p[1, 1] += kick * kick
+            cov[b, i, 0] += duration_slope * cov[b, i, 1]
+            cov[b, i, 1] *= slope
         state[b, 0] += duration
-        state[b, 1] = speed
+        state[b, 1] = value
+        if bounce:
+            kick = value * process[b]
+            cov[b, 1, 1] += kick * kick
+            _augmented_speed(n, 1, b, state, cov, speed, shared, flight, variance, total,
+                             speed_out, speed_scored, work)
 
 
 @numba.njit(cache=True)
