@@ -227,6 +227,28 @@ def test_a_ring_burst_standing_in_for_an_impact_is_timed_at_the_impact_or_left_o
     assert retimed == {20: None, 21: None, 22: None, 23: None} and not added
 
 
+def test_a_late_impact_on_a_loose_trend_is_not_taken_for_a_secondary_of_the_predicted_one():
+    # Long first intervals (0.1-0.2 s) whose ratios scatter by 0.02: the trend places an
+    # impact to within 3 × 0.02 of its interval, some 7 ms. Impact 6 comes 9 ms late, 1.5 ms
+    # from "the ring's burst, 7.5 ms after the predicted impact", but an impact anywhere in
+    # that window fits the prediction about as well: a delay under twice the tolerance does
+    # not tell a secondary from the impact, and with no other onset near, it stays as timed.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(25))
+    timed = impacts.copy()
+    timed[6] += 9e-3
+    coefficients, _ = _robust_trend(impacts)
+    scatter = 0.02
+    tolerance = 3.0 * scatter * (impacts[6] - impacts[5]) + 0.2e-3
+    assert 9e-3 > tolerance > 0.5 * 7.5e-3 and abs(9e-3 - 7.5e-3) < tolerance
+
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False):
+        return None
+
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([7.5e-3]), silent, timed[-1] + 1.0)
+    assert 6 not in retimed
+
+
 def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     # The last sound of the train is the ring burst of the last impact, at the delay at which
     # the bursts of all impacts recur, which happens to be where the next bounce would come:

@@ -1308,7 +1308,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact may also rise over the quietest stretch before it, as any probed onset, at least
     1 ms after the burst's start.
     An impact coming later than its tolerance allows, at a secondary's delay after an earlier
-    impact or after the predicted time, is a ring's burst or an echo standing in for an
+    impact or after the predicted time (a delay more than twice the tolerance, so that the
+    prediction tells the two apart), is a ring's burst or an echo standing in for an
     impact that was passed over (it barely rose over the sound before it): the impact is
     probed at the predicted time and, found, replaces it; not found, it is left out (None).
     A sound at a secondary's delay that sets off the secondaries of an impact itself
@@ -1423,11 +1424,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     anchors[i + 1] = result[0]
             elif (origin[i + 1] >= 0 and following - predicted > tolerance
                     and (secondary(following, i) or np.any(
-                        (delays >= _CAUSE_DELAY_SECONDS[0])
+                        (delays >= _CAUSE_DELAY_SECONDS[0]) & (delays > 2.0 * tolerance)
                         & (np.abs(following - predicted - delays) <= tolerance)))):
                 # It comes late, at a secondary's delay after an earlier impact or after the
                 # predicted one (from 3 ms on: closer sounds are the impact's own first
-                # arrival): a ring's burst or an echo standing in for an impact that was
+                # arrival; and more than twice the tolerance, or the impact itself, anywhere
+                # in the tolerance, fits the prediction as well as a secondary of it: on the
+                # long first intervals the trend places an impact only to several ms):
+                # a ring's burst or an echo standing in for an impact that was
                 # passed over (it barely rose over the sound before it). The impact is looked
                 # for where the trend puts it; not found, the secondary is left out (a gap).
                 result = probe(predicted, tolerance)
