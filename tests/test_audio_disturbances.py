@@ -19,8 +19,9 @@ import pytest
 from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
-                                  _fill_impacts, _move_to_causes, _robust_trend,
+from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
+                                  _drop_trailing_secondaries, _fill_impacts,
+                                  _move_to_causes, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
@@ -150,6 +151,56 @@ def test_a_chain_of_ring_bursts_moves_back_onto_the_impacts():
     # impacts change from bounce to bounce.
     chain = np.searchsorted(times, impacts)
     np.testing.assert_array_equal(_shift_to_causes(times, chain), chain)
+
+
+def bursting_train(delay, level):
+    """Impacts shrinking by 0.9 from 0.2 s, fading by 3 % per bounce, each followed `delay`
+    (s) later by a burst `level` times as loud: all the transients' times (s) and amplitudes,
+    and the indices of the impacts among them."""
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    loudness = 0.5 * 0.97 ** np.arange(30)
+    times = np.concatenate([impacts, impacts + delay])
+    amplitude = np.concatenate([loudness, level * loudness])
+    order = np.argsort(times)
+    return times[order], amplitude[order], np.flatnonzero(order < impacts.size)
+
+
+def test_members_that_are_the_bursts_of_louder_sounds_left_out_move_onto_them():
+    # Impacts 3 and 4, on the long first intervals, were passed over for their bursts 7 ms
+    # later (0.8 times as loud), a few % off the trend that 0.15 s intervals give.
+    times, amplitude, impacts = bursting_train(7e-3, 0.8)
+    chain = impacts.copy()
+    chain[3:5] = impacts[3:5] + 1  # the burst follows its impact
+    np.testing.assert_array_equal(_back_to_louder_causes(times, amplitude, chain), impacts)
+    # The chain of the impacts themselves stays.
+    np.testing.assert_array_equal(_back_to_louder_causes(times, amplitude, impacts), impacts)
+
+
+def test_a_member_one_delay_after_the_burst_of_the_member_before_stays():
+    # Bursts 1.2 times as loud as their impact, half an interval late: impact 21 comes one
+    # burst delay after the burst of impact 20, a louder sound left out of the chain. That
+    # burst is impact 20's own secondary, not an impact passed over.
+    interval = 0.2 * 0.9**20
+    times, amplitude, impacts = bursting_train(0.5 * interval, 1.2)
+    np.testing.assert_array_equal(_back_to_louder_causes(times, amplitude, impacts), impacts)
+
+
+def test_a_burst_is_not_moved_onto_an_impact_the_member_before_already_stands_for():
+    # The chain took a sound 2 ms before impact 10 for it, and impact 10's burst for the next
+    # bounce. Moved onto impact 10, that member would be a second one for the same impact, 2 ms
+    # after the first: within the back-search time of a member, the polish weighs its options.
+    times, amplitude, impacts = bursting_train(7e-3, 0.8)
+    times = np.append(times, times[impacts[10]] - 2e-3)
+    amplitude = np.append(amplitude, 0.3 * amplitude[impacts[10]])
+    order = np.argsort(times)
+    times, amplitude = times[order], amplitude[order]
+    impacts = np.argsort(order)[impacts]
+    chain = impacts.copy()
+    chain[10] = impacts[10] - 1  # the sound before impact 10
+    chain[11] = impacts[10] + 1  # impact 10's burst
+    assert times[chain[10]] == times[impacts[10]] - 2e-3
+    assert times[chain[11]] == times[impacts[10]] + 7e-3
+    np.testing.assert_array_equal(_back_to_louder_causes(times, amplitude, chain), chain)
 
 
 def test_the_train_ends_before_an_interval_grows():

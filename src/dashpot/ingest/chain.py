@@ -183,7 +183,9 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     trend twice. Members that follow a transient left out at a recurring secondary delay are
     moved onto it where the trend says so (:func:`_move_to_causes`). Finally the chain is
     followed on (:func:`_extend_chain`) where the trend predicts further impacts, among all
-    transients, weak ones included.
+    transients, weak ones included. Last, members at a recurring secondary delay after a
+    louder transient left out, no louder than that secondary usually is, are moved onto it
+    (:func:`_back_to_louder_causes`).
 
     Returns
     -------
@@ -215,7 +217,72 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
                                    _secondary_delays(times, chain))
     chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
     chain = _move_to_causes(times, amplitude, chain)
+    chain = _back_to_louder_causes(times, amplitude, chain)
     return _drop_faint_between(amplitude, chain), skipped
+
+
+def _back_to_louder_causes(times, amplitude, chain):
+    """Chain with members that are the secondaries of louder sounds it left out moved onto them.
+
+    A ring's burst or an echo comes at a delay that recurs after every impact
+    (:func:`_secondary_delays`), at a level relative to its impact that recurs too
+    (:func:`_secondary_levels`). A member at such a delay (to 0.3 ms) after a transient left
+    out of the chain that is at least as loud as the member, the member being no louder than
+    twice that secondary's usual level times that transient, is that transient's secondary:
+    the chain took it where the impact itself was passed over (on the long first intervals,
+    where the trend barely tells 8 ms apart, or on a run of bursts late in the train), and the
+    transient replaces it. Left as they are: a transient within 3 ms after the member before
+    (that member's own first arrival or a sound on it, which :func:`_polish_chain` weighs),
+    and one that itself comes at a recurring delay after an earlier member, to the jitter of
+    two rough onsets (1 ms): it is that member's secondary, not an impact passed over, and the
+    member after it at twice the delay may be the next impact.
+
+    Parameters
+    ----------
+    times, amplitude : ndarray
+        Rough onsets (s, increasing) and amplitudes (full scale) of all the transients.
+    chain : ndarray of int
+        Indices of the chain's members, in time order.
+
+    Returns
+    -------
+    ndarray of int
+        The chain, in time order.
+    """
+    chain = np.asarray(chain)
+    if chain.size < 6:
+        return chain
+    delays = _secondary_delays(times, chain)
+    levels = _secondary_levels(times, amplitude, chain, delays)
+    # From 3 ms on: closer sounds are the impact's own first arrival, not a later secondary.
+    usable = np.isfinite(levels) & (delays >= _CAUSE_DELAY_SECONDS[0])
+    if not usable.any():
+        return chain
+    in_chain = np.zeros(times.size, dtype=bool)
+    in_chain[chain] = True
+    moved = chain.copy()
+    for position in range(1, chain.size):
+        member = chain[position]
+        previous = times[moved[position - 1]]
+        for delay, level in zip(delays[usable], levels[usable]):
+            lo, hi = np.searchsorted(times, [times[member] - delay - _CAUSE_TOLERANCE,
+                                             times[member] - delay + _CAUSE_TOLERANCE])
+            causes = np.arange(lo, hi)
+            causes = causes[~in_chain[causes]
+                            & (times[causes] - previous > _BACK_SEARCH_SECONDS)
+                            & (amplitude[causes] >= amplitude[member])
+                            & (amplitude[member] <= _SECONDARY_MARGIN * level
+                               * amplitude[causes])]
+            if causes.size:
+                # Not itself a secondary of an earlier member.
+                after = times[causes, None, None] - times[moved[:position]][None, :, None] \
+                    - delays[None, None, :]
+                causes = causes[np.abs(after).min(axis=(1, 2)) > _MOVE_TOLERANCE]
+            if causes.size:
+                moved[position] = causes[np.argmax(amplitude[causes])]
+                in_chain[moved[position]] = True
+                break
+    return np.sort(moved)
 
 
 def _chain_cost(times):
