@@ -20,7 +20,7 @@ from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
-                                  _drop_trailing_secondaries, _fill_impacts,
+                                  _drop_trailing_secondaries, _fill_impacts, _hidden_causes,
                                   _move_to_causes, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
@@ -201,6 +201,27 @@ def test_a_burst_is_not_moved_onto_an_impact_the_member_before_already_stands_fo
     assert times[chain[10]] == times[impacts[10]] - 2e-3
     assert times[chain[11]] == times[impacts[10]] + 7e-3
     np.testing.assert_array_equal(_back_to_louder_causes(times, amplitude, chain), chain)
+
+
+def test_the_burst_of_the_member_before_is_not_an_impact_hidden_under_it():
+    # Bursts 4 ms after each impact, 1.2 times as loud; the last impact comes two burst
+    # delays after the one before, so one delay before it lies that impact's own burst,
+    # where a hidden impact would start. The onset found there is the burst's: the last
+    # member stays an impact, and the others find no onset one delay before them.
+    delay = 4e-3
+    impacts = np.cumsum(0.05 * 0.9 ** np.arange(14))
+    impacts = np.append(impacts, impacts[-1] + 2 * delay)
+    bursts = impacts + delay
+    sounds = np.sort(np.concatenate((impacts, bursts)))
+    loudness = np.where(np.isin(sounds, bursts), 1.2, 1.0)
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(sounds, moment, tolerance, 1.2)
+
+    times, sigmas, _, _ = _hidden_causes(impacts, np.ones(impacts.size), np.array([delay]),
+                                         np.array([1.2]), sounds, loudness, probe)
+    np.testing.assert_array_equal(times, impacts)
+    assert np.isnan(sigmas).all()
 
 
 def test_the_train_ends_before_an_interval_grows():

@@ -61,6 +61,8 @@ _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough ons
 _SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
 _CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one delay before its burst
 _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
+_FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a secondary
+# of a fitted impact is that secondary's start (fitted onsets err by some 10-50 µs)
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 
@@ -920,9 +922,10 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
     secondary delay before it (within 0.5 ms), later than 1 ms after the member before it,
     at least half as loud as the impacts before, and loud enough for the member to be its
     secondary (the member at most twice the usual level of that secondary times the
-    onset's amplitude). Only where a transient at least half as loud as those impacts
-    started within 5 ms before is the file probed: a sound of that loudness on a quiet
-    stretch would have been found by the trigger.
+    onset's amplitude), and not within 0.1 ms of one recurring delay after the member before
+    (the fitted start of that member's own burst, ring or echo). Only where a transient at
+    least half as loud as those impacts started within 5 ms before is the file probed: a
+    sound of that loudness on a quiet stretch would have been found by the trigger.
 
     Parameters
     ----------
@@ -966,6 +969,11 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
                     or result[0] <= times[position - 1] + _MERGE_SECONDS
                     or result[2] < recent / _EXTENSION_LOUDNESS
                     or amplitudes[position] > _SECONDARY_MARGIN * level * result[2]):
+                continue
+            # An onset at a secondary's time after the member before is that secondary's own
+            # start (the burst, ring or echo of that member), not an impact hidden under it.
+            if np.abs(result[0] - times[position - 1]
+                      - delays[usable]).min() < _FITTED_SECONDARY_SECONDS:
                 continue
             times[position], sigmas[position], amplitudes[position], clipped[position] = result
             break
