@@ -65,6 +65,7 @@ _FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a
 # of a fitted impact is that secondary's start (fitted onsets err by some 10-50 µs)
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
+_COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,8 +307,10 @@ def _move_to_causes(times, amplitude, chain):
     may swell to 1.5 times its impact) is that transient's secondary where the impact itself
     was passed over, often for a run of bounces once the impacts grow quiet. The members so
     placed are moved together (a run of them fits the trend as well as the impacts inside
-    the run; only its ends tell), and kept moved if the chain's interval ratios then follow
-    their trend better (:func:`_chain_cost`); each moved member is then put back on its own
+    the run; only its ends tell), and kept moved unless the chain's interval ratios then
+    follow their trend worse (:func:`_chain_cost`) by more than the cost of one ratio one
+    scatter off it, ln(3/2): a tie goes to the causes, the onset of an impact being where
+    its first burst starts. Each moved member is then put back on its own
     where that fits better still (a true impact that happens to follow a secondary of an
     earlier one).
     """
@@ -341,7 +344,10 @@ def _move_to_causes(times, amplitude, chain):
             moved[position] = best
     if np.array_equal(moved, chain):
         return chain
-    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members):
+    # A tie goes to the causes: where the secondaries of the impacts hidden under the ones
+    # before them continue the run to the train's end, the run of members and the run of
+    # their causes each break the trend once, where they join the chain's impacts.
+    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members) + _COST_TIE:
         return chain
     for position in np.flatnonzero(moved != chain):
         trial = moved.copy()
