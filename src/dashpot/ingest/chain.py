@@ -50,6 +50,8 @@ _PROBE_RING_JUMP = 1.5  # a probed impact's power rises this much (1.8 dB) over 
 # it starts inside: an impact about as loud as the sound it lands on adds as much again (3 dB),
 # a fainter one less; the stream's separation of sounds (3 dB) stays stricter
 _PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
+_SECONDARY_RISE_SECONDS = 2e-3  # a probed onset this long after a ring or echo starts may be
+# on that sound's rise
 _CAUSE_DELAY_SECONDS = (_BACK_SEARCH_SECONDS, 0.2)  # of a ring's burst or an echo after its
 # impact; closer ones are the impact's own first arrival, which the rough onset looks back for
 _CAUSE_TOLERANCE = 0.3e-3  # s: the same delay after every impact, to the rough onsets' jitter
@@ -1394,7 +1396,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact that was passed over (it barely rose over the sound before it): the impact is
     probed at the predicted time and, found, replaces it; not found, it is left out (None).
     A sound at a secondary's delay that sets off the secondaries of an impact itself
-    (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
+    (:func:`_sets_off_secondaries`) is an impact. A probed onset less than 2 ms after a ring,
+    burst or echo of an earlier impact started (from 3 ms on) may be on that sound's own
+    rise: it is probed again past that start, and an onset of its own rising out of it, if
+    any, is taken instead. Where the whitened power shows no onset on
     time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
     impact starting on the loud burst or ring of the one before), past the start of that
     burst or ring where the first impulse found there is at a secondary's delay. An impact
@@ -1419,6 +1424,17 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if amplitude is not None:
             close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
         return bool(close.any())
+
+    def rising_secondary(moment, before):
+        # Start (s) of the latest ring, burst or echo of an earlier impact (from 3 ms on)
+        # that began less than 2 ms before `moment`, or None.
+        if delays.size == 0:
+            return None
+        starts = (np.asarray(anchors[:before + 1])[:, None]
+                  + delays[delays >= _CAUSE_DELAY_SECONDS[0]][None, :]).ravel()
+        starts = starts[(starts < moment - _PROBE_SECONDARY_SECONDS)
+                        & (starts > moment - _SECONDARY_RISE_SECONDS)]
+        return float(starts.max()) if starts.size else None
 
     def own(result):
         # A sound that sets off the secondaries of an impact is one.
@@ -1530,6 +1546,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             impact = accept(result, predicted, tolerance, impact=True) and own(result)
             if not impact:
                 result = peel(predicted, tolerance, result[0])
+        elif result is not None:
+            # An onset on the rise of a ring's burst or an echo that began shortly before:
+            # the impact, if there, rises out of that sound after its start.
+            start = rising_secondary(result[0], i)
+            if start is not None:
+                peeled = peel(predicted, tolerance, start)
+                if peeled is not None:
+                    result = peeled
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
