@@ -266,6 +266,24 @@ def test_an_impact_probed_on_the_rise_of_a_burst_is_timed_where_it_rises_out_of_
     assert [row[0] for row in added] == [impacts[18]]
 
 
+def test_a_burst_between_two_impacts_on_the_trend_is_left_out():
+    # Bursts recur 6.4 ms after the impacts; the burst of impact 20 was timed besides the
+    # impacts, and impact 21 comes 0.3 ms before the trend's time (within its tolerance),
+    # so that the burst is not followed by a missed or late impact: it is left out.
+    delay = 6.4e-3
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    impacts[21:] -= 0.3e-3
+    timed = np.sort(np.append(impacts, impacts[20] + delay))
+    coefficients, scatter = _robust_trend(impacts)
+
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return None
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([delay]), silent, timed[-1] + 1.0)
+    assert retimed == {21: None} and not added
+
+
 def test_the_train_ends_before_an_interval_grows():
     times = np.concatenate([np.cumsum(0.2 * 0.9 ** np.arange(20)), [0.0]])
     times[-1] = times[-2] + 1.1 * (times[-2] - times[-3])  # a click after the last bounce

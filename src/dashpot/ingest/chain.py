@@ -1390,6 +1390,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     told from the ring). Where a ring died down before the impact (a ring's short burst), the
     impact may also rise over the quietest stretch before it, as any probed onset, at least
     1 ms after the burst's start.
+    A sound off its prediction by more than the tolerance at a secondary's delay after an
+    earlier impact, followed by an impact within the tolerance of that prediction, is that
+    ring's burst or echo timed besides the impacts: it is left out.
     An impact coming later than its tolerance allows, at a secondary's delay after an earlier
     impact or after the predicted time (a delay more than twice the tolerance, so that the
     prediction tells the two apart), is a ring's burst or an echo standing in for an
@@ -1489,6 +1492,15 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             # an earlier impact, its onset is that of the ring or echo: time it again.
             following = anchors[i + 1]
             before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
+            if (origin[i + 1] >= 0 and i + 2 < len(anchors) and origin[i + 2] >= 0
+                    and abs(following - predicted) > tolerance
+                    and abs(before - predicted) <= tolerance and secondary(following, i)):
+                # A sound off the trend at a secondary's delay after an earlier impact, with
+                # the next impact on time right after it: that ring's burst or echo, in the
+                # train besides the impacts. It is left out, and the walk goes on.
+                retimed[origin[i + 1]] = None
+                del anchors[i + 1], loudness[i + 1], origin[i + 1]
+                continue
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
                     and following < predicted < before and secondary(following, i)):
                 result = peel(predicted, tolerance, following, before)
