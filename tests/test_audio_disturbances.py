@@ -284,6 +284,22 @@ def test_a_burst_between_two_impacts_on_the_trend_is_left_out():
     assert retimed == {21: None} and not added
 
 
+def test_a_sound_just_before_an_impact_on_the_trend_is_left_out():
+    # A sound 2.5 ms before impact 21, at no recurring delay, was timed besides the impacts:
+    # impact 21 is where the trend puts it, and two impacts 2.5 ms apart after a 19 ms
+    # bounce would make an interval ratio far below the bounds of successive bounces.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(30))
+    timed = np.sort(np.append(impacts, impacts[21] - 2.5e-3))
+    coefficients, scatter = _robust_trend(impacts)
+
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return None
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([6.4e-3]), silent, timed[-1] + 1.0)
+    assert retimed == {21: None} and not added
+
+
 def test_the_train_ends_before_an_interval_grows():
     times = np.concatenate([np.cumsum(0.2 * 0.9 ** np.arange(20)), [0.0]])
     times[-1] = times[-2] + 1.1 * (times[-2] - times[-3])  # a click after the last bounce

@@ -1390,9 +1390,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     told from the ring). Where a ring died down before the impact (a ring's short burst), the
     impact may also rise over the quietest stretch before it, as any probed onset, at least
     1 ms after the burst's start.
-    A sound off its prediction by more than the tolerance at a secondary's delay after an
-    earlier impact, followed by an impact within the tolerance of that prediction, is that
-    ring's burst or echo timed besides the impacts: it is left out.
+    A sound off its prediction by more than the tolerance, followed by an impact within the
+    tolerance of that prediction, is a sound besides the impacts where it comes at a
+    secondary's delay after an earlier impact (that ring's burst or echo) or too close before
+    that impact for both to be bounces (an interval ratio under 0.45): it is left out.
     An impact coming later than its tolerance allows, at a secondary's delay after an earlier
     impact or after the predicted time (a delay more than twice the tolerance, so that the
     prediction tells the two apart), is a ring's burst or an echo standing in for an
@@ -1494,10 +1495,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
             if (origin[i + 1] >= 0 and i + 2 < len(anchors) and origin[i + 2] >= 0
                     and abs(following - predicted) > tolerance
-                    and abs(before - predicted) <= tolerance and secondary(following, i)):
-                # A sound off the trend at a secondary's delay after an earlier impact, with
-                # the next impact on time right after it: that ring's burst or echo, in the
-                # train besides the impacts. It is left out, and the walk goes on.
+                    and abs(before - predicted) <= tolerance and (
+                        secondary(following, i) or before - following
+                        < _RATIO_BOUNDS[0] * (following - anchors[i]))):
+                # A sound off the trend with the next impact on time right after it, at a
+                # secondary's delay after an earlier impact (that ring's burst or echo) or too
+                # close before that impact for both to be bounces (their interval ratio under
+                # the bounds of successive bounces): a sound besides the impacts. It is left
+                # out, and the walk goes on.
                 retimed[origin[i + 1]] = None
                 del anchors[i + 1], loudness[i + 1], origin[i + 1]
                 continue
