@@ -300,6 +300,28 @@ def test_a_sound_just_before_an_impact_on_the_trend_is_left_out():
     assert retimed == {21: None} and not added
 
 
+def test_an_impact_timed_on_the_rise_of_a_burst_is_timed_again_where_it_rises_out_of_it():
+    # Bursts 6 ms after each impact. Impact 18 starts 1.5 ms into the burst of impact 17 and
+    # was timed 0.6 ms into that burst, on its rise (0.9 ms early, 0.3 ms from no recurring
+    # delay). Probed past the burst's start, the impact's own onset rises out of it.
+    delay = 6e-3
+    impacts = np.cumsum(0.05 * 0.9 ** np.arange(22))
+    timed = impacts.copy()
+    timed[18] = impacts[17] + delay + 0.6e-3
+    assert 0.8e-3 < impacts[18] - timed[18] < 1e-3
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        if not_before is None:
+            return onset_near(timed, predicted, tolerance)
+        later = impacts[impacts > not_before]
+        return onset_near(later, predicted, tolerance) if later.size else None
+
+    coefficients, scatter = _robust_trend(impacts)
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([delay]), probe, impacts[-1] + 1.0)
+    assert not added and sorted(retimed) == [18] and retimed[18][0] == impacts[18]
+
+
 def test_the_train_ends_before_an_interval_grows():
     times = np.concatenate([np.cumsum(0.2 * 0.9 ** np.arange(20)), [0.0]])
     times[-1] = times[-2] + 1.1 * (times[-2] - times[-3])  # a click after the last bounce

@@ -1400,10 +1400,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact that was passed over (it barely rose over the sound before it): the impact is
     probed at the predicted time and, found, replaces it; not found, it is left out (None).
     A sound at a secondary's delay that sets off the secondaries of an impact itself
-    (:func:`_sets_off_secondaries`) is an impact. A probed onset less than 2 ms after a ring,
-    burst or echo of an earlier impact started (from 3 ms on) may be on that sound's own
-    rise: it is probed again past that start, and an onset of its own rising out of it, if
-    any, is taken instead. Where the whitened power shows no onset on
+    (:func:`_sets_off_secondaries`) is an impact. A probed onset, or an impact's onset before
+    its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
+    started (from 3 ms on) may be on that sound's own rise: it is probed again past that
+    start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
+    later and closer to the predicted time), is taken instead. Where the whitened power shows no onset on
     time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
     impact starting on the loud burst or ring of the one before), past the start of that
     burst or ring where the first impulse found there is at a secondary's delay. An impact
@@ -1534,6 +1535,16 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 if result is None:
                     result = on_secondary(predicted, tolerance, following, before)
                 if result is not None:
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = result[0]
+            elif (origin[i + 1] >= 0 and following < predicted < before
+                    and rising_secondary(following, i) is not None):
+                # Its onset is on the rise of a ring's burst or an echo of an earlier impact
+                # that began shortly before it: timed again where an onset of its own, closer
+                # to the trend's time, rises out of that sound; kept as timed where none does.
+                result = peel(predicted, tolerance, rising_secondary(following, i), before)
+                if (result is not None and result[0] > following + _PROBE_SECONDARY_SECONDS
+                        and abs(result[0] - predicted) < abs(following - predicted)):
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = result[0]
             elif (origin[i + 1] >= 0 and following - predicted > tolerance
