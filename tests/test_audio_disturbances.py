@@ -322,6 +322,28 @@ def test_an_impact_timed_on_the_rise_of_a_burst_is_timed_again_where_it_rises_ou
     assert not added and sorted(retimed) == [18] and retimed[18][0] == impacts[18]
 
 
+def test_an_impact_at_a_secondary_delay_that_sets_off_its_own_secondary_stays():
+    # Bursts 6.5 ms after each impact. Impact 18 comes 1 ms before the trend's time, exactly
+    # one burst delay after impact 17: where the burst of impact 17 would be. No onset of its
+    # own rises out of that burst, but it sets off a burst 6.5 ms later, as every impact
+    # does: it is an impact, and stays as timed.
+    impacts = np.cumsum(0.05 * 0.9 ** np.arange(22))
+    timed = impacts.copy()
+    timed[18] = impacts[18] - 1e-3
+    delay = timed[18] - timed[17]
+    bursts = timed + delay
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        if not_before is not None:
+            return None  # nothing rises out of the burst
+        return onset_near(bursts if predicted_sound else timed, predicted, tolerance)
+
+    coefficients, scatter = _robust_trend(impacts)
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([delay]), probe, impacts[-1] + 1.0, np.array([1.0]))
+    assert 18 not in retimed
+
+
 def test_the_train_ends_before_an_interval_grows():
     times = np.concatenate([np.cumsum(0.2 * 0.9 ** np.arange(20)), [0.0]])
     times[-1] = times[-2] + 1.1 * (times[-2] - times[-3])  # a click after the last bounce

@@ -1398,7 +1398,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact or after the predicted time (a delay more than twice the tolerance, so that the
     prediction tells the two apart), is a ring's burst or an echo standing in for an
     impact that was passed over (it barely rose over the sound before it): the impact is
-    probed at the predicted time and, found, replaces it; not found, it is left out (None).
+    probed at the predicted time and, found, replaces it; not found, it is left out (None),
+    unless it sets off the secondaries of an impact itself, as is also required before an
+    impact off its prediction at a secondary's time is left out.
     A sound at a secondary's delay that sets off the secondaries of an impact itself
     (:func:`_sets_off_secondaries`) is an impact. A probed onset, or an impact's onset before
     its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
@@ -1522,9 +1524,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 # this impact. It is left out (None), a gap in the train for the fit to
                 # flag, rather than given the time the trend predicts, which would be
                 # circular evidence for the fit that follows; the prediction stays as an
-                # anchor for the next ones.
-                retimed[origin[i + 1]] = result
-                anchors[i + 1] = predicted if result is None else result[0]
+                # anchor for the next ones. A sound that sets off the secondaries of an
+                # impact is one, though (an impact one delay after the one before), and
+                # stays as timed.
+                if result is not None or not own((following, None, loudness[i + 1])):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = predicted if result is None else result[0]
             elif (origin[i + 1] >= 0 and following < predicted < before
                     and secondary(following, i)):
                 # On the trend, but its onset is that of a ring or an echo of an earlier
@@ -1562,8 +1567,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 result = probe(predicted, tolerance)
                 if not accept(result, predicted, tolerance, following):
                     result = None
-                retimed[origin[i + 1]] = result
-                anchors[i + 1] = predicted if result is None else result[0]
+                if result is not None or not own((following, None, loudness[i + 1])):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = predicted if result is None else result[0]
             i += 1
             continue
         result = probe(predicted, tolerance)
