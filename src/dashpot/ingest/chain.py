@@ -1374,7 +1374,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact (a fixed delay after it) was timed at the start of that secondary sound, which
     began just before it: it is probed again at the predicted time, past that start, and past
     each further secondary the probe finds (an echo may be followed by a ring before the
-    impact rises out of them); where no onset of its own rises out of them, the impact is
+    impact rises out of them), or else looked for as an impulse in the error of a predictor
+    of that sound, as below; where neither shows, the impact is
     reported missing (a gap), not placed at the predicted time. An impact within the tolerance
     whose onset is that of such a secondary (the sound began less than the tolerance before
     it) is timed again on an onset of its own rising out of it, where there is one, or else
@@ -1520,6 +1521,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     if (result is None or result[0] <= following + _MERGE_SECONDS
                             or not accept(result, predicted, tolerance, before)):
                         result = None
+                if result is None:
+                    # Or it is an impulse in the error of a predictor of that sound.
+                    result = on_secondary(predicted, tolerance, following, before)
                 # No onset of its own rises out of the ring or echo: the data do not time
                 # this impact. It is left out (None), a gap in the train for the fit to
                 # flag, rather than given the time the trend predicts, which would be
