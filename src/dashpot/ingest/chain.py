@@ -227,7 +227,7 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
 
 
 def _back_to_louder_causes(times, amplitude, chain):
-    """Chain with members that are the secondaries of louder sounds it left out moved onto them.
+    """Chain with members that are secondaries of louder sounds it left out moved onto those.
 
     A ring's burst or an echo comes at a delay that recurs after every impact
     (:func:`_secondary_delays`), at a level relative to its impact that recurs too
@@ -1407,10 +1407,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
     started (from 3 ms on) may be on that sound's own rise: it is probed again past that
     start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
-    later and closer to the predicted time), is taken instead. Where the whitened power shows no onset on
-    time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
-    impact starting on the loud burst or ring of the one before), past the start of that
-    burst or ring where the first impulse found there is at a secondary's delay. An impact
+    later and closer to the predicted time), is taken instead. Where the whitened power
+    shows no onset on time, the error of a predictor of the sound is probed too
+    (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
+    before), past the start of that burst or ring where the first impulse found there is at
+    a secondary's delay. An impact
     that is not found stays in the sequence as a predicted anchor, so that the predictions
     after it step over it; past the last impact two in a row end the search.
     """
