@@ -30,15 +30,20 @@ runs them over the file.
    are then swapped for nearby transients that fit the trend better; its last impacts are
    chosen again among all transients, weak ones included; and the chain is followed past its
    end where the trend, refitted on fitted onsets, predicts further impacts, leaving out
-   transients at the recurring delay of a ring or echo after an impact. Finally the trend,
-   refitted robustly on the timed impacts, is walked once more: where it predicts an impact
+   transients at the recurring delay of a ring or echo after an impact. Members at the
+   recurring delay of a ring's burst or an echo after a louder transient left out are then
+   moved onto it (:func:`_back_to_louder_causes`). Finally the trend, refitted robustly on
+   the timed impacts, is walked once more: where it predicts an impact
    that no transient marks (the last bounces, a few ms apart, barely rise over the decaying
    sound of the earlier ones) or an impact was timed at the start of a ring or echo
    beginning just before it, the file is read again around the predicted time and probed
    with a trigger measured against the quietest 0.5 ms before it, or against the ring or
-   echo since its start (:func:`_fill_impacts`); an impact whose onset does not rise out of
-   that ring or echo is left out (a gap the fit flags as a missed impact), never placed where
-   the trend predicts it: that would be circular evidence for the fit that follows.
+   echo since its start (:func:`_fill_impacts`; an onset less than 2 ms after a ring's burst
+   or an echo began may be on that sound's rise, and is probed again past its start); an
+   impact whose onset does not rise out of that ring or echo (nor shows in the error of a
+   linear predictor of it, below) is left out (a gap the fit flags as a missed impact), never
+   placed where the trend predicts it: that would be circular evidence for the fit that
+   follows.
    The train then ends before its intervals grow (:func:`_trim_growing_end`) and does not
    end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
    that is no louder than such a secondary (:func:`_drop_trailing_secondaries`), nor on one

@@ -50,6 +50,8 @@ _PROBE_RING_JUMP = 1.5  # a probed impact's power rises this much (1.8 dB) over 
 # it starts inside: an impact about as loud as the sound it lands on adds as much again (3 dB),
 # a fainter one less; the stream's separation of sounds (3 dB) stays stricter
 _PROBE_SECONDARY_SECONDS = 0.3e-3  # a probed onset this close to a ring or echo time is one
+_SECONDARY_RISE_SECONDS = 2e-3  # a probed onset this long after a ring or echo starts may be
+# on that sound's rise
 _CAUSE_DELAY_SECONDS = (_BACK_SEARCH_SECONDS, 0.2)  # of a ring's burst or an echo after its
 # impact; closer ones are the impact's own first arrival, which the rough onset looks back for
 _CAUSE_TOLERANCE = 0.3e-3  # s: the same delay after every impact, to the rough onsets' jitter
@@ -61,8 +63,11 @@ _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough ons
 _SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
 _CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one delay before its burst
 _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
+_FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a secondary
+# of a fitted impact is that secondary's start (fitted onsets err by some 10-50 µs)
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
+_COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
 
 
 # --------------------------------------------------------------------------------------------
@@ -183,7 +188,9 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     trend twice. Members that follow a transient left out at a recurring secondary delay are
     moved onto it where the trend says so (:func:`_move_to_causes`). Finally the chain is
     followed on (:func:`_extend_chain`) where the trend predicts further impacts, among all
-    transients, weak ones included.
+    transients, weak ones included. Last, members at a recurring secondary delay after a
+    louder transient left out, no louder than that secondary usually is, are moved onto it
+    (:func:`_back_to_louder_causes`).
 
     Returns
     -------
@@ -215,7 +222,72 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
                                    _secondary_delays(times, chain))
     chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
     chain = _move_to_causes(times, amplitude, chain)
+    chain = _back_to_louder_causes(times, amplitude, chain)
     return _drop_faint_between(amplitude, chain), skipped
+
+
+def _back_to_louder_causes(times, amplitude, chain):
+    """Chain with members that are secondaries of louder sounds it left out moved onto those.
+
+    A ring's burst or an echo comes at a delay that recurs after every impact
+    (:func:`_secondary_delays`), at a level relative to its impact that recurs too
+    (:func:`_secondary_levels`). A member at such a delay (to 0.3 ms) after a transient left
+    out of the chain that is at least as loud as the member, the member being no louder than
+    twice that secondary's usual level times that transient, is that transient's secondary:
+    the chain took it where the impact itself was passed over (on the long first intervals,
+    where the trend barely tells 8 ms apart, or on a run of bursts late in the train), and the
+    transient replaces it. Left as they are: a transient within 3 ms after the member before
+    (that member's own first arrival or a sound on it, which :func:`_polish_chain` weighs),
+    and one that itself comes at a recurring delay after an earlier member, to the jitter of
+    two rough onsets (1 ms): it is that member's secondary, not an impact passed over, and the
+    member after it at twice the delay may be the next impact.
+
+    Parameters
+    ----------
+    times, amplitude : ndarray
+        Rough onsets (s, increasing) and amplitudes (full scale) of all the transients.
+    chain : ndarray of int
+        Indices of the chain's members, in time order.
+
+    Returns
+    -------
+    ndarray of int
+        The chain, in time order.
+    """
+    chain = np.asarray(chain)
+    if chain.size < 6:
+        return chain
+    delays = _secondary_delays(times, chain)
+    levels = _secondary_levels(times, amplitude, chain, delays)
+    # From 3 ms on: closer sounds are the impact's own first arrival, not a later secondary.
+    usable = np.isfinite(levels) & (delays >= _CAUSE_DELAY_SECONDS[0])
+    if not usable.any():
+        return chain
+    in_chain = np.zeros(times.size, dtype=bool)
+    in_chain[chain] = True
+    moved = chain.copy()
+    for position in range(1, chain.size):
+        member = chain[position]
+        previous = times[moved[position - 1]]
+        for delay, level in zip(delays[usable], levels[usable]):
+            lo, hi = np.searchsorted(times, [times[member] - delay - _CAUSE_TOLERANCE,
+                                             times[member] - delay + _CAUSE_TOLERANCE])
+            causes = np.arange(lo, hi)
+            causes = causes[~in_chain[causes]
+                            & (times[causes] - previous > _BACK_SEARCH_SECONDS)
+                            & (amplitude[causes] >= amplitude[member])
+                            & (amplitude[member] <= _SECONDARY_MARGIN * level
+                               * amplitude[causes])]
+            if causes.size:
+                # Not itself a secondary of an earlier member.
+                after = times[causes, None, None] - times[moved[:position]][None, :, None] \
+                    - delays[None, None, :]
+                causes = causes[np.abs(after).min(axis=(1, 2)) > _MOVE_TOLERANCE]
+            if causes.size:
+                moved[position] = causes[np.argmax(amplitude[causes])]
+                in_chain[moved[position]] = True
+                break
+    return np.sort(moved)
 
 
 def _chain_cost(times):
@@ -237,8 +309,10 @@ def _move_to_causes(times, amplitude, chain):
     may swell to 1.5 times its impact) is that transient's secondary where the impact itself
     was passed over, often for a run of bounces once the impacts grow quiet. The members so
     placed are moved together (a run of them fits the trend as well as the impacts inside
-    the run; only its ends tell), and kept moved if the chain's interval ratios then follow
-    their trend better (:func:`_chain_cost`); each moved member is then put back on its own
+    the run; only its ends tell), and kept moved unless the chain's interval ratios then
+    follow their trend worse (:func:`_chain_cost`) by more than the cost of one ratio one
+    scatter off it, ln(3/2): a tie goes to the causes, the onset of an impact being where
+    its first burst starts. Each moved member is then put back on its own
     where that fits better still (a true impact that happens to follow a secondary of an
     earlier one).
     """
@@ -272,7 +346,10 @@ def _move_to_causes(times, amplitude, chain):
             moved[position] = best
     if np.array_equal(moved, chain):
         return chain
-    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members):
+    # A tie goes to the causes: where the secondaries of the impacts hidden under the ones
+    # before them continue the run to the train's end, the run of members and the run of
+    # their causes each break the trend once, where they join the chain's impacts.
+    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members) + _COST_TIE:
         return chain
     for position in np.flatnonzero(moved != chain):
         trial = moved.copy()
@@ -853,9 +930,10 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
     secondary delay before it (within 0.5 ms), later than 1 ms after the member before it,
     at least half as loud as the impacts before, and loud enough for the member to be its
     secondary (the member at most twice the usual level of that secondary times the
-    onset's amplitude). Only where a transient at least half as loud as those impacts
-    started within 5 ms before is the file probed: a sound of that loudness on a quiet
-    stretch would have been found by the trigger.
+    onset's amplitude), and not within 0.1 ms of one recurring delay after the member before
+    (the fitted start of that member's own burst, ring or echo). Only where a transient at
+    least half as loud as those impacts started within 5 ms before is the file probed: a
+    sound of that loudness on a quiet stretch would have been found by the trigger.
 
     Parameters
     ----------
@@ -899,6 +977,11 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
                     or result[0] <= times[position - 1] + _MERGE_SECONDS
                     or result[2] < recent / _EXTENSION_LOUDNESS
                     or amplitudes[position] > _SECONDARY_MARGIN * level * result[2]):
+                continue
+            # An onset at a secondary's time after the member before is that secondary's own
+            # start (the burst, ring or echo of that member), not an impact hidden under it.
+            if np.abs(result[0] - times[position - 1]
+                      - delays[usable]).min() < _FITTED_SECONDARY_SECONDS:
                 continue
             times[position], sigmas[position], amplitudes[position], clipped[position] = result
             break
@@ -1291,7 +1374,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact (a fixed delay after it) was timed at the start of that secondary sound, which
     began just before it: it is probed again at the predicted time, past that start, and past
     each further secondary the probe finds (an echo may be followed by a ring before the
-    impact rises out of them); where no onset of its own rises out of them, the impact is
+    impact rises out of them), or else looked for as an impulse in the error of a predictor
+    of that sound, as below; where neither shows, the impact is
     reported missing (a gap), not placed at the predicted time. An impact within the tolerance
     whose onset is that of such a secondary (the sound began less than the tolerance before
     it) is timed again on an onset of its own rising out of it, where there is one, or else
@@ -1307,15 +1391,27 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     told from the ring). Where a ring died down before the impact (a ring's short burst), the
     impact may also rise over the quietest stretch before it, as any probed onset, at least
     1 ms after the burst's start.
+    A sound off its prediction by more than the tolerance, followed by an impact within the
+    tolerance of that prediction, is a sound besides the impacts where it comes at a
+    secondary's delay after an earlier impact (that ring's burst or echo) or too close before
+    that impact for both to be bounces (an interval ratio under 0.45): it is left out.
     An impact coming later than its tolerance allows, at a secondary's delay after an earlier
-    impact or after the predicted time, is a ring's burst or an echo standing in for an
+    impact or after the predicted time (a delay more than twice the tolerance, so that the
+    prediction tells the two apart), is a ring's burst or an echo standing in for an
     impact that was passed over (it barely rose over the sound before it): the impact is
-    probed at the predicted time and, found, replaces it; not found, it is left out (None).
+    probed at the predicted time and, found, replaces it; not found, it is left out (None),
+    unless it sets off the secondaries of an impact itself, as is also required before an
+    impact off its prediction at a secondary's time is left out.
     A sound at a secondary's delay that sets off the secondaries of an impact itself
-    (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
-    time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
-    impact starting on the loud burst or ring of the one before), past the start of that
-    burst or ring where the first impulse found there is at a secondary's delay. An impact
+    (:func:`_sets_off_secondaries`) is an impact. A probed onset, or an impact's onset before
+    its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
+    started (from 3 ms on) may be on that sound's own rise: it is probed again past that
+    start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
+    later and closer to the predicted time), is taken instead. Where the whitened power
+    shows no onset on time, the error of a predictor of the sound is probed too
+    (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
+    before), past the start of that burst or ring where the first impulse found there is at
+    a secondary's delay. An impact
     that is not found stays in the sequence as a predicted anchor, so that the predictions
     after it step over it; past the last impact two in a row end the search.
     """
@@ -1337,6 +1433,17 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if amplitude is not None:
             close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
         return bool(close.any())
+
+    def rising_secondary(moment, before):
+        # Start (s) of the latest ring, burst or echo of an earlier impact (from 3 ms on)
+        # that began less than 2 ms before `moment`, or None.
+        if delays.size == 0:
+            return None
+        starts = (np.asarray(anchors[:before + 1])[:, None]
+                  + delays[delays >= _CAUSE_DELAY_SECONDS[0]][None, :]).ravel()
+        starts = starts[(starts < moment - _PROBE_SECONDARY_SECONDS)
+                        & (starts > moment - _SECONDARY_RISE_SECONDS)]
+        return float(starts.max()) if starts.size else None
 
     def own(result):
         # A sound that sets off the secondaries of an impact is one.
@@ -1391,6 +1498,19 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             # an earlier impact, its onset is that of the ring or echo: time it again.
             following = anchors[i + 1]
             before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
+            if (origin[i + 1] >= 0 and i + 2 < len(anchors) and origin[i + 2] >= 0
+                    and abs(following - predicted) > tolerance
+                    and abs(before - predicted) <= tolerance and (
+                        secondary(following, i) or before - following
+                        < _RATIO_BOUNDS[0] * (following - anchors[i]))):
+                # A sound off the trend with the next impact on time right after it, at a
+                # secondary's delay after an earlier impact (that ring's burst or echo) or too
+                # close before that impact for both to be bounces (their interval ratio under
+                # the bounds of successive bounces): a sound besides the impacts. It is left
+                # out, and the walk goes on.
+                retimed[origin[i + 1]] = None
+                del anchors[i + 1], loudness[i + 1], origin[i + 1]
+                continue
             if (origin[i + 1] >= 0 and abs(following - predicted) > tolerance
                     and following < predicted < before and secondary(following, i)):
                 result = peel(predicted, tolerance, following, before)
@@ -1402,13 +1522,19 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     if (result is None or result[0] <= following + _MERGE_SECONDS
                             or not accept(result, predicted, tolerance, before)):
                         result = None
+                if result is None:
+                    # Or it is an impulse in the error of a predictor of that sound.
+                    result = on_secondary(predicted, tolerance, following, before)
                 # No onset of its own rises out of the ring or echo: the data do not time
                 # this impact. It is left out (None), a gap in the train for the fit to
                 # flag, rather than given the time the trend predicts, which would be
                 # circular evidence for the fit that follows; the prediction stays as an
-                # anchor for the next ones.
-                retimed[origin[i + 1]] = result
-                anchors[i + 1] = predicted if result is None else result[0]
+                # anchor for the next ones. A sound that sets off the secondaries of an
+                # impact is one, though (an impact one delay after the one before), and
+                # stays as timed.
+                if result is not None or not own((following, None, loudness[i + 1])):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = predicted if result is None else result[0]
             elif (origin[i + 1] >= 0 and following < predicted < before
                     and secondary(following, i)):
                 # On the trend, but its onset is that of a ring or an echo of an earlier
@@ -1421,20 +1547,34 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 if result is not None:
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = result[0]
+            elif (origin[i + 1] >= 0 and following < predicted < before
+                    and rising_secondary(following, i) is not None):
+                # Its onset is on the rise of a ring's burst or an echo of an earlier impact
+                # that began shortly before it: timed again where an onset of its own, closer
+                # to the trend's time, rises out of that sound; kept as timed where none does.
+                result = peel(predicted, tolerance, rising_secondary(following, i), before)
+                if (result is not None and result[0] > following + _PROBE_SECONDARY_SECONDS
+                        and abs(result[0] - predicted) < abs(following - predicted)):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = result[0]
             elif (origin[i + 1] >= 0 and following - predicted > tolerance
                     and (secondary(following, i) or np.any(
-                        (delays >= _CAUSE_DELAY_SECONDS[0])
+                        (delays >= _CAUSE_DELAY_SECONDS[0]) & (delays > 2.0 * tolerance)
                         & (np.abs(following - predicted - delays) <= tolerance)))):
                 # It comes late, at a secondary's delay after an earlier impact or after the
                 # predicted one (from 3 ms on: closer sounds are the impact's own first
-                # arrival): a ring's burst or an echo standing in for an impact that was
+                # arrival; and more than twice the tolerance, or the impact itself, anywhere
+                # in the tolerance, fits the prediction as well as a secondary of it: on the
+                # long first intervals the trend places an impact only to several ms):
+                # a ring's burst or an echo standing in for an impact that was
                 # passed over (it barely rose over the sound before it). The impact is looked
                 # for where the trend puts it; not found, the secondary is left out (a gap).
                 result = probe(predicted, tolerance)
                 if not accept(result, predicted, tolerance, following):
                     result = None
-                retimed[origin[i + 1]] = result
-                anchors[i + 1] = predicted if result is None else result[0]
+                if result is not None or not own((following, None, loudness[i + 1])):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = predicted if result is None else result[0]
             i += 1
             continue
         result = probe(predicted, tolerance)
@@ -1445,6 +1585,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             impact = accept(result, predicted, tolerance, impact=True) and own(result)
             if not impact:
                 result = peel(predicted, tolerance, result[0])
+        elif result is not None:
+            # An onset on the rise of a ring's burst or an echo that began shortly before:
+            # the impact, if there, rises out of that sound after its start.
+            start = rising_secondary(result[0], i)
+            if start is not None:
+                peeled = peel(predicted, tolerance, start)
+                if peeled is not None:
+                    result = peeled
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
