@@ -249,6 +249,35 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     assert not retimed
 
 
+def test_a_last_impact_at_the_delay_of_an_earlier_ones_ring_is_judged_by_its_loudness():
+    # Bounces shrinking by 0.9, all equally loud, with a ring at 0.3 of its impact's loudness
+    # recurring after each at the sum of the last three intervals: the last impact, not
+    # timed yet, falls on the ring of the impact three bounces before it.
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(20))
+    timed = impacts[:-1]
+    coefficients, scatter = _robust_trend(timed)
+    delays, levels = np.array([impacts[-1] - impacts[-4]]), np.array([0.3])
+
+    def found(loudness):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False,
+                  expected=False):
+            if not_before is not None and not_before >= impacts[-1]:
+                return None  # nothing rises out of the sound past its own onset
+            return onset_near(impacts, predicted, tolerance, loudness)
+        added, _ = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter, delays,
+                                 probe, impacts[-1] + 1.0, levels)
+        return [row[0] for row in added]
+
+    # As loud as the impacts before it: more than twice what the ring is, so no ring.
+    np.testing.assert_allclose(found(0.95), [impacts[-1]])
+    # As faint as that ring may be: it may be the ring, and is left out.
+    assert found(0.5) == []
+    # One delay after the impact just before it, a sound however loud is that impact's ring
+    # burst or echo: no impact follows it to tell them apart.
+    delays = np.array([impacts[-1] - impacts[-2]])
+    assert found(0.95) == []
+
+
 def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():
     # A rattle 1.3 ms after each impact recurs (the real bouncy-ball drop); the last impact
     # comes 1.5 ms later than the trend predicts, 0.2 ms from "the rattle of the predicted

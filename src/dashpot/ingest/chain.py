@@ -1312,7 +1312,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact that was passed over (it barely rose over the sound before it): the impact is
     probed at the predicted time and, found, replaces it; not found, it is left out (None).
     A sound at a secondary's delay that sets off the secondaries of an impact itself
-    (:func:`_sets_off_secondaries`) is an impact. Where the whitened power shows no onset on
+    (:func:`_sets_off_secondaries`) is an impact. Past the last impact, where no onset of its
+    own rises out of such a sound, the sound itself is an impact if it is louder than twice
+    what the secondary usually is after an impact two or more bounces before it (the sums of
+    the last intervals span the recurring delays closely, and the last impacts are about as
+    loud as the ones before them; the check the end of the train gets,
+    :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
+    impact's ring burst or echo, however loud. Where the whitened power shows no onset on
     time, the error of a predictor of the sound is probed too (``predicted_sound=True``: an
     impact starting on the loud burst or ring of the one before), past the start of that
     burst or ring where the first impulse found there is at a secondary's delay. An impact
@@ -1324,19 +1330,37 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         np.isfinite(levels), levels, np.inf)  # unknown level: any loudness
     anchors, loudness = list(times), list(amplitudes)
     origin = list(range(len(anchors)))  # index into `times`, or -1 for a predicted anchor
+    heard = [True] * len(anchors)  # a sound timed there (False: a predicted time stands in)
     # From the fourth impact on, each one is predicted from the three intervals before it.
     added, retimed, i, missing = [], {}, 3, 0
 
-    def secondary(moment, before, amplitude=None):
-        # At a recurring delay after an earlier impact (and, given the sound's `amplitude`,
-        # no louder than that secondary usually is after its impact).
+    def secondary(moment, before, amplitude=None, margin=1.0, first=0):
+        # At a recurring delay after an earlier impact (from index `first` on; and, given
+        # the sound's `amplitude`, no louder than `margin` times what that secondary usually
+        # is after its impact).
         if delays.size == 0:
             return False
-        earlier = np.asarray(anchors[:before + 1])
+        earlier = np.asarray(anchors[first:before + 1])
         close = np.abs(moment - earlier[:, None] - delays[None, :]) < _PROBE_SECONDARY_SECONDS
         if amplitude is not None:
-            close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
+            close &= amplitude <= (margin * np.asarray(loudness[first:before + 1])[:, None]
+                                   * usual[None, :])
         return bool(close.any())
+
+    def beyond():
+        # Past the last impact: the sums of the last intervals, a few ms each, span the
+        # recurring delays closely, so a true last impact often falls within 0.3 ms of a
+        # secondary's delay after an earlier one. There the delay alone does not make a sound
+        # a secondary of an impact two or more bounces before it: one louder than twice that
+        # secondary's usual level is no ring or echo of that impact (the test the end of the
+        # train gets, :func:`_drop_trailing_secondaries`). One delay after the impact just
+        # before it, the sound is that impact's ring burst or echo, however loud (a ring's
+        # burst may swell louder than its impact): no impact follows to tell them apart.
+        return i + 1 >= len(anchors)
+
+    def last_heard():
+        # The last impact timed up to the current one (predicted times stand in for others).
+        return max(k for k in range(i + 1) if heard[k])
 
     def own(result):
         # A sound that sets off the secondaries of an impact is one.
@@ -1353,7 +1377,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         return (result is not None and abs(result[0] - predicted) <= tolerance
                 and anchors[i] < result[0] < before
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
-                and (impact or not secondary(result[0], i, result[2] if bounded else None)))
+                and (impact or not (
+                    (secondary(result[0], last_heard() - 1, result[2], _SECONDARY_MARGIN)
+                     or secondary(result[0], i, first=last_heard())) if beyond()
+                    else secondary(result[0], i, result[2] if bounded else None))))
 
     def peel(predicted, tolerance, onset, before=None):
         # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
@@ -1409,6 +1436,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 # anchor for the next ones.
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
+                heard[i + 1] = result is not None
             elif (origin[i + 1] >= 0 and following < predicted < before
                     and secondary(following, i)):
                 # On the trend, but its onset is that of a ring or an echo of an earlier
@@ -1435,6 +1463,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     result = None
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
+                heard[i + 1] = result is not None
             i += 1
             continue
         result = probe(predicted, tolerance)
@@ -1444,7 +1473,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 bounded and accept(result, predicted, tolerance, bounded=True)):
             impact = accept(result, predicted, tolerance, impact=True) and own(result)
             if not impact:
-                result = peel(predicted, tolerance, result[0])
+                # Past the last impact, a sound with no onset of its own rising out of the
+                # secondary it starts on is judged itself, by its loudness (`accept`).
+                first, result = result, peel(predicted, tolerance, result[0])
+                if result is None and beyond():
+                    result = first
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
@@ -1457,6 +1490,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
+            heard.insert(i + 1, True)
             loudness.insert(i + 1, result[2])
             missing = 0
         else:
@@ -1466,6 +1500,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     break
             # Not found: the predicted time stands in for it as an anchor.
             anchors.insert(i + 1, predicted)
+            heard.insert(i + 1, False)
             loudness.insert(i + 1, loudness[i])
         origin.insert(i + 1, -1)
         i += 1
