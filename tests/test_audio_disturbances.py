@@ -21,7 +21,8 @@ from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
                                   _fill_impacts, _move_to_causes, _robust_trend,
-                                  _secondary_levels, _shift_to_causes, _trim_growing_end)
+                                  _secondary_levels, _shift_to_causes, _trend_step,
+                                  _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -247,6 +248,22 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([burst + 1e-3]), silent, timed[-1] + 1.0)
     assert not retimed
+
+
+def test_a_trend_stepped_outside_its_intervals_stays_within_the_ratio_bounds(tmp_path):
+    # A parabola fitted on a chain that scatters widely (log ratio 3.5 + 2.3 ln T + 0.3 ln² T)
+    # gives absurd ratios away from its intervals: exp(22) at 0.15 s, past float range at 1 s.
+    step = _trend_step(np.array([0.305, 2.305, 3.524]), 7e-4)
+    for interval in (0.15, 1.0, 3.0, 1e-4):
+        assert 0.45 * interval <= step(interval) <= 1.2 * interval
+    # A train whose chain came out like that (seed 20271148, never tuned on) crashed the
+    # search for the impacts the trend predicts with an OverflowError.
+    samples, _, _ = disturbed_train(20271148)
+    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
+    try:
+        detect_impacts(path)
+    except InputError:
+        pass  # refusing such a chain as no bounce train is an answer too
 
 
 def test_a_last_impact_at_the_delay_of_an_earlier_ones_ring_is_judged_by_its_loudness():

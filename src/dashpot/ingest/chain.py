@@ -529,8 +529,12 @@ def _trend_step(coefficients, shortest):
     """Function giving the next interval (s) from an interval (s) under the ratio trend.
 
     Below the `shortest` interval (s) of the chain the trend is continued along its tangent:
-    a parabola fitted to the longer intervals can bend away fast outside them.
+    a parabola fitted to the longer intervals can bend away fast outside them. The ratio it
+    gives is held within the bounds of successive bounces (:data:`_RATIO_BOUNDS`), which
+    every step of the chain obeys: fitted on a chain that scatters widely, the curve can run
+    off to any ratio away from its intervals (and overflow).
     """
+    log_lo, log_hi = (log(bound) for bound in _RATIO_BOUNDS)
     edge = float(np.log(shortest))
     edge_value = float(np.polyval(coefficients, edge))
     edge_slope = float(np.polyval(np.polyder(coefficients), edge))
@@ -544,7 +548,7 @@ def _trend_step(coefficients, shortest):
             log_ratio = 0.0
             for term in terms:  # Horner's scheme, as np.polyval
                 log_ratio = log_ratio * log_interval + term
-        return interval * exp(log_ratio)
+        return interval * exp(min(max(log_ratio, log_lo), log_hi))
 
     return step
 
