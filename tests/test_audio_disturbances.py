@@ -295,6 +295,24 @@ def test_a_last_impact_at_the_delay_of_an_earlier_ones_ring_is_judged_by_its_lou
     assert found(0.95) == []
 
 
+def test_anchors_jammed_inside_the_train_do_not_end_the_search_for_its_last_impacts():
+    # Bounces shrinking by 0.9; impact 10 is followed by three sounds 1.05 ms apart (a rattle
+    # taken among the impacts), and the last impact has no onset timed yet. The trend stepped
+    # on from the rattle's intervals predicts none longer than the merge window, which only
+    # past the last impact ends the train: the search goes on to the last impact.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(25))
+    rattle = impacts[10] + 1.05e-3 * np.arange(1, 4)
+    timed = np.sort(np.concatenate([impacts[:-1], rattle]))
+    coefficients, scatter = _robust_trend(impacts[:-1])
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(impacts, predicted, tolerance)
+
+    added, _ = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter, np.zeros(0),
+                             probe, impacts[-1] + 1.0)
+    np.testing.assert_allclose([row[0] for row in added], [impacts[-1]])
+
+
 def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():
     # A rattle 1.3 ms after each impact recurs (the real bouncy-ball drop); the last impact
     # comes 1.5 ms later than the trend predicts, 0.2 ms from "the rattle of the predicted

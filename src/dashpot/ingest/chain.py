@@ -1328,6 +1328,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     burst or ring where the first impulse found there is at a secondary's delay. An impact
     that is not found stays in the sequence as a predicted anchor, so that the predictions
     after it step over it; past the last impact two in a row end the search.
+
+    Inside the train, a prediction shorter than the merge window (from anchors jammed
+    together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
+    for the train's end.
     """
     step = _trend_step(coefficients, np.diff(times).min())
     usual = np.full(delays.size, np.inf) if levels is None else np.where(
@@ -1414,6 +1418,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
 
     for _ in range(20 * len(anchors) + 10):  # a bound on the probes, whatever the trend does
         predicted, interval = _predict_next(anchors[max(0, i - 3):i + 1], step)
+        if interval < _MERGE_SECONDS and i + 1 < len(anchors):
+            # Anchors jammed closer together inside the train (a rattle among the impacts, an
+            # impact timed twice, the predicted times stepped down from them) predict an
+            # interval shorter than the merge window, which is no bounce: the walk goes on
+            # from the next anchor. Only past the last impact does the train end there.
+            i += 1
+            continue
         if interval < _MERGE_SECONDS or predicted > end:
             break
         tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
