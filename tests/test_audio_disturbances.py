@@ -313,6 +313,28 @@ def test_anchors_jammed_inside_the_train_do_not_end_the_search_for_its_last_impa
     np.testing.assert_allclose([row[0] for row in added], [impacts[-1]])
 
 
+def test_a_predicted_time_next_to_a_timed_impact_is_that_impact():
+    # Bounces shrinking by 0.9, impact 17 on 0.8 ms later than the trend (outside the
+    # tolerance of its prediction); the ring burst of impact 16, 5 ms after it, is timed among
+    # the impacts and left out, and the predicted time that stands in for it lies 0.8 ms
+    # before impact 17: both are that impact. The three impacts after it, not timed yet, are
+    # found where the trend puts them from impact 17 itself.
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(21))
+    impacts[17:] += 0.8e-3
+    delay = 5e-3
+    timed = np.sort(np.append(impacts[:18], impacts[16] + delay))
+    coefficients, scatter = _robust_trend(impacts[:17])
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        later = impacts if not_before is None else impacts[impacts > not_before]
+        return onset_near(later, predicted, tolerance) if later.size else None
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([delay]), probe, impacts[-1] + 1.0)
+    assert retimed == {17: None}
+    np.testing.assert_allclose([row[0] for row in added], impacts[18:])
+
+
 def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():
     # A rattle 1.3 ms after each impact recurs (the real bouncy-ball drop); the last impact
     # comes 1.5 ms later than the trend predicts, 0.2 ms from "the rattle of the predicted

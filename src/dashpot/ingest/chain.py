@@ -1331,7 +1331,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
 
     Inside the train, a prediction shorter than the merge window (from anchors jammed
     together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
-    for the train's end.
+    for the train's end; and a predicted time standing in for an impact left out, within the
+    merge window of the next impact timed, is dropped: that impact is the one predicted.
     """
     step = _trend_step(coefficients, np.diff(times).min())
     usual = np.full(delays.size, np.inf) if levels is None else np.where(
@@ -1479,6 +1480,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 retimed[origin[i + 1]] = result
                 anchors[i + 1] = predicted if result is None else result[0]
                 heard[i + 1] = result is not None
+            if (not heard[i + 1] and i + 2 < len(anchors) and heard[i + 2]
+                    and anchors[i + 2] - anchors[i + 1] < _MERGE_SECONDS):
+                # The predicted time standing in for the impact left out lies within the
+                # merge window of the next impact timed: that impact is the one predicted
+                # (two impacts this close cannot be told apart), and is judged as such.
+                del anchors[i + 1], loudness[i + 1], origin[i + 1], heard[i + 1]
+                continue
             i += 1
             continue
         result = probe(predicted, tolerance)
