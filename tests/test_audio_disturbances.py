@@ -20,9 +20,9 @@ from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_drop_faint_between, _drop_trailing_secondaries,
-                                  _fill_impacts, _move_to_causes, _robust_trend,
-                                  _secondary_levels, _shift_to_causes, _trend_step,
-                                  _trim_growing_end)
+                                  _fill_impacts, _move_to_causes, _rest_time,
+                                  _robust_trend, _secondary_levels, _shift_to_causes,
+                                  _trend_step, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -333,6 +333,20 @@ def test_a_predicted_time_next_to_a_timed_impact_is_that_impact():
                                    np.array([delay]), probe, impacts[-1] + 1.0)
     assert retimed == {17: None}
     np.testing.assert_allclose([row[0] for row in added], impacts[18:])
+
+
+def test_no_impact_is_reported_after_the_ball_has_come_to_rest():
+    # Bounces shrinking by 0.9 down to 8 ms, then the echoes of the last five, 200 ms later:
+    # their intervals continue the train's, so the end of the train does not grow, but they
+    # come long after the flights the trend leaves after the last impacts (about 60 ms).
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(25))
+    times = np.concatenate([impacts, impacts[-5:] + 0.2])
+    coefficients, scatter = _robust_trend(times)
+    sigma = np.full(times.size, 20e-6)
+    assert _trim_growing_end(times, sigma, scatter) == times.size
+    assert _rest_time(times, coefficients, scatter) == impacts.size
+    # The train alone keeps its last bounce.
+    assert _rest_time(impacts, *_robust_trend(impacts)) == impacts.size
 
 
 def test_a_late_impact_is_not_taken_for_a_secondary_at_a_short_delay():

@@ -63,6 +63,7 @@ _CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one dela
 _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
+_REST_STEPS = 1000  # flights stepped on to the rest time, at most (ratio 0.95: 135 from 1 s)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1087,6 +1088,56 @@ def _trim_growing_end(times, sigmas, scatter):
                 times[:keep - 1], second, allowed):
             break
         keep -= 1
+    return keep
+
+
+def _rest_time(times, coefficients, scatter, bounces=10):
+    """Number of impacts to keep: none after the ball has come to rest.
+
+    The flights after an impact shrink by the ratio the trend gives (:func:`_trend_step`,
+    continued along its tangent below the shortest interval and held within the ratio
+    bounds) and sum to a finite rest time, reached when a flight falls below the merge
+    window (a geometric series for a constant restitution [5]_). Each of the last `bounces`
+    impacts whose two interval ratios before it follow the trend (to 3 `scatter`, in log)
+    gives an estimate of that time, stepped on from the median of the three intervals before
+    it: the impacts of one train give the same (a mis-timed onset or a transient taken for an
+    impact give outliers). Sounds later than their median by more than 3 robust standard
+    deviations of the estimates, plus the merge window, are not bounces of this train (a run
+    of echoes of its impacts that continues its intervals, a rest click); at most a quarter
+    of the impacts go. The last impacts are used because they are the closest to the rest
+    time: the trend is stepped on over the fewest flights.
+    """
+    keep = times.size
+    if keep < 8:
+        return keep
+    intervals = np.diff(times)
+    log_interval = np.log(intervals)
+    residual = log_interval[1:] - log_interval[:-1] - np.polyval(coefficients, log_interval[:-1])
+    # Impact k (k >= 3) follows the trend where the ratios residual[k - 3], residual[k - 2]
+    # do; its flight is the median of intervals[k - 3:k].
+    follows = np.all(np.abs(np.stack([residual[:-2], residual[1:-1]])) <= 3.0 * scatter,
+                     axis=0)
+    chosen = (np.flatnonzero(follows) + 3)[-bounces:]
+    if chosen.size < 5:
+        return keep
+    flights = np.median(np.stack([intervals[chosen - 3], intervals[chosen - 2],
+                                  intervals[chosen - 1]]), axis=0)
+    step = _trend_step(coefficients, intervals.min())
+    moment = np.full(chosen.size, np.inf)  # where the flights do not shrink: no rest time
+    for j, (flight, start) in enumerate(zip(flights.tolist(), times[chosen].tolist())):
+        for _ in range(_REST_STEPS):  # scalar steps: a few tens for each of ten impacts
+            flight = step(flight)
+            if flight < _MERGE_SECONDS:
+                moment[j] = start
+                break
+            start += flight
+    centre = float(np.median(moment))
+    if not np.isfinite(centre):
+        return keep
+    spread = 1.4826 * float(np.median(np.abs(moment - centre)))
+    late = np.flatnonzero(times > centre + 3.0 * spread + _MERGE_SECONDS)
+    if late.size:
+        keep = max(int(late[0]), int(0.75 * times.size))
     return keep
 
 
