@@ -44,7 +44,9 @@ runs them over the file.
    linear predictor of it, below) is left out (a gap the fit flags as a missed impact), never
    placed where the trend predicts it: that would be circular evidence for the fit that
    follows.
-   The train then ends before its intervals grow (:func:`_trim_growing_end`) and does not
+   No sound after the rest time the trend gives its last impacts is one
+   (:func:`_rest_time`); the train then ends before its intervals grow
+   (:func:`_trim_growing_end`) and does not
    end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
    that is no louder than such a secondary (:func:`_drop_trailing_secondaries`), nor on one
    that sets off none of the secondaries every impact before it sets off
@@ -106,8 +108,8 @@ from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _drop_faint_end, _drop_trailing_secondaries,
                     _drop_unechoed_end, _explained_secondaries, _fill_impacts, _fixed_delays,
-                    _hidden_causes, _louder_between, _one_per_impact, _probe, _robust_trend,
-                    _secondary_delays, _secondary_levels, _select_bounces,
+                    _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
+                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
                     _sets_off_secondaries, _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
@@ -345,9 +347,14 @@ def _impact_table(path, stream, sample_rate, duration):
     order = _one_per_impact(times, sigmas)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
     clipped_flags = [clipped_flags[k] for k in order]
-    dropped_end = dropped_secondaries = dropped_faint = 0
+    dropped_end = dropped_secondaries = dropped_faint = dropped_rest = 0
     if times.size >= 5:
-        _, scatter = _robust_trend(times)
+        coefficients, scatter = _robust_trend(times)
+        # Nothing after the ball has come to rest (a run of echoes continuing the intervals).
+        rested = _rest_time(times, coefficients, scatter)
+        dropped_rest = times.size - rested
+        times, sigmas, amplitudes = times[:rested], sigmas[:rested], amplitudes[:rested]
+        clipped_flags = clipped_flags[:rested]
         grown = _trim_growing_end(times, sigmas, scatter)
         # The last sounds at a secondary's delay are left out unless they set off the
         # secondaries of an impact themselves (then they are one, whatever falls on them).
@@ -423,6 +430,10 @@ def _impact_table(path, stream, sample_rate, duration):
         notes.append(f"{len(filled)} faint impacts found where the interval trend predicts them "
                      f"(their sound jumps over the decaying sound before it less than a "
                      f"trigger's)")
+    if dropped_rest:
+        notes.append(f"{dropped_rest} transients after the ball came to rest left out: later "
+                     f"than the end of the flights the interval trend leaves after the last "
+                     f"impacts (a run of echoes that continues the intervals, a rest click)")
     if dropped_end:
         notes.append(f"{dropped_end} transients after the last impact left out: the interval "
                      f"before them grew beyond the timing noise and the ratios' scatter (a "

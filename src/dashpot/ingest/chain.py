@@ -68,6 +68,7 @@ _FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 _COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
+_REST_STEPS = 1000  # flights stepped on to the rest time, at most (ratio 0.95: 135 from 1 s)
 
 
 # --------------------------------------------------------------------------------------------
@@ -606,8 +607,12 @@ def _trend_step(coefficients, shortest):
     """Function giving the next interval (s) from an interval (s) under the ratio trend.
 
     Below the `shortest` interval (s) of the chain the trend is continued along its tangent:
-    a parabola fitted to the longer intervals can bend away fast outside them.
+    a parabola fitted to the longer intervals can bend away fast outside them. The ratio it
+    gives is held within the bounds of successive bounces (:data:`_RATIO_BOUNDS`), which
+    every step of the chain obeys: fitted on a chain that scatters widely, the curve can run
+    off to any ratio away from its intervals (and overflow).
     """
+    log_lo, log_hi = (log(bound) for bound in _RATIO_BOUNDS)
     edge = float(np.log(shortest))
     edge_value = float(np.polyval(coefficients, edge))
     edge_slope = float(np.polyval(np.polyder(coefficients), edge))
@@ -621,7 +626,7 @@ def _trend_step(coefficients, shortest):
             log_ratio = 0.0
             for term in terms:  # Horner's scheme, as np.polyval
                 log_ratio = log_ratio * log_interval + term
-        return interval * exp(log_ratio)
+        return interval * exp(min(max(log_ratio, log_lo), log_hi))
 
     return step
 
@@ -1169,6 +1174,56 @@ def _trim_growing_end(times, sigmas, scatter):
     return keep
 
 
+def _rest_time(times, coefficients, scatter, bounces=10):
+    """Number of impacts to keep: none after the ball has come to rest.
+
+    The flights after an impact shrink by the ratio the trend gives (:func:`_trend_step`,
+    continued along its tangent below the shortest interval and held within the ratio
+    bounds) and sum to a finite rest time, reached when a flight falls below the merge
+    window (a geometric series for a constant restitution [5]_). Each of the last `bounces`
+    impacts whose two interval ratios before it follow the trend (to 3 `scatter`, in log)
+    gives an estimate of that time, stepped on from the median of the three intervals before
+    it: the impacts of one train give the same (a mis-timed onset or a transient taken for an
+    impact give outliers). Sounds later than their median by more than 3 robust standard
+    deviations of the estimates, plus the merge window, are not bounces of this train (a run
+    of echoes of its impacts that continues its intervals, a rest click); at most a quarter
+    of the impacts go. The last impacts are used because they are the closest to the rest
+    time: the trend is stepped on over the fewest flights.
+    """
+    keep = times.size
+    if keep < 8:
+        return keep
+    intervals = np.diff(times)
+    log_interval = np.log(intervals)
+    residual = log_interval[1:] - log_interval[:-1] - np.polyval(coefficients, log_interval[:-1])
+    # Impact k (k >= 3) follows the trend where the ratios residual[k - 3], residual[k - 2]
+    # do; its flight is the median of intervals[k - 3:k].
+    follows = np.all(np.abs(np.stack([residual[:-2], residual[1:-1]])) <= 3.0 * scatter,
+                     axis=0)
+    chosen = (np.flatnonzero(follows) + 3)[-bounces:]
+    if chosen.size < 5:
+        return keep
+    flights = np.median(np.stack([intervals[chosen - 3], intervals[chosen - 2],
+                                  intervals[chosen - 1]]), axis=0)
+    step = _trend_step(coefficients, intervals.min())
+    moment = np.full(chosen.size, np.inf)  # where the flights do not shrink: no rest time
+    for j, (flight, start) in enumerate(zip(flights.tolist(), times[chosen].tolist())):
+        for _ in range(_REST_STEPS):  # scalar steps: a few tens for each of ten impacts
+            flight = step(flight)
+            if flight < _MERGE_SECONDS:
+                moment[j] = start
+                break
+            start += flight
+    centre = float(np.median(moment))
+    if not np.isfinite(centre):
+        return keep
+    spread = 1.4826 * float(np.median(np.abs(moment - centre)))
+    late = np.flatnonzero(times > centre + 3.0 * spread + _MERGE_SECONDS)
+    if late.size:
+        keep = max(int(late[0]), int(0.75 * times.size))
+    return keep
+
+
 def _drop_faint_end(times, amplitudes, bounces=10, at_most=2):
     """Number of impacts to keep: the train does not end on a sound fainter than its impact.
 
@@ -1403,7 +1458,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     unless it sets off the secondaries of an impact itself, as is also required before an
     impact off its prediction at a secondary's time is left out.
     A sound at a secondary's delay that sets off the secondaries of an impact itself
-    (:func:`_sets_off_secondaries`) is an impact. A probed onset, or an impact's onset before
+    (:func:`_sets_off_secondaries`) is an impact. Past the last impact, where no onset of its
+    own rises out of such a sound, the sound itself is an impact if it is louder than twice
+    what the secondary usually is after an impact two or more bounces before it (the sums of
+    the last intervals span the recurring delays closely, and the last impacts are about as
+    loud as the ones before them; the check the end of the train gets,
+    :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
+    impact's ring burst or echo, however loud. A probed onset, or an impact's onset before
     its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
     started (from 3 ms on) may be on that sound's own rise: it is probed again past that
     start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
@@ -1414,24 +1475,32 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     a secondary's delay. An impact
     that is not found stays in the sequence as a predicted anchor, so that the predictions
     after it step over it; past the last impact two in a row end the search.
+
+    Inside the train, a prediction shorter than the merge window (from anchors jammed
+    together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
+    for the train's end; and a predicted time standing in for an impact left out, within the
+    merge window of the next impact timed, is dropped: that impact is the one predicted.
     """
     step = _trend_step(coefficients, np.diff(times).min())
     usual = np.full(delays.size, np.inf) if levels is None else np.where(
         np.isfinite(levels), levels, np.inf)  # unknown level: any loudness
     anchors, loudness = list(times), list(amplitudes)
     origin = list(range(len(anchors)))  # index into `times`, or -1 for a predicted anchor
+    heard = [True] * len(anchors)  # a sound timed there (False: a predicted time stands in)
     # From the fourth impact on, each one is predicted from the three intervals before it.
     added, retimed, i, missing = [], {}, 3, 0
 
-    def secondary(moment, before, amplitude=None):
-        # At a recurring delay after an earlier impact (and, given the sound's `amplitude`,
-        # no louder than that secondary usually is after its impact).
+    def secondary(moment, before, amplitude=None, margin=1.0, first=0):
+        # At a recurring delay after an earlier impact (from index `first` on; and, given
+        # the sound's `amplitude`, no louder than `margin` times what that secondary usually
+        # is after its impact).
         if delays.size == 0:
             return False
-        earlier = np.asarray(anchors[:before + 1])
+        earlier = np.asarray(anchors[first:before + 1])
         close = np.abs(moment - earlier[:, None] - delays[None, :]) < _PROBE_SECONDARY_SECONDS
         if amplitude is not None:
-            close &= amplitude <= np.asarray(loudness[:before + 1])[:, None] * usual[None, :]
+            close &= amplitude <= (margin * np.asarray(loudness[first:before + 1])[:, None]
+                                   * usual[None, :])
         return bool(close.any())
 
     def rising_secondary(moment, before):
@@ -1444,6 +1513,20 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         starts = starts[(starts < moment - _PROBE_SECONDARY_SECONDS)
                         & (starts > moment - _SECONDARY_RISE_SECONDS)]
         return float(starts.max()) if starts.size else None
+    def beyond():
+        # Past the last impact: the sums of the last intervals, a few ms each, span the
+        # recurring delays closely, so a true last impact often falls within 0.3 ms of a
+        # secondary's delay after an earlier one. There the delay alone does not make a sound
+        # a secondary of an impact two or more bounces before it: one louder than twice that
+        # secondary's usual level is no ring or echo of that impact (the test the end of the
+        # train gets, :func:`_drop_trailing_secondaries`). One delay after the impact just
+        # before it, the sound is that impact's ring burst or echo, however loud (a ring's
+        # burst may swell louder than its impact): no impact follows to tell them apart.
+        return i + 1 >= len(anchors)
+
+    def last_heard():
+        # The last impact timed up to the current one (predicted times stand in for others).
+        return max(k for k in range(i + 1) if heard[k])
 
     def own(result):
         # A sound that sets off the secondaries of an impact is one.
@@ -1460,7 +1543,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         return (result is not None and abs(result[0] - predicted) <= tolerance
                 and anchors[i] < result[0] < before
                 and result[2] >= np.median(loudness[max(0, i - 2):i + 1]) / _EXTENSION_LOUDNESS
-                and (impact or not secondary(result[0], i, result[2] if bounded else None)))
+                and (impact or not (
+                    (secondary(result[0], last_heard() - 1, result[2], _SECONDARY_MARGIN)
+                     or secondary(result[0], i, first=last_heard())) if beyond()
+                    else secondary(result[0], i, result[2] if bounded else None))))
 
     def peel(predicted, tolerance, onset, before=None):
         # `onset` is that of a ring or an echo of an earlier impact: the impact, if there, is a
@@ -1490,6 +1576,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
 
     for _ in range(20 * len(anchors) + 10):  # a bound on the probes, whatever the trend does
         predicted, interval = _predict_next(anchors[max(0, i - 3):i + 1], step)
+        if interval < _MERGE_SECONDS and i + 1 < len(anchors):
+            # Anchors jammed closer together inside the train (a rattle among the impacts, an
+            # impact timed twice, the predicted times stepped down from them) predict an
+            # interval shorter than the merge window, which is no bounce: the walk goes on
+            # from the next anchor. Only past the last impact does the train end there.
+            i += 1
+            continue
         if interval < _MERGE_SECONDS or predicted > end:
             break
         tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
@@ -1535,6 +1628,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 if result is not None or not own((following, None, loudness[i + 1])):
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = predicted if result is None else result[0]
+                    heard[i + 1] = result is not None
             elif (origin[i + 1] >= 0 and following < predicted < before
                     and secondary(following, i)):
                 # On the trend, but its onset is that of a ring or an echo of an earlier
@@ -1575,6 +1669,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 if result is not None or not own((following, None, loudness[i + 1])):
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = predicted if result is None else result[0]
+                    heard[i + 1] = result is not None
+            if (not heard[i + 1] and i + 2 < len(anchors) and heard[i + 2]
+                    and anchors[i + 2] - anchors[i + 1] < _MERGE_SECONDS):
+                # The predicted time standing in for the impact left out lies within the
+                # merge window of the next impact timed: that impact is the one predicted
+                # (two impacts this close cannot be told apart), and is judged as such.
+                del anchors[i + 1], loudness[i + 1], origin[i + 1], heard[i + 1]
+                continue
             i += 1
             continue
         result = probe(predicted, tolerance)
@@ -1584,7 +1686,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 bounded and accept(result, predicted, tolerance, bounded=True)):
             impact = accept(result, predicted, tolerance, impact=True) and own(result)
             if not impact:
-                result = peel(predicted, tolerance, result[0])
+                # Past the last impact, a sound with no onset of its own rising out of the
+                # secondary it starts on is judged itself, by its loudness (`accept`).
+                first, result = result, peel(predicted, tolerance, result[0])
+                if result is None and beyond():
+                    result = first
         elif result is not None:
             # An onset on the rise of a ring's burst or an echo that began shortly before:
             # the impact, if there, rises out of that sound after its start.
@@ -1605,6 +1711,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
+            heard.insert(i + 1, True)
             loudness.insert(i + 1, result[2])
             missing = 0
         else:
@@ -1614,6 +1721,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                     break
             # Not found: the predicted time stands in for it as an anchor.
             anchors.insert(i + 1, predicted)
+            heard.insert(i + 1, False)
             loudness.insert(i + 1, loudness[i])
         origin.insert(i + 1, -1)
         i += 1
