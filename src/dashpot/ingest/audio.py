@@ -38,9 +38,9 @@ runs them over the file.
    sound of the earlier ones) or an impact was timed at the start of a ring or echo
    beginning just before it, the file is read again around the predicted time and probed
    with a trigger measured against the quietest 0.5 ms before it, or against the ring or
-   echo since its start (:func:`_fill_impacts`; an onset less than 2 ms after a ring's burst
-   or an echo began may be on that sound's rise, and is probed again past its start); an
-   impact whose onset does not rise out of that ring or echo (nor shows in the error of a
+   echo since its start (:func:`_fill_impacts`; an impact's onset less than 2 ms after a
+   ring's burst or an echo began may be on that sound's rise, and is probed again past its
+   start); an impact whose onset does not rise out of that ring or echo (nor shows in the error of a
    linear predictor of it, below) is left out (a gap the fit flags as a missed impact), never
    placed where the trend predicts it: that would be circular evidence for the fit that
    follows.

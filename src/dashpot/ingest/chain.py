@@ -1464,11 +1464,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     the last intervals span the recurring delays closely, and the last impacts are about as
     loud as the ones before them; the check the end of the train gets,
     :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
-    impact's ring burst or echo, however loud. A probed onset, or an impact's onset before
-    its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
-    started (from 3 ms on) may be on that sound's own rise: it is probed again past that
-    start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
-    later and closer to the predicted time), is taken instead. Where the whitened power
+    impact's ring burst or echo, however loud. An impact's onset before its predicted
+    time, less than 2 ms after a ring, burst or echo of an earlier impact started (from 3 ms
+    on), may be on that sound's own rise: it is probed again past that start, and an onset
+    of its own rising out of it, at least 0.3 ms later and closer to the predicted time, is
+    taken instead. Where the whitened power
     shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
     before), past the start of that burst or ring where the first impulse found there is at
@@ -1691,14 +1691,6 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 first, result = result, peel(predicted, tolerance, result[0])
                 if result is None and beyond():
                     result = first
-        elif result is not None:
-            # An onset on the rise of a ring's burst or an echo that began shortly before:
-            # the impact, if there, rises out of that sound after its start.
-            start = rising_secondary(result[0], i)
-            if start is not None:
-                peeled = peel(predicted, tolerance, start)
-                if peeled is not None:
-                    result = peeled
         if not accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
