@@ -83,6 +83,8 @@ def _generic(name):
         parts[1] = "<model>"
     if parts[0] == "noise_fits" and len(parts) > 1:
         parts[1] = "<law>"
+    # A motion reader's shared speed errors: one column per shared component j.
+    parts[-1] = re.sub(r"_speed_shared_\d+$", "_speed_shared_<j>", parts[-1])
     return "/" + "/".join(parts)
 
 
