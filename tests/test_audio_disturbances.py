@@ -20,7 +20,8 @@ from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
-                                  _drop_trailing_secondaries, _fill_impacts, _hidden_causes,
+                                  _drop_trailing_secondaries, _drop_unexcited_end,
+                                  _fill_impacts, _hidden_causes,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _trend_step,
                                   _trim_growing_end)
@@ -676,3 +677,43 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([delay]), ring_only, impacts[-1] + 1.0)
     assert not retimed
+
+
+def impulse_probe(impulses, powers, weak):
+    """A probe of the error of a predictor of the sound: at each of `impulses` (s) the error's
+    power over its first 0.5 ms is `powers` (over the floor); it jumps as a weak trigger
+    where that power is at least `weak`."""
+    impulses, powers = np.asarray(impulses), np.asarray(powers)
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              any_jump=False):
+        assert predicted_sound
+        near = np.flatnonzero(np.abs(impulses - moment) <= tolerance)
+        if near.size == 0 or not (any_jump or powers[near[0]] >= weak):
+            return None
+        return impulses[near[0]], 1e-5, float(powers[near[0]]) if any_jump else 0.02, False
+    return probe
+
+
+def test_the_train_does_not_end_on_a_swell_of_the_beating_of_its_last_sounds():
+    impacts = 1.0 + np.cumsum(0.02 * 0.93 ** np.arange(12))
+    # Past the last bounce the modes of the decaying sound beat: a swell of power one flight
+    # later, probed as an onset, which the predictor of that sound continues (an error near
+    # its floor).
+    swell = impacts[-1] + 0.9 * (impacts[-1] - impacts[-2])
+    times = np.r_[impacts, swell]
+    loud = impulse_probe(times, np.r_[np.full(impacts.size, 30.0), 2.0], weak=4.0)
+    assert _drop_unexcited_end(times, loud) == impacts.size
+    assert _drop_unexcited_end(impacts, loud) == impacts.size
+    # In a faint train the impacts' impulses barely clear the floor; a last impact whose
+    # impulse falls short of a weak trigger's jump is still one where it is at least a
+    # quarter of those of the impacts before it (the last bounces, of one speed, sound alike).
+    faint = impulse_probe(impacts, np.r_[np.full(impacts.size - 1, 10.0), 3.5], weak=4.0)
+    assert _drop_unexcited_end(impacts, faint) == impacts.size
+    # A swell there, far below them, goes.
+    faint = impulse_probe(times, np.r_[np.full(impacts.size, 10.0), 1.5], weak=4.0)
+    assert _drop_unexcited_end(times, faint) == impacts.size
+    # Where the error cannot be probed (the end of the file), the last sound stays.
+    untestable = impulse_probe(impacts, np.full(impacts.size, 30.0), weak=4.0)
+    assert _drop_unexcited_end(times, untestable) == times.size
+

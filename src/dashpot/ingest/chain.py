@@ -994,7 +994,7 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
 
 
 def _probe(path, stream, predicted, tolerance, timing, not_before=None,
-           predicted_sound=False, expected=False):
+           predicted_sound=False, expected=False, any_jump=False):
     """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
 
     Parameters
@@ -1021,6 +1021,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         (a secondary looked for at its known delay), as a weak one (6 dB).
     expected : bool, default False
         See `predicted_sound`.
+    any_jump : bool, default False
+        Take the strongest jump within the tolerance however small it is, and return the
+        power over its first 0.5 ms (relative to the floor of the detector: the noise's, or
+        the predictor error's) in place of the amplitude: how strongly something starts there.
 
     Returns
     -------
@@ -1075,6 +1079,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     # A sound seen only in the prediction error must jump as much as a strong trigger.
     min_jump = settings.min_jump / (1.0 if taps is not None and not expected
                                     else _WEAK_JUMP_FACTOR)
+    if any_jump:
+        min_jump = 0.0
     if not_before is not None:
         # Past the start of a ring or an echo, the level to jump over is that sound's, the
         # mean power since it started, and by the 1.8 dB that tell a sound of its own.
@@ -1088,6 +1094,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     if not usable.any():
         return None
     trigger = int(triggers[usable][np.argmax(jump[usable])])
+    if any_jump:
+        return (trigger + offset) / sample_rate, np.nan, float(sta[trigger - triggers[0]]), False
     # The AIC picker looks back from the trigger, but not before the tolerance: a ring or an
     # echo of an earlier impact starting shortly before would capture the pick.
     search = max(trigger - settings.back_search, int(triggers[0]) - 2 * _AIC_MARGIN)
@@ -1355,6 +1363,39 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
             if shows(keep - 1, delay, level):
                 break
             keep -= 1
+    return keep
+
+
+def _drop_unexcited_end(times, probe, at_most=2):
+    """Number of impacts to keep: the train does not end on a sound that excites nothing.
+
+    An impact excites the ball's modes anew: in the error of a linear predictor of the sound
+    before it [6]_ [7]_ it is an impulse (``probe(moment, tolerance, predicted_sound=True,
+    expected=True)``, a weak trigger's jump within 0.5 ms of its onset). Past the last bounce
+    the decaying sound of the last impacts, their rings and echoes still beat (modes drifting
+    in and out of phase): a swell of that beating jumps over the quietest stretch before it
+    like an onset, and is probed as one where the trend puts a next bounce, but the predictor
+    continues it. In a faint train the impulses of all impacts barely clear the error's
+    floor: there the last sound's is compared with those of the three impacts before it
+    (the error's power over its first 0.5 ms, ``probe(..., any_jump=True)``), which the last
+    bounces, of about one impact speed, match to within 6 dB (a quarter in power,
+    :data:`_EXTENSION_LOUDNESS`). The last sound is dropped while it shows an impulse by
+    neither test; at most `at_most` go, and none that cannot be tested.
+    """
+    keep = times.size
+    while keep > max(5, times.size - at_most):
+        if probe(times[keep - 1], _CAUSE_SEARCH_SECONDS, predicted_sound=True,
+                 expected=True) is not None:
+            break
+        # In a faint train every impact's impulse barely clears the error's floor: the last
+        # sound's impulse is then compared with those of the impacts before it, which the
+        # last bounces, of about one speed, match to within 6 dB (in power, a quarter).
+        power = [probe(moment, _CAUSE_SEARCH_SECONDS, predicted_sound=True, any_jump=True)
+                 for moment in times[keep - 4:keep]]
+        if any(result is None for result in power) or (  # untestable (the file's ends)
+                power[-1][2] * _EXTENSION_LOUDNESS**2 >= median(r[2] for r in power[:-1])):
+            break
+        keep -= 1
     return keep
 
 
