@@ -476,7 +476,7 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     timed = np.append(impacts, impacts[-1] + burst)
     coefficients, scatter = _robust_trend(impacts)
 
-    def silent(predicted, tolerance, not_before=None, predicted_sound=False):
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
         return None
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
@@ -486,6 +486,32 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([burst + 1e-3]), silent, timed[-1] + 1.0)
     assert not retimed
+
+
+def test_a_last_impact_one_burst_delay_after_the_one_before_that_sets_off_its_own_burst_stays():
+    # The last bounce comes one burst delay after the impact before it, where that impact's
+    # burst sounds too: a burst sets off no burst of its own, an impact does.
+    intervals = 0.1 * 0.85 ** np.arange(18)
+    impacts = np.cumsum(intervals)
+    burst = 0.1 * 0.85**18
+    timed = np.append(impacts, impacts[-1] + burst)
+    coefficients, scatter = _robust_trend(impacts)
+
+    def bursts_of(sounds):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False,
+                  expected=False):
+            return onset_near(sounds + burst, predicted, tolerance)
+        return probe
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([burst]), bursts_of(timed), timed[-1] + 1.0,
+                                   np.array([1.0]))
+    assert not retimed and not added
+    # Followed by no burst of its own, it is the burst of the impact before.
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([burst]), bursts_of(impacts), timed[-1] + 1.0,
+                               np.array([1.0]))
+    assert retimed == {timed.size - 1: None}
 
 
 def test_a_trend_stepped_outside_its_intervals_stays_within_the_ratio_bounds(tmp_path):

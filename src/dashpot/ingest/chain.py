@@ -1505,7 +1505,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     the last intervals span the recurring delays closely, and the last impacts are about as
     loud as the ones before them; the check the end of the train gets,
     :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
-    impact's ring burst or echo, however loud. A probed onset, or an impact's onset before
+    impact's ring burst or echo, however loud, unless it sets off the secondaries of an
+    impact itself. A probed onset, or an impact's onset before
     its predicted time, less than 2 ms after a ring, burst or echo of an earlier impact
     started (from 3 ms on) may be on that sound's own rise: it is probed again past that
     start, and an onset of its own rising out of it, if any (for an impact: at least 0.3 ms
@@ -1767,7 +1768,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         origin.insert(i + 1, -1)
         i += 1
     # The train's last sound, one recurring secondary delay after the impact before it, is
-    # that impact's ring burst or echo: no impact followed it to tell it from one.
+    # that impact's ring burst or echo: no impact followed it to tell it from one. Unless it
+    # sets off the secondaries of an impact itself: a burst or echo sets off none, a last
+    # bounce that happens to come one delay after the one before does.
     last = len(anchors) - 1
     while last > 0 and origin[last] < 0:
         last -= 1
@@ -1775,7 +1778,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             and origin[last] not in retimed and delays.size > 0
             and np.abs(anchors[last] - anchors[last - 1] - delays).min()
             < _PROBE_SECONDARY_SECONDS
-            and not any(moment > anchors[last] for moment, *_ in added)):
+            and not any(moment > anchors[last] for moment, *_ in added)
+            and not own((anchors[last], None, loudness[last]))):
         retimed[origin[last]] = None
     return added, retimed
 
