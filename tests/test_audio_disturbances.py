@@ -21,7 +21,7 @@ from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
-                                  _fill_impacts, _hidden_causes,
+                                  _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _trend_step,
                                   _trim_growing_end)
@@ -742,4 +742,28 @@ def test_the_train_does_not_end_on_a_swell_of_the_beating_of_its_last_sounds():
     # Where the error cannot be probed (the end of the file), the last sound stays.
     untestable = impulse_probe(impacts, np.full(impacts.size, 30.0), weak=4.0)
     assert _drop_unexcited_end(times, untestable) == times.size
+
+
+def test_only_secondaries_the_impacts_before_set_off_are_asked_of_a_sound():
+    # A burst 6 ms and a ring 18 ms after every impact; the ring, of low modes landing on the
+    # sounds of the last bounces, does not stand out after any of them.
+    impacts = 1.0 + np.cumsum(0.008 * 0.93 ** np.arange(8))
+    delays, levels = np.array([6e-3, 18e-3]), np.array([1.0, 0.3])
+    only_bursts = np.sort(impacts + delays[0])
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(only_bursts, moment, tolerance)
+
+    last, end = impacts[-1], impacts[-1] + 1.0
+    before = [(moment, 1.0) for moment in impacts[-3:-1]]
+    assert not _sets_off_secondaries(probe, last, 1.0, delays, levels, end)
+    assert _sets_off_secondaries(probe, last, 1.0, delays, levels, end, before)
+    # A secondary the impacts before do set off is still asked of it.
+    with_rings = np.sort(np.r_[only_bursts, impacts[:-1] + delays[1]])
+
+    def probe_rings(moment, tolerance, not_before=None, predicted_sound=False,
+                    expected=False):
+        return onset_near(with_rings, moment, tolerance)
+
+    assert not _sets_off_secondaries(probe_rings, last, 1.0, delays, levels, end, before)
 

@@ -363,7 +363,8 @@ def _impact_table(path, stream, sample_rate, duration):
         kept = _drop_trailing_secondaries(
             times[:grown], amplitudes[:grown], delays, levels,
             lambda k: _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels,
-                                            duration))
+                                            duration, list(zip(times[k - 3:k - 1],
+                                                               amplitudes[k - 3:k - 1]))))
         kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
                                   duration)
         # Nor on a swell of the beating of the sound before it (no impulse in the error of

@@ -1323,14 +1323,18 @@ def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
 
-def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end):
+def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_by=()):
     """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
     as its impact, 3 ms or more after it, that the recording (to `end`, s) holds: a sound
     that does is an impact, whatever ring or echo of an earlier one falls on it; False where
-    none can be tested."""
+    none can be tested. Given `shown_by`, (moment, amplitude) of impacts, only secondaries
+    that each of them is seen to set off are tested (a ring of low modes landing on the
+    sounds of the last bounces may not stand out in the predictor's error after any)."""
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
-                and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end]
+                and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end
+                and all(_shows_secondary(probe, at, loud, delay, level, expected=True)
+                        for at, loud in shown_by)]
     return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level,
                                                    expected=True)
                                   for delay, level in testable)
@@ -1779,7 +1783,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             and np.abs(anchors[last] - anchors[last - 1] - delays).min()
             < _PROBE_SECONDARY_SECONDS
             and not any(moment > anchors[last] for moment, *_ in added)
-            and not own((anchors[last], None, loudness[last]))):
+            and not _sets_off_secondaries(
+                probe, anchors[last], loudness[last], delays, usual, end,
+                [(anchors[k], loudness[k]) for k in range(last - 3, last - 1) if heard[k]])):
         retimed[origin[last]] = None
     return added, retimed
 
