@@ -1575,9 +1575,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         return max(k for k in range(i + 1) if heard[k])
 
     def own(result):
-        # A sound that sets off the secondaries of an impact is one.
-        return result is not None and _sets_off_secondaries(probe, result[0], result[2],
-                                                             delays, usual, end)
+        # A sound that sets off the secondaries of an impact (those the impacts before it are
+        # seen to set off) is one.
+        return result is not None and _sets_off_secondaries(
+            probe, result[0], result[2], delays, usual, end,
+            [(anchors[k], loudness[k]) for k in range(max(0, i - 1), i + 1) if heard[k]])
 
     def accept(result, predicted, tolerance, before=None, bounded=False, impact=False):
         # In time order between its neighbours: where the ratios scatter widely the tolerance
