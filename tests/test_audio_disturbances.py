@@ -742,6 +742,11 @@ def test_the_train_does_not_end_on_a_swell_of_the_beating_of_its_last_sounds():
     # Where the error cannot be probed (the end of the file), the last sound stays.
     untestable = impulse_probe(impacts, np.full(impacts.size, 30.0), weak=4.0)
     assert _drop_unexcited_end(times, untestable) == times.size
+    # Only sounds found by probing the file are tested: the stream's transients rose over the
+    # mean power before them.
+    stream = np.zeros(times.size, dtype=bool)
+    assert _drop_unexcited_end(times, loud, stream) == times.size
+    assert _drop_unexcited_end(times, loud, ~stream) == impacts.size
 
 
 def test_only_secondaries_the_impacts_before_set_off_are_asked_of_a_sound():

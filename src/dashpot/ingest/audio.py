@@ -369,7 +369,8 @@ def _impact_table(path, stream, sample_rate, duration):
                                   duration)
         # Nor on a swell of the beating of the sound before it (no impulse in the error of
         # a predictor of that sound).
-        kept = _drop_unexcited_end(times[:kept], probe)
+        probed = np.isin(times[:kept], [row[0] for row in filled + retimed if row is not None])
+        kept = _drop_unexcited_end(times[:kept], probe, probed)
         # Nor does it end on a sound far fainter than the impact speed its flight gives.
         faint = _drop_faint_end(times[:kept], amplitudes[:kept])
         dropped_end, dropped_secondaries = times.size - grown, grown - kept

@@ -1370,7 +1370,7 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     return keep
 
 
-def _drop_unexcited_end(times, probe, at_most=2):
+def _drop_unexcited_end(times, probe, probed=None, at_most=2):
     """Number of impacts to keep: the train does not end on a sound that excites nothing.
 
     An impact excites the ball's modes anew: in the error of a linear predictor of the sound
@@ -1384,10 +1384,15 @@ def _drop_unexcited_end(times, probe, at_most=2):
     (the error's power over its first 0.5 ms, ``probe(..., any_jump=True)``), which the last
     bounces, of about one impact speed, match to within 6 dB (a quarter in power,
     :data:`_EXTENSION_LOUDNESS`). The last sound is dropped while it shows an impulse by
-    neither test; at most `at_most` go, and none that cannot be tested.
+    neither test; at most `at_most` go, and none that cannot be tested. Only sounds found by
+    probing the file are tested (`probed`, bool per sound; default all): a transient the
+    stream triggered on rose over the mean power before it, which a swell of a beat, rising
+    over a trough of it, does not.
     """
     keep = times.size
     while keep > max(5, times.size - at_most):
+        if probed is not None and not probed[keep - 1]:
+            break
         if probe(times[keep - 1], _CAUSE_SEARCH_SECONDS, predicted_sound=True,
                  expected=True) is not None:
             break
