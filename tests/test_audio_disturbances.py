@@ -772,3 +772,21 @@ def test_only_secondaries_the_impacts_before_set_off_are_asked_of_a_sound():
 
     assert not _sets_off_secondaries(probe_rings, last, 1.0, delays, levels, end, before)
 
+
+def test_a_probed_last_bounce_at_a_burst_delay_is_asked_only_for_secondaries_seen_before_it():
+    # The last bounce, not timed by the stream, comes one burst delay after the impact before
+    # it. Every impact sets off its burst; the ring 20 ms later stands out after none of them.
+    intervals = 0.1 * 0.85 ** np.arange(18)
+    impacts = np.cumsum(intervals)
+    burst = 0.1 * 0.85**18
+    last = impacts[-1] + burst
+    sounds = np.sort(np.r_[impacts, last, impacts + burst, last + burst])
+    coefficients, scatter = _robust_trend(impacts)
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(sounds, predicted, tolerance)
+
+    added, _ = _fill_impacts(impacts, np.ones(impacts.size), coefficients, scatter,
+                             np.array([burst, 0.02]), probe, last + 1.0, np.array([1.0, 0.3]))
+    assert [row[0] for row in added] == [last]
+
