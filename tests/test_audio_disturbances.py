@@ -20,7 +20,8 @@ from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
-                                  _drop_trailing_secondaries, _fill_impacts, _hidden_causes,
+                                  _drop_trailing_secondaries, _drop_unexcited_end,
+                                  _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _trend_step,
                                   _trim_growing_end)
@@ -451,7 +452,7 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     timed = np.append(impacts, impacts[-1] + burst)
     coefficients, scatter = _robust_trend(impacts)
 
-    def silent(predicted, tolerance, not_before=None, predicted_sound=False):
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
         return None
 
     added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
@@ -461,6 +462,32 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([burst + 1e-3]), silent, timed[-1] + 1.0)
     assert not retimed
+
+
+def test_a_last_impact_one_burst_delay_after_the_one_before_that_sets_off_its_own_burst_stays():
+    # The last bounce comes one burst delay after the impact before it, where that impact's
+    # burst sounds too: a burst sets off no burst of its own, an impact does.
+    intervals = 0.1 * 0.85 ** np.arange(18)
+    impacts = np.cumsum(intervals)
+    burst = 0.1 * 0.85**18
+    timed = np.append(impacts, impacts[-1] + burst)
+    coefficients, scatter = _robust_trend(impacts)
+
+    def bursts_of(sounds):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False,
+                  expected=False):
+            return onset_near(sounds + burst, predicted, tolerance)
+        return probe
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([burst]), bursts_of(timed), timed[-1] + 1.0,
+                                   np.array([1.0]))
+    assert not retimed and not added
+    # Followed by no burst of its own, it is the burst of the impact before.
+    _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                               np.array([burst]), bursts_of(impacts), timed[-1] + 1.0,
+                               np.array([1.0]))
+    assert retimed == {timed.size - 1: None}
 
 
 def test_a_trend_stepped_outside_its_intervals_stays_within_the_ratio_bounds(tmp_path):
@@ -652,3 +679,90 @@ def test_an_impact_timed_at_a_ring_just_before_it_is_timed_again_on_its_own_onse
     _, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
                                np.array([delay]), ring_only, impacts[-1] + 1.0)
     assert not retimed
+
+
+def impulse_probe(impulses, powers, weak):
+    """A probe of the error of a predictor of the sound: at each of `impulses` (s) the error's
+    power over its first 0.5 ms is `powers` (over the floor); it jumps as a weak trigger
+    where that power is at least `weak`."""
+    impulses, powers = np.asarray(impulses), np.asarray(powers)
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              any_jump=False):
+        assert predicted_sound
+        near = np.flatnonzero(np.abs(impulses - moment) <= tolerance)
+        if near.size == 0 or not (any_jump or powers[near[0]] >= weak):
+            return None
+        return impulses[near[0]], 1e-5, float(powers[near[0]]) if any_jump else 0.02, False
+    return probe
+
+
+def test_the_train_does_not_end_on_a_swell_of_the_beating_of_its_last_sounds():
+    impacts = 1.0 + np.cumsum(0.02 * 0.93 ** np.arange(12))
+    # Past the last bounce the modes of the decaying sound beat: a swell of power one flight
+    # later, probed as an onset, which the predictor of that sound continues (an error near
+    # its floor).
+    swell = impacts[-1] + 0.9 * (impacts[-1] - impacts[-2])
+    times = np.r_[impacts, swell]
+    loud = impulse_probe(times, np.r_[np.full(impacts.size, 30.0), 2.0], weak=4.0)
+    assert _drop_unexcited_end(times, loud) == impacts.size
+    assert _drop_unexcited_end(impacts, loud) == impacts.size
+    # In a faint train the impacts' impulses barely clear the floor; a last impact whose
+    # impulse falls short of a weak trigger's jump is still one where it is at least a
+    # quarter of those of the impacts before it (the last bounces, of one speed, sound alike).
+    faint = impulse_probe(impacts, np.r_[np.full(impacts.size - 1, 10.0), 3.5], weak=4.0)
+    assert _drop_unexcited_end(impacts, faint) == impacts.size
+    # A swell there, far below them, goes.
+    faint = impulse_probe(times, np.r_[np.full(impacts.size, 10.0), 1.5], weak=4.0)
+    assert _drop_unexcited_end(times, faint) == impacts.size
+    # Where the error cannot be probed (the end of the file), the last sound stays.
+    untestable = impulse_probe(impacts, np.full(impacts.size, 30.0), weak=4.0)
+    assert _drop_unexcited_end(times, untestable) == times.size
+    # Only sounds found by probing the file are tested: the stream's transients rose over the
+    # mean power before them.
+    stream = np.zeros(times.size, dtype=bool)
+    assert _drop_unexcited_end(times, loud, stream) == times.size
+    assert _drop_unexcited_end(times, loud, ~stream) == impacts.size
+
+
+def test_only_secondaries_the_impacts_before_set_off_are_asked_of_a_sound():
+    # A burst 6 ms and a ring 18 ms after every impact; the ring, of low modes landing on the
+    # sounds of the last bounces, does not stand out after any of them.
+    impacts = 1.0 + np.cumsum(0.008 * 0.93 ** np.arange(8))
+    delays, levels = np.array([6e-3, 18e-3]), np.array([1.0, 0.3])
+    only_bursts = np.sort(impacts + delays[0])
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(only_bursts, moment, tolerance)
+
+    last, end = impacts[-1], impacts[-1] + 1.0
+    before = [(moment, 1.0) for moment in impacts[-3:-1]]
+    assert not _sets_off_secondaries(probe, last, 1.0, delays, levels, end)
+    assert _sets_off_secondaries(probe, last, 1.0, delays, levels, end, before)
+    # A secondary the impacts before do set off is still asked of it.
+    with_rings = np.sort(np.r_[only_bursts, impacts[:-1] + delays[1]])
+
+    def probe_rings(moment, tolerance, not_before=None, predicted_sound=False,
+                    expected=False):
+        return onset_near(with_rings, moment, tolerance)
+
+    assert not _sets_off_secondaries(probe_rings, last, 1.0, delays, levels, end, before)
+
+
+def test_a_probed_last_bounce_at_a_burst_delay_is_asked_only_for_secondaries_seen_before_it():
+    # The last bounce, not timed by the stream, comes one burst delay after the impact before
+    # it. Every impact sets off its burst; the ring 20 ms later stands out after none of them.
+    intervals = 0.1 * 0.85 ** np.arange(18)
+    impacts = np.cumsum(intervals)
+    burst = 0.1 * 0.85**18
+    last = impacts[-1] + burst
+    sounds = np.sort(np.r_[impacts, last, impacts + burst, last + burst])
+    coefficients, scatter = _robust_trend(impacts)
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(sounds, predicted, tolerance)
+
+    added, _ = _fill_impacts(impacts, np.ones(impacts.size), coefficients, scatter,
+                             np.array([burst, 0.02]), probe, last + 1.0, np.array([1.0, 0.3]))
+    assert [row[0] for row in added] == [last]
+

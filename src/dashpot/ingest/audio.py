@@ -107,10 +107,11 @@ from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _drop_faint_end, _drop_trailing_secondaries,
-                    _drop_unechoed_end, _explained_secondaries, _fill_impacts, _fixed_delays,
-                    _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
-                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
-                    _sets_off_secondaries, _trim_growing_end)
+                    _drop_unechoed_end, _drop_unexcited_end, _explained_secondaries,
+                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
+                    _one_per_impact, _probe, _rest_time, _robust_trend, _secondary_delays,
+                    _secondary_levels, _select_bounces, _sets_off_secondaries,
+                    _trim_growing_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
@@ -311,9 +312,10 @@ def _impact_table(path, stream, sample_rate, duration):
     order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
-    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              any_jump=False):
         return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound,
-                      expected)
+                      expected, any_jump)
 
     delays = _secondary_delays(rough, chain)
     levels = _secondary_levels(rough, amplitude, chain, delays)
@@ -361,9 +363,14 @@ def _impact_table(path, stream, sample_rate, duration):
         kept = _drop_trailing_secondaries(
             times[:grown], amplitudes[:grown], delays, levels,
             lambda k: _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels,
-                                            duration))
+                                            duration, list(zip(times[k - 3:k - 1],
+                                                               amplitudes[k - 3:k - 1]))))
         kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
                                   duration)
+        # Nor on a swell of the beating of the sound before it (no impulse in the error of
+        # a predictor of that sound).
+        probed = np.isin(times[:kept], [row[0] for row in filled + retimed if row is not None])
+        kept = _drop_unexcited_end(times[:kept], probe, probed)
         # Nor does it end on a sound far fainter than the impact speed its flight gives.
         faint = _drop_faint_end(times[:kept], amplitudes[:kept])
         dropped_end, dropped_secondaries = times.size - grown, grown - kept

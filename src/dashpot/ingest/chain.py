@@ -994,7 +994,7 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
 
 
 def _probe(path, stream, predicted, tolerance, timing, not_before=None,
-           predicted_sound=False, expected=False):
+           predicted_sound=False, expected=False, any_jump=False):
     """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
 
     Parameters
@@ -1021,6 +1021,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         (a secondary looked for at its known delay), as a weak one (6 dB).
     expected : bool, default False
         See `predicted_sound`.
+    any_jump : bool, default False
+        Take the strongest jump within the tolerance however small it is, and return the
+        power over its first 0.5 ms (relative to the floor of the detector: the noise's, or
+        the predictor error's) in place of the amplitude: how strongly something starts there.
 
     Returns
     -------
@@ -1075,6 +1079,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     # A sound seen only in the prediction error must jump as much as a strong trigger.
     min_jump = settings.min_jump / (1.0 if taps is not None and not expected
                                     else _WEAK_JUMP_FACTOR)
+    if any_jump:
+        min_jump = 0.0
     if not_before is not None:
         # Past the start of a ring or an echo, the level to jump over is that sound's, the
         # mean power since it started, and by the 1.8 dB that tell a sound of its own.
@@ -1088,6 +1094,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     if not usable.any():
         return None
     trigger = int(triggers[usable][np.argmax(jump[usable])])
+    if any_jump:
+        return (trigger + offset) / sample_rate, np.nan, float(sta[trigger - triggers[0]]), False
     # The AIC picker looks back from the trigger, but not before the tolerance: a ring or an
     # echo of an earlier impact starting shortly before would capture the pick.
     search = max(trigger - settings.back_search, int(triggers[0]) - 2 * _AIC_MARGIN)
@@ -1315,14 +1323,18 @@ def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
 
-def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end):
+def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_by=()):
     """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
     as its impact, 3 ms or more after it, that the recording (to `end`, s) holds: a sound
     that does is an impact, whatever ring or echo of an earlier one falls on it; False where
-    none can be tested."""
+    none can be tested. Given `shown_by`, (moment, amplitude) of impacts, only secondaries
+    that each of them is seen to set off are tested (a ring of low modes landing on the
+    sounds of the last bounces may not stand out in the predictor's error after any)."""
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
-                and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end]
+                and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end
+                and all(_shows_secondary(probe, at, loud, delay, level, expected=True)
+                        for at, loud in shown_by)]
     return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level,
                                                    expected=True)
                                   for delay, level in testable)
@@ -1355,6 +1367,44 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
             if shows(keep - 1, delay, level):
                 break
             keep -= 1
+    return keep
+
+
+def _drop_unexcited_end(times, probe, probed=None, at_most=2):
+    """Number of impacts to keep: the train does not end on a sound that excites nothing.
+
+    An impact excites the ball's modes anew: in the error of a linear predictor of the sound
+    before it [6]_ [7]_ it is an impulse (``probe(moment, tolerance, predicted_sound=True,
+    expected=True)``, a weak trigger's jump within 0.5 ms of its onset). Past the last bounce
+    the decaying sound of the last impacts, their rings and echoes still beat (modes drifting
+    in and out of phase): a swell of that beating jumps over the quietest stretch before it
+    like an onset, and is probed as one where the trend puts a next bounce, but the predictor
+    continues it. In a faint train the impulses of all impacts barely clear the error's
+    floor: there the last sound's is compared with those of the three impacts before it
+    (the error's power over its first 0.5 ms, ``probe(..., any_jump=True)``), which the last
+    bounces, of about one impact speed, match to within 6 dB (a quarter in power,
+    :data:`_EXTENSION_LOUDNESS`). The last sound is dropped while it shows an impulse by
+    neither test; at most `at_most` go, and none that cannot be tested. Only sounds found by
+    probing the file are tested (`probed`, bool per sound; default all): a transient the
+    stream triggered on rose over the mean power before it, which a swell of a beat, rising
+    over a trough of it, does not.
+    """
+    keep = times.size
+    while keep > max(5, times.size - at_most):
+        if probed is not None and not probed[keep - 1]:
+            break
+        if probe(times[keep - 1], _CAUSE_SEARCH_SECONDS, predicted_sound=True,
+                 expected=True) is not None:
+            break
+        # In a faint train every impact's impulse barely clears the error's floor: the last
+        # sound's impulse is then compared with those of the impacts before it, which the
+        # last bounces, of about one speed, match to within 6 dB (in power, a quarter).
+        power = [probe(moment, _CAUSE_SEARCH_SECONDS, predicted_sound=True, any_jump=True)
+                 for moment in times[keep - 4:keep]]
+        if any(result is None for result in power) or (  # untestable (the file's ends)
+                power[-1][2] * _EXTENSION_LOUDNESS**2 >= median(r[2] for r in power[:-1])):
+            break
+        keep -= 1
     return keep
 
 
@@ -1464,11 +1514,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     the last intervals span the recurring delays closely, and the last impacts are about as
     loud as the ones before them; the check the end of the train gets,
     :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
-    impact's ring burst or echo, however loud. An impact's onset before its predicted
-    time, less than 2 ms after a ring, burst or echo of an earlier impact started (from 3 ms
-    on), may be on that sound's own rise: it is probed again past that start, and an onset
-    of its own rising out of it, at least 0.3 ms later and closer to the predicted time, is
-    taken instead. Where the whitened power
+    impact's ring burst or echo, however loud, unless it sets off the secondaries of an
+    impact itself. An impact's onset before its predicted time, less than 2 ms after a ring,
+    burst or echo of an earlier impact started (from 3 ms on), may be on that sound's own
+    rise: it is probed again past that start, and an onset of its own rising out of it, at
+    least 0.3 ms later and closer to the predicted time, is taken instead. Where the whitened power
     shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
     before), past the start of that burst or ring where the first impulse found there is at
@@ -1529,9 +1579,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         return max(k for k in range(i + 1) if heard[k])
 
     def own(result):
-        # A sound that sets off the secondaries of an impact is one.
-        return result is not None and _sets_off_secondaries(probe, result[0], result[2],
-                                                             delays, usual, end)
+        # A sound that sets off the secondaries of an impact (those the impacts before it are
+        # seen to set off) is one.
+        return result is not None and _sets_off_secondaries(
+            probe, result[0], result[2], delays, usual, end,
+            [(anchors[k], loudness[k]) for k in range(max(0, i - 1), i + 1) if heard[k]])
 
     def accept(result, predicted, tolerance, before=None, bounded=False, impact=False):
         # In time order between its neighbours: where the ratios scatter widely the tolerance
@@ -1718,7 +1770,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         origin.insert(i + 1, -1)
         i += 1
     # The train's last sound, one recurring secondary delay after the impact before it, is
-    # that impact's ring burst or echo: no impact followed it to tell it from one.
+    # that impact's ring burst or echo: no impact followed it to tell it from one. Unless it
+    # sets off the secondaries of an impact itself: a burst or echo sets off none, a last
+    # bounce that happens to come one delay after the one before does.
     last = len(anchors) - 1
     while last > 0 and origin[last] < 0:
         last -= 1
@@ -1726,7 +1780,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             and origin[last] not in retimed and delays.size > 0
             and np.abs(anchors[last] - anchors[last - 1] - delays).min()
             < _PROBE_SECONDARY_SECONDS
-            and not any(moment > anchors[last] for moment, *_ in added)):
+            and not any(moment > anchors[last] for moment, *_ in added)
+            and not _sets_off_secondaries(
+                probe, anchors[last], loudness[last], delays, usual, end,
+                [(anchors[k], loudness[k]) for k in range(last - 3, last - 1) if heard[k]])):
         retimed[origin[last]] = None
     return added, retimed
 
