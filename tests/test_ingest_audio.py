@@ -495,7 +495,7 @@ RESTITUTION_SCATTER = {"pingpong": 0.003, "bouncy": 0.007}
         "measured: observed ratio scatter about the running median against the scatter the "
         "stated 1σ and the restitution scatter predict, >= 85 / 44-85 / 25-44 ms bands: "
         "0.0074 / 0.0205 / 0.0243 against 0.0066 / 0.0069 / 0.0105 (ping-pong, which "
-        "passes: 0.0017 / 0.0053 / 0.0034 against 0.0034 / 0.0065 / 0.0081). Each failing "
+        "passes: 0.0017 / 0.0053 / 0.0034 against 0.0034 / 0.0064 / 0.0076). Each failing "
         "band is one departure of a ratio: -0.059 at the intervals 66.7 -> 57.6 ms and "
         "-0.055 at 29.1 -> 25.5 ms (next ratio +0.036), which the 20 %-of-peak threshold "
         "onset shows as well (-0.062; -0.092 and +0.071), on impacts stated to 0.005-0.07 "
