@@ -136,7 +136,7 @@ def recording_check(name, recording, law, **drag):
     "it, the last bounces coming later than a constant ε predicts. Held 16 of 17 while impacts "
     "29 and 32 of the first two thirds were timed 0.5-0.6 ms early (their onsets now at the "
     "rise's edge, issue 14): the timing jitter σ_j those two errors made the fit find (137 µs) "
-    "widened the band; with them timed right σ_j is 0 (±28 µs). Fitted on the same first two "
+    "widened the band; with them timed right σ_j is 0 (±30 µs). Fitted on the same first two "
     "thirds, the linear law holds 16 of 17, the power law 17 of 17, the quadratic 15 of 17; "
     "the noise selection on the whole train still keeps the constant law (ΔBIC of the speed "
     "term -3.5)"))
