@@ -691,6 +691,33 @@ class SpeedTrainFilter(TrainFilter):
             return self.speed_innovations / np.sqrt(self.speed_variance)
 
 
+
+def _filter_buffers(process, batch, count):
+    """The speed filters' per-row process noise (laid out for `batch` rows), flags and sums,
+    and their outputs over `count` impacts: innovations, their variances, predicted times and
+    speeds and filtered speeds (NaN until written), which times and speeds were scored."""
+    process = np.ascontiguousarray(np.broadcast_to(np.asarray(process, float), (batch,)))
+    anchored = np.zeros(batch, np.bool_)
+    total = np.zeros(batch)
+    broken = np.zeros(batch, np.bool_)
+    out = np.full((5, batch, count), np.nan)
+    scored = np.zeros((batch, count), np.bool_)
+    speed_out = np.full((2, batch, count, 2), np.nan)
+    speed_scored = np.zeros((batch, count, 2), np.bool_)
+    return process, anchored, total, broken, out, scored, speed_out, speed_scored
+
+
+def _bounce_columns(model, speed):
+    """Rebound speed, its slope, contact time and its slope (rows) at each row's filtered
+    impact `speed` (m/s), as the speed filters' bounce steps take them."""
+    rebound, rebound_slope = model.rebound(speed)
+    contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
+        model.contact_time(speed)
+    columns = np.empty((4, np.size(speed)))
+    columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
+                                                      contact_slope)
+    return columns
+
 def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, speed_variance,
                   start_speed, process):
     """Extended Kalman filter of impact trains over their impact times and measured speeds.
@@ -745,15 +772,8 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
     state = np.zeros((5, batch))
     state[0] = np.nan
     state[1] = start_speed
-    process = np.ascontiguousarray(np.broadcast_to(np.asarray(process, float), (batch,)))
-    anchored = np.zeros(batch, np.bool_)
-    total = np.zeros(batch)
-    broken = np.zeros(batch, np.bool_)
-    # Innovations, their variances, predicted times and speeds, filtered speeds.
-    out = np.full((5, batch, count), np.nan)
-    scored = np.zeros((batch, count), np.bool_)
-    speed_out = np.full((2, batch, count, 2), np.nan)
-    speed_scored = np.zeros((batch, count, 2), np.bool_)
+    process, anchored, total, broken, out, scored, speed_out, speed_scored = _filter_buffers(
+        process, batch, count)
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (
         times, timing_variance, impact_speed, rebound_speed, speed_variance)]
     times, timing_variance, impact_speed, rebound_speed, speed_variance = arrays
@@ -763,12 +783,7 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
                        speed_variance, total, out, scored, speed_out, speed_scored)
         # The contact and the bounce at the filtered speed, then the rebound speed.
         speed, _ = _finite_speed(np.maximum(state[1], 0.0))
-        rebound, rebound_slope = model.rebound(speed)
-        contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
-            model.contact_time(speed)
-        columns = np.empty((4, batch))
-        columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
-                                                          contact_slope)
+        columns = _bounce_columns(model, speed)
         _bounce_update(n, state, columns, process, rebound_speed, speed_variance, total,
                        broken, speed_out, speed_scored)
         if n == count - 1:
@@ -836,14 +851,8 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
     state[:, 1] = start_speed
     cov = np.zeros((batch, size, size))
     cov[:, 2:, 2:] = np.eye(size - 2)
-    process = np.ascontiguousarray(np.broadcast_to(np.asarray(process, float), (batch,)))
-    anchored = np.zeros(batch, np.bool_)
-    total = np.zeros(batch)
-    broken = np.zeros(batch, np.bool_)
-    out = np.full((5, batch, count), np.nan)
-    scored = np.zeros((batch, count), np.bool_)
-    speed_out = np.full((2, batch, count, 2), np.nan)
-    speed_scored = np.zeros((batch, count, 2), np.bool_)
+    process, anchored, total, broken, out, scored, speed_out, speed_scored = _filter_buffers(
+        process, batch, count)
     times, timing_variance, impact_speed, rebound_speed = (
         np.ascontiguousarray(a, dtype=float)
         for a in (times, timing_variance, impact_speed, rebound_speed))
@@ -853,12 +862,7 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
                           shared_in, flight_in, in_variance, total, out, scored, speed_out,
                           speed_scored, work)
         speed, _ = _finite_speed(np.maximum(state[:, 1], 0.0))
-        rebound, rebound_slope = model.rebound(speed)
-        contact, contact_slope = (0.0, 0.0) if model.contact_time is None else \
-            model.contact_time(speed)
-        columns = np.empty((4, batch))
-        columns[0], columns[1], columns[2], columns[3] = (rebound, rebound_slope, contact,
-                                                          contact_slope)
+        columns = _bounce_columns(model, speed)
         _augmented_step(n, state, cov, columns, process, broken, True, rebound_speed,
                         shared_out, flight_out, out_variance, total, speed_out, speed_scored,
                         work)
