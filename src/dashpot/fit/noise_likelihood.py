@@ -707,6 +707,17 @@ def _filter_buffers(process, batch, count):
     return process, anchored, total, broken, out, scored, speed_out, speed_scored
 
 
+def _filter_result(total, broken, out, scored, speed_out, speed_scored):
+    """The SpeedTrainFilter of the speed filters' buffers (:func:`_filter_buffers`): −2 ln L
+    is inf for a row whose train broke or left the finite numbers."""
+    total = np.where(broken | np.isnan(total), np.inf, total)
+    return SpeedTrainFilter(
+        neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
+        predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
+        scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
+        speed_scored=speed_scored)
+
+
 def _bounce_columns(model, speed):
     """Rebound speed, its slope, contact time and its slope (rows) at each row's filtered
     impact `speed` (m/s), as the speed filters' bounce steps take them."""
@@ -794,12 +805,7 @@ def _speed_filter(model, times, timing_variance, impact_speed, rebound_speed, sp
         columns[0], columns[1], columns[2], columns[3] = (
             flight.duration, flight.landing_speed, flight.duration_slope, flight.landing_slope)
         _flight_predict(state, columns, broken)
-    total = np.where(broken | np.isnan(total), np.inf, total)
-    return SpeedTrainFilter(
-        neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
-        predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
-        scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
-        speed_scored=speed_scored)
+    return _filter_result(total, broken, out, scored, speed_out, speed_scored)
 
 
 def _correlated_speed_filter(model, times, timing_variance, impact_speed, rebound_speed,
@@ -875,12 +881,7 @@ def _correlated_speed_filter(model, times, timing_variance, impact_speed, reboun
         _augmented_step(n, state, cov, columns, process, broken, False, rebound_speed,
                         shared_out, flight_out, out_variance, total, speed_out, speed_scored,
                         work)
-    total = np.where(broken | np.isnan(total), np.inf, total)
-    return SpeedTrainFilter(
-        neg2_log_likelihood=total, innovations=out[0], innovation_variance=out[1],
-        predicted_times=out[2], predicted_speeds=out[3], filtered_speeds=out[4],
-        scored=scored, speed_innovations=speed_out[0], speed_variance=speed_out[1],
-        speed_scored=speed_scored)
+    return _filter_result(total, broken, out, scored, speed_out, speed_scored)
 
 
 @numba.njit(cache=True)
