@@ -22,6 +22,7 @@ from scipy import stats
 
 from cart_trains import measured_cart_run
 from coverage_checks import assert_covers_at_both_levels, normal_binomial_range
+from linear_trains import exact_neg2_log_likelihood, linear_train_model
 
 from dashpot.fit import prepare_data
 from dashpot.fit.noise_fit import fit_noise_models
@@ -97,20 +98,13 @@ def test_a_linear_gaussian_train_with_speeds_is_the_multivariate_normal():
     impact[1, 6] = np.nan
     rebounds[1, [2, 11]] = np.nan
     impact[2, :2] = rebounds[2, :2] = np.nan
-    model = TrainModel(lambda u: (np.full_like(u, rebound), np.zeros_like(u)),
-                       lambda v: track_flight(v, up, down),
-                       lambda u: (np.full_like(u, contact), np.zeros_like(u)))
+    model = linear_train_model(rebound, up, down, contact)
     result = _speed_filter(model, times, np.broadcast_to(timing ** 2, (3, count)), impact,
                            rebounds, np.broadcast_to(speed_sigma ** 2, (3, count)),
                            np.full(3, u0), np.full(3, process))
-    for row in range(3):
-        observed = np.concatenate([times[row, 1:], impact[row], rebounds[row]])
-        seen = np.isfinite(observed)
-        # Differences to a missing first time do not arise here (it is always observed).
-        values = observed - np.concatenate([np.full(count - 1, base), np.zeros(2 * count)])
-        expected = -2.0 * stats.multivariate_normal(
-            mean[seen], covariance[np.ix_(seen, seen)]).logpdf(values[seen])
-        assert result.neg2_log_likelihood[row] == pytest.approx(expected, rel=1e-9), row
+    # The first time is always observed: no difference to a missing one arises.
+    expected = exact_neg2_log_likelihood(times, impact, rebounds, base, mean, covariance)
+    np.testing.assert_allclose(result.neg2_log_likelihood, expected, rtol=1e-9)
     assert result.speed_scored[1].sum() == 2 * count - 3
     assert result.speed_scored[2].sum() == 2 * count - 4
 
