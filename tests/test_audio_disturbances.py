@@ -444,15 +444,20 @@ def test_a_late_impact_on_a_loose_trend_is_not_taken_for_a_secondary_of_the_pred
     assert 6 not in retimed
 
 
+def _ending_one_burst_after():
+    """Impacts shrinking by 0.85 (times, s), the bursts' delay (s: where the next bounce
+    would come), the impacts as timed with one more sound that delay after the last, and the
+    impacts' trend (coefficients, scatter)."""
+    impacts = np.cumsum(0.1 * 0.85 ** np.arange(18))
+    burst = 0.1 * 0.85**18
+    return (impacts, burst, np.append(impacts, impacts[-1] + burst), *_robust_trend(impacts))
+
+
 def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
     # The last sound of the train is the ring burst of the last impact, at the delay at which
     # the bursts of all impacts recur, which happens to be where the next bounce would come:
     # nothing after it tells it from a bounce but that delay.
-    intervals = 0.1 * 0.85 ** np.arange(18)
-    impacts = np.cumsum(intervals)
-    burst = 0.1 * 0.85**18
-    timed = np.append(impacts, impacts[-1] + burst)
-    coefficients, scatter = _robust_trend(impacts)
+    impacts, burst, timed, coefficients, scatter = _ending_one_burst_after()
 
     def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
         return None
@@ -469,11 +474,7 @@ def test_the_burst_of_the_last_impact_is_not_one_more_bounce():
 def test_a_last_impact_one_burst_delay_after_the_one_before_that_sets_off_its_own_burst_stays():
     # The last bounce comes one burst delay after the impact before it, where that impact's
     # burst sounds too: a burst sets off no burst of its own, an impact does.
-    intervals = 0.1 * 0.85 ** np.arange(18)
-    impacts = np.cumsum(intervals)
-    burst = 0.1 * 0.85**18
-    timed = np.append(impacts, impacts[-1] + burst)
-    coefficients, scatter = _robust_trend(impacts)
+    impacts, burst, timed, coefficients, scatter = _ending_one_burst_after()
 
     def bursts_of(sounds):
         def probe(predicted, tolerance, not_before=None, predicted_sound=False,
