@@ -45,8 +45,9 @@ runs them over the file.
    placed where the trend predicts it: that would be circular evidence for the fit that
    follows.
    No sound after the rest time the trend gives its last impacts is one
-   (:func:`_rest_time`); the train then ends before its intervals grow
-   (:func:`_trim_growing_end`) and does not
+   (:func:`_rest_time`); the train then ends before its first interval that grows and
+   after which the sounds do not come back to shorter intervals (:func:`_trim_growing_end`)
+   and does not
    end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
    that is no louder than such a secondary (:func:`_drop_trailing_secondaries`), nor on one
    that sets off none of the secondaries every impact before it sets off
@@ -307,8 +308,6 @@ def _impact_table(path, stream, sample_rate, duration):
             break
         selectable = np.flatnonzero(~explained)
     set_aside = len(candidates) - selectable.size
-    if problem:
-        raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
@@ -348,6 +347,13 @@ def _impact_table(path, stream, sample_rate, duration):
 
     order = _one_per_impact(times, sigmas)
     times, sigmas, amplitudes = times[order], sigmas[order], amplitudes[order]
+    # A chosen chain that is no bounce train is judged again once its members that are the
+    # bursts of impacts hidden under them, and the impacts it missed, are found: those make
+    # the intervals of a true train scatter like clicks'.
+    if problem and (uncovered or filled or retimed):
+        problem = bounce_train_problem(times, sigmas)
+    if problem:
+        raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     clipped_flags = [clipped_flags[k] for k in order]
     dropped_end = dropped_secondaries = dropped_faint = dropped_rest = 0
     if times.size >= 5:

@@ -68,7 +68,6 @@ _FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 _COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
-_REST_STEPS = 1000  # flights stepped on to the rest time, at most (ratio 0.95: 135 from 1 s)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1157,29 +1156,43 @@ def _robust_trend(impact_times, rounds=3):
 
 
 def _trim_growing_end(times, sigmas, scatter):
-    """Number of impacts to keep: the train ends before its last intervals grow.
+    """Number of impacts to keep: the train ends before its intervals grow.
 
     A ball coming to rest bounces ever more often; past the last bounce, sounds that happen
     to follow (a ring of the last impacts, the rest tail of a rolling ball, a click) make an
-    interval longer than the one before. The last interval ratio is tested against 1: where
-    its log exceeds 3σ of the onsets' timing noise (`sigmas`, s, on both intervals) plus
-    the scatter of the log ratios about their trend (`scatter`: the restitution's own
-    variation), the last impact is not a bounce of this train and is dropped, and so on
-    backwards (at most a quarter of the impacts), unless the last interval is two or three
-    bounces of the trend (:func:`_spans_missed_bounces`: an impact missed in between).
+    interval longer than the one before, and those after it may shrink again (rings of the
+    last impacts repeat their intervals). Each interval ratio of the last quarter of the
+    impacts is tested against 1, from the first on: where its log exceeds 3σ of the onsets'
+    timing noise (`sigmas`, s, on both intervals) plus the scatter of the log ratios about
+    their trend (`scatter`: the restitution's own variation), the train ends before that
+    interval, unless the interval is two or three bounces of the trend
+    (:func:`_spans_missed_bounces`: an impact missed in between), or, where sounds follow,
+    it and the interval before or after it are two (the impact between them timed off, or a
+    ring taken for one), or the intervals after it come back under the three before it
+    (their medians).
     """
-    keep = times.size
-    while keep > max(4, int(0.75 * times.size)):
-        a, b, c = times[keep - 3:keep]
+    for end in range(max(4, int(0.75 * times.size)), times.size):
+        a, b, c = times[end - 2:end + 1]
         first, second = b - a, c - b
-        timing = (sigmas[keep - 3] ** 2 + sigmas[keep - 2] ** 2) / first**2 + (
-            sigmas[keep - 2] ** 2 + sigmas[keep - 1] ** 2) / second**2
+        timing = (sigmas[end - 2] ** 2 + sigmas[end - 1] ** 2) / first**2 + (
+            sigmas[end - 1] ** 2 + sigmas[end] ** 2) / second**2
         allowed = 3.0 * np.sqrt(timing) + scatter
         if np.log(second / first) <= allowed or _spans_missed_bounces(
-                times[:keep - 1], second, allowed):
-            break
-        keep -= 1
-    return keep
+                times[:end], second, allowed):
+            continue
+        if end + 1 == times.size:  # nothing after it tells a timed-off impact from an end
+            return end
+        # One impact timed off, early (b) or late (c), or a ring taken for one.
+        if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2) or (
+                _spans_missed_bounces(times[:end], times[end + 1] - b, allowed, most=2)):
+            continue
+        # The train goes on past a grown interval where the intervals after it come back
+        # under those before it (impacts timed off in a row); the sounds after a train
+        # (rings and echoes of its impacts repeat its earlier intervals) do not.
+        if np.median(np.diff(times[end:])) < np.median(np.diff(times[end - 4:end])):
+            continue
+        return end
+    return times.size
 
 
 def _rest_time(times, coefficients, scatter, bounces=10):
@@ -1213,15 +1226,14 @@ def _rest_time(times, coefficients, scatter, bounces=10):
         return keep
     flights = np.median(np.stack([intervals[chosen - 3], intervals[chosen - 2],
                                   intervals[chosen - 1]]), axis=0)
-    step = _trend_step(coefficients, intervals.min())
+    # Each estimate holds the trend's ratio at its own flight for all the flights after it:
+    # stepped on along the trend below the shortest flights, a parabola fitted to the longer
+    # ones can bend back to ratios near 1, and the rest time run off far past the train.
+    log_lo, log_hi = (log(bound) for bound in _RATIO_BOUNDS)
+    ratio = np.exp(np.clip(np.polyval(coefficients, np.log(flights)), log_lo, log_hi))
     moment = np.full(chosen.size, np.inf)  # where the flights do not shrink: no rest time
-    for j, (flight, start) in enumerate(zip(flights.tolist(), times[chosen].tolist())):
-        for _ in range(_REST_STEPS):  # scalar steps: a few tens for each of ten impacts
-            flight = step(flight)
-            if flight < _MERGE_SECONDS:
-                moment[j] = start
-                break
-            start += flight
+    shrinking = ratio < 1.0
+    moment[shrinking] = (times[chosen] + flights * ratio / (1.0 - ratio))[shrinking]
     centre = float(np.median(moment))
     if not np.isfinite(centre):
         return keep
@@ -1408,8 +1420,8 @@ def _drop_unexcited_end(times, probe, probed=None, at_most=2):
     return keep
 
 
-def _spans_missed_bounces(times, interval, allowed):
-    """Whether `interval` (s) after `times` is two or three bounces of their trend.
+def _spans_missed_bounces(times, interval, allowed, most=3):
+    """Whether `interval` (s) after `times` is two (to `most`) bounces of their trend.
 
     An impact lost under the ring of the one before (the last bounces barely rise over it)
     leaves an interval of two bounces, about twice the last one: not a growing interval.
@@ -1430,7 +1442,7 @@ def _spans_missed_bounces(times, interval, allowed):
     bounce, total = float(recent.min()), 0.0
     for _ in range(back):
         bounce = step(bounce)
-    for count in range(1, 4):
+    for count in range(1, most + 1):
         bounce = step(bounce)
         total += bounce
         if count >= 2 and abs(np.log(interval / total)) <= allowed:
