@@ -132,6 +132,29 @@ def test_a_train_ends_on_the_last_sound_that_sets_off_the_secondaries():
                               probe, with_last_burst[-1] + delay) == with_last_burst.size
 
 
+def test_the_last_impact_keeps_its_place_where_its_secondary_shows_only_weakly():
+    # Each impact's echo 40 ms later; the last impact is the faintest and its echo lands
+    # among the echoes of the louder impacts before it: it rises over them only as much as a
+    # weak trigger's jump. It is the last impact's echo all the same.
+    delay = 40e-3
+    impacts = 1.0 + np.cumsum(0.05 * 0.9 ** np.arange(12))
+    echoes = impacts + delay
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        # A strong jump for the echoes of all impacts but the last, a weak one for its own.
+        shown = echoes if expected else echoes[:-1]
+        return onset_near(shown, moment, tolerance)
+
+    amplitudes = np.ones(impacts.size)
+    end = impacts[-1] + 1.0
+    assert _drop_unechoed_end(impacts, amplitudes, np.array([delay]), np.array([0.3]), probe,
+                              end) == impacts.size
+    # A burst after the last impact shows no echo of its own, weak or strong.
+    last_burst = np.r_[impacts, impacts[-1] + 6e-3]
+    assert _drop_unechoed_end(last_burst, np.ones(last_burst.size), np.array([delay]),
+                              np.array([0.3]), fake_probe(echoes, 1.0), end) == impacts.size
+
+
 BURST_SEEDS = range(20270311, 20270323)  # drawn once for this test
 
 

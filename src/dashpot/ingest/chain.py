@@ -1362,21 +1362,24 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     show a secondary within 0.5 ms of one delay (looked for in the error of a predictor of
     the sound, ``probe(moment, tolerance, predicted_sound=True)``, at least a quarter of
     the usual level), the last impact is kept only if it shows one too, or if the recording
-    (`end`, s) stops before that secondary's time is over. At most two are dropped.
+    (`end`, s) stops before that secondary's time is over. Its own need only jump as much as
+    a weak trigger's: the last impact is the faintest, and its secondary lands among the
+    louder ones of the impacts before it. At most two are dropped.
     """
     keep = times.size
     # From 3 ms on: closer sounds are the impact's own first arrivals, not a secondary.
     usable = (np.isfinite(levels) & (levels >= _OWN_SECONDARY_LEVEL)
               & (delays >= _CAUSE_DELAY_SECONDS[0]))
 
-    def shows(position, delay, level):
-        return _shows_secondary(probe, times[position], amplitudes[position], delay, level)
+    def shows(position, delay, level, expected=False):
+        return _shows_secondary(probe, times[position], amplitudes[position], delay, level,
+                                expected)
 
     for delay, level in zip(delays[usable], levels[usable]):
         while keep > max(5, times.size - 2) and times[keep - 1] + delay + _MASK_SECONDS < end:
             if not all(shows(position, delay, level) for position in range(keep - 5, keep - 1)):
                 break
-            if shows(keep - 1, delay, level):
+            if shows(keep - 1, delay, level, expected=True):
                 break
             keep -= 1
     return keep
