@@ -613,6 +613,10 @@ def test_the_train_ends_at_the_first_grown_interval_though_the_sounds_after_it_s
     times = np.concatenate([impacts, rings])
     sigma = np.full(times.size, 60e-6)
     assert _trim_growing_end(times, sigma, 0.02) == impacts.size
+    # Sounds close together 75-86 ms after the last bounce: their intervals come back under
+    # the train's, but no bounces of it span 75 ms after 6.4 ms flights.
+    late = np.concatenate([impacts, impacts[-1] + np.array([0.0754, 0.0831, 0.0856])])
+    assert _trim_growing_end(late, np.full(late.size, 60e-6), 0.02) == impacts.size
 
 
 def test_an_impact_timed_off_in_the_last_quarter_does_not_end_the_train():

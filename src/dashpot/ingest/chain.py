@@ -60,6 +60,7 @@ _CAUSE_FRACTION = 0.8  # a cause lies within this fraction of the interval befor
 _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this different
 _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
 # pulled early by up to the jitter (a ring or echo before them)
+_MOST_BOUNCES = 3.0  # an interval spans at most this many of the one before (missed impacts)
 _SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
 _CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one delay before its burst
 _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
@@ -1169,7 +1170,7 @@ def _trim_growing_end(times, sigmas, scatter):
     (:func:`_spans_missed_bounces`: an impact missed in between), or, where sounds follow,
     it and the interval before or after it are two (the impact between them timed off, or a
     ring taken for one), or the intervals after it come back under the three before it
-    (their medians).
+    (their medians) and it is less than three times as long as them.
     """
     for end in range(max(4, int(0.75 * times.size)), times.size):
         a, b, c = times[end - 2:end + 1]
@@ -1188,8 +1189,10 @@ def _trim_growing_end(times, sigmas, scatter):
             continue
         # The train goes on past a grown interval where the intervals after it come back
         # under those before it (impacts timed off in a row); the sounds after a train
-        # (rings and echoes of its impacts repeat its earlier intervals) do not.
-        if np.median(np.diff(times[end:])) < np.median(np.diff(times[end - 4:end])):
+        # (rings and echoes of its impacts repeat its earlier intervals) do not. An interval
+        # longer than three of those before is no bounces of the train, whatever follows.
+        before = np.median(np.diff(times[end - 4:end]))
+        if second < _MOST_BOUNCES * before and np.median(np.diff(times[end:])) < before:
             continue
         return end
     return times.size
