@@ -23,8 +23,8 @@ from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
-                                  _secondary_levels, _shift_to_causes, _trend_step,
-                                  _trim_growing_end)
+                                  _secondary_levels, _shift_to_causes, _train_end,
+                                  _trend_step, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -693,6 +693,30 @@ def test_the_train_does_not_end_on_a_secondary_of_its_last_impacts():
     # ... and so does a sound at no recurring delay.
     assert _drop_trailing_secondaries(times, amplitudes, np.array([delay + 1e-3]),
                                       np.array([0.8])) == times.size
+
+
+def test_a_sound_left_last_by_the_later_checks_is_judged_for_a_secondary_delay_again():
+    # Bounces shrinking by 0.9, fading by 5 % each; 6.4 ms after the last one its ring burst
+    # at 0.8 of its loudness, and after that a click far fainter than a bounce (a tenth of
+    # the last impact's loudness). The click is left out as too faint; the burst is then
+    # the last sound, at the burst's delay and no louder than a burst: it goes too.
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(20))
+    loudness = 0.5 * 0.95 ** np.arange(20)
+    delay = 6.4e-3
+    burst = impacts[-1] + delay
+    times = np.r_[impacts, burst, burst + 0.9 * (burst - impacts[-1])]
+    amplitudes = np.r_[loudness, 0.8 * loudness[-1], 0.1 * loudness[-1]]
+    sigmas = np.full(times.size, 20e-6)
+
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              any_jump=False):
+        return None  # no further sound in the file: no check on secondaries can be made
+
+    kept, grown_out, secondaries_out, faint_out = _train_end(
+        times, sigmas, amplitudes, 0.01, np.array([delay]), np.array([0.8]), probe,
+        np.zeros(times.size, dtype=bool), times[-1] + 1.0)
+    assert kept == impacts.size
+    assert (grown_out, secondaries_out, faint_out) == (0, 1, 1)
 
 
 def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact():

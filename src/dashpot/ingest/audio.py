@@ -46,12 +46,10 @@ runs them over the file.
    follows.
    No sound after the rest time the trend gives its last impacts is one
    (:func:`_rest_time`); the train then ends before its first interval that grows and
-   after which the sounds do not come back to shorter intervals (:func:`_trim_growing_end`)
-   and does not
-   end on a sound at the delay of a recurring ring, burst or echo after an earlier impact
-   that is no louder than such a secondary (:func:`_drop_trailing_secondaries`), nor on one
-   that sets off none of the secondaries every impact before it sets off
-   (:func:`_drop_unechoed_end`). An impact that starts on the loud ring of the one before
+   after which the sounds do not come back to shorter intervals, and does not end on a
+   sound at the delay of a recurring ring, burst or echo after an earlier impact that is
+   no louder than such a secondary, nor on one that sets off none of the secondaries every
+   impact before it sets off (:func:`_train_end`). An impact that starts on the loud ring of the one before
    barely raises the power; it is looked for in the error of a linear predictor of that
    sound [6]_ (a ring is a sum of damped sinusoids, which the predictor continues; a new
    impact is an impulse into the same resonances): one recurring burst delay before each
@@ -60,7 +58,8 @@ runs them over the file.
    impact whatever ring or echo falls on it (:func:`_sets_off_secondaries`). A chain refused
    as no bounce train is chosen once more without the transients at a recurring secondary
    delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
-   form a chain of their own). There is no fixed dead time.
+   form a chain of their own), and judged again once bursts hiding impacts and missed
+   impacts are resolved. There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -107,12 +106,10 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _drop_faint_end, _drop_trailing_secondaries,
-                    _drop_unechoed_end, _drop_unexcited_end, _explained_secondaries,
-                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
-                    _one_per_impact, _probe, _rest_time, _robust_trend, _secondary_delays,
-                    _secondary_levels, _select_bounces, _sets_off_secondaries,
-                    _trim_growing_end)
+from .chain import (_SECONDARY_MARGIN, _explained_secondaries, _fill_impacts, _fixed_delays,
+                    _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
+                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
+                    _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
@@ -363,24 +360,9 @@ def _impact_table(path, stream, sample_rate, duration):
         dropped_rest = times.size - rested
         times, sigmas, amplitudes = times[:rested], sigmas[:rested], amplitudes[:rested]
         clipped_flags = clipped_flags[:rested]
-        grown = _trim_growing_end(times, sigmas, scatter)
-        # The last sounds at a secondary's delay are left out unless they set off the
-        # secondaries of an impact themselves (then they are one, whatever falls on them).
-        kept = _drop_trailing_secondaries(
-            times[:grown], amplitudes[:grown], delays, levels,
-            lambda k: _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels,
-                                            duration, list(zip(times[k - 3:k - 1],
-                                                               amplitudes[k - 3:k - 1]))))
-        kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe,
-                                  duration)
-        # Nor on a swell of the beating of the sound before it (no impulse in the error of
-        # a predictor of that sound).
-        probed = np.isin(times[:kept], [row[0] for row in filled + retimed if row is not None])
-        kept = _drop_unexcited_end(times[:kept], probe, probed)
-        # Nor does it end on a sound far fainter than the impact speed its flight gives.
-        faint = _drop_faint_end(times[:kept], amplitudes[:kept])
-        dropped_end, dropped_secondaries = times.size - grown, grown - kept
-        dropped_faint, kept = kept - faint, faint
+        probed = np.isin(times, [row[0] for row in filled + retimed if row is not None])
+        kept, dropped_end, dropped_secondaries, dropped_faint = _train_end(
+            times, sigmas, amplitudes, scatter, delays, levels, probe, probed, duration)
         times, sigmas, amplitudes = times[:kept], sigmas[:kept], amplitudes[:kept]
         clipped_flags = clipped_flags[:kept]
     # Where each ring or echo recurring after the impacts would start, and how loud it may be

@@ -1426,6 +1426,61 @@ def _drop_unexcited_end(times, probe, probed=None, at_most=2):
     return keep
 
 
+def _train_end(times, sigmas, amplitudes, scatter, delays, levels, probe, probed, end):
+    """Number of sounds that are the train's impacts, and how many each check left out.
+
+    The last sounds are judged in turn: the train ends before its intervals grow
+    (:func:`_trim_growing_end`); it does not end on a sound at a secondary's delay no louder
+    than such a secondary (:func:`_drop_trailing_secondaries`; unless it sets off the
+    secondaries of an impact itself, :func:`_sets_off_secondaries`: then it is one, whatever
+    falls on it), nor on one that lacks the secondary every impact before it sets off
+    (:func:`_drop_unechoed_end`), nor on a swell of the beating of the sound before it (no
+    impulse in the error of a predictor of that sound, :func:`_drop_unexcited_end`), nor on
+    one far fainter than the impact speed its flight gives (:func:`_drop_faint_end`). A
+    sound that became the last once the later checks left out sounds after it is judged
+    for a secondary's delay once more.
+
+    Parameters
+    ----------
+    times, sigmas, amplitudes : ndarray
+        Onsets (s, increasing), their 1σ (s) and amplitudes (full scale) of the sounds.
+    scatter : float
+        Scatter of the log interval ratios about their trend (:func:`_robust_trend`).
+    delays, levels : ndarray
+        Delays (s) and usual levels (relative) of the recurring secondaries
+        (:func:`_secondary_delays`, :func:`_secondary_levels`).
+    probe : callable
+        As in :func:`_fill_impacts`.
+    probed : ndarray of bool
+        Which sounds were found by probing the file (no trigger of their own).
+    end : float
+        End of the recording (s).
+
+    Returns
+    -------
+    kept, grown_out, secondaries_out, faint_out : int
+        Sounds kept (the first `kept`), and those left out for a grown interval, as
+        secondaries (or unexcited), and as too faint.
+    """
+    grown = _trim_growing_end(times, sigmas, scatter)
+
+    def impact(k):
+        return _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels, end,
+                                     list(zip(times[k - 3:k - 1], amplitudes[k - 3:k - 1])))
+
+    kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays, levels,
+                                      impact)
+    kept = _drop_unechoed_end(times[:kept], amplitudes[:kept], delays, levels, probe, end)
+    kept = _drop_unexcited_end(times[:kept], probe, probed[:kept])
+    faint = _drop_faint_end(times[:kept], amplitudes[:kept])
+    if faint < grown:
+        final = _drop_trailing_secondaries(times[:faint], amplitudes[:faint], delays, levels,
+                                           impact)
+    else:
+        final = faint
+    return final, times.size - grown, grown - kept + faint - final, kept - faint
+
+
 def _spans_missed_bounces(times, interval, allowed, most=3):
     """Whether `interval` (s) after `times` is two (to `most`) bounces of their trend.
 
