@@ -619,6 +619,19 @@ def test_the_train_ends_at_the_first_grown_interval_though_the_sounds_after_it_s
     assert _trim_growing_end(late, np.full(late.size, 60e-6), 0.02) == impacts.size
 
 
+def test_an_echo_of_the_trains_tail_longer_than_a_quarter_of_it_is_left_out():
+    # Twenty bounces shrinking by 0.86 down to 6 ms and the echoes of the last thirteen,
+    # from a far wall: a copy of the train's tail, more than a third of the sounds. The first
+    # echo comes 9 ms after the last bounce (about two bounces of the trend), the next one
+    # 60 ms after that: no bounces of the train.
+    impacts = np.cumsum(0.2 * 0.86 ** np.arange(20))
+    echoes = impacts[-13:] + (impacts[-1] - impacts[-13] + 9e-3)
+    times = np.concatenate([impacts, echoes])
+    assert times.size - impacts.size > times.size / 3
+    sigma = np.full(times.size, 30e-6)
+    assert _trim_growing_end(times, sigma, 0.02) in (impacts.size, impacts.size + 1)
+
+
 def test_an_impact_timed_off_in_the_last_quarter_does_not_end_the_train():
     # Bounces shrinking by 0.9; impact 24 of 30 timed 1 ms early (on a ring before it) and
     # impacts 26-27 timed 0.6 ms late: the intervals around each grow and shrink back, and

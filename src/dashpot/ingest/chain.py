@@ -1161,27 +1161,34 @@ def _trim_growing_end(times, sigmas, scatter):
 
     A ball coming to rest bounces ever more often; past the last bounce, sounds that happen
     to follow (a ring of the last impacts, the rest tail of a rolling ball, a click) make an
-    interval longer than the one before, and those after it may shrink again (rings of the
-    last impacts repeat their intervals). Each interval ratio of the last quarter of the
-    impacts is tested against 1, from the first on: where its log exceeds 3σ of the onsets'
-    timing noise (`sigmas`, s, on both intervals) plus the scatter of the log ratios about
-    their trend (`scatter`: the restitution's own variation), the train ends before that
-    interval, unless the interval is two or three bounces of the trend
+    interval longer than the one before, and those after it may shrink again (rings and
+    echoes of the last impacts repeat their intervals). Each interval ratio of the last
+    quarter of the impacts is tested against 1, from the first on: where its log exceeds 3σ
+    of the onsets' timing noise (`sigmas`, s, on both intervals) plus the scatter of the log
+    ratios about their trend (`scatter`: the restitution's own variation), the train ends
+    before that interval, unless the interval is two or three bounces of the trend
     (:func:`_spans_missed_bounces`: an impact missed in between), or, where sounds follow,
     it and the interval before or after it are two (the impact between them timed off, or a
     ring taken for one), or the intervals after it come back under the three before it
-    (their medians) and it is less than three times as long as them.
+    (their medians) and it is less than three times as long as them. An interval three
+    times as long as those before it, and not two or three bounces, ends the train from the
+    last half of the impacts on: an echo of the train's tail can hold more than a quarter of
+    the sounds.
     """
-    for end in range(max(4, int(0.75 * times.size)), times.size):
+    for end in range(max(4, int(0.5 * times.size)), times.size):
         a, b, c = times[end - 2:end + 1]
         first, second = b - a, c - b
+        before = np.median(np.diff(times[end - 4:end]))
+        impossible = second >= _MOST_BOUNCES * before
+        if end < int(0.75 * times.size) and not impossible:
+            continue
         timing = (sigmas[end - 2] ** 2 + sigmas[end - 1] ** 2) / first**2 + (
             sigmas[end - 1] ** 2 + sigmas[end] ** 2) / second**2
         allowed = 3.0 * np.sqrt(timing) + scatter
         if np.log(second / first) <= allowed or _spans_missed_bounces(
                 times[:end], second, allowed):
             continue
-        if end + 1 == times.size:  # nothing after it tells a timed-off impact from an end
+        if end + 1 == times.size or impossible:
             return end
         # One impact timed off, early (b) or late (c), or a ring taken for one.
         if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2) or (
@@ -1189,10 +1196,8 @@ def _trim_growing_end(times, sigmas, scatter):
             continue
         # The train goes on past a grown interval where the intervals after it come back
         # under those before it (impacts timed off in a row); the sounds after a train
-        # (rings and echoes of its impacts repeat its earlier intervals) do not. An interval
-        # longer than three of those before is no bounces of the train, whatever follows.
-        before = np.median(np.diff(times[end - 4:end]))
-        if second < _MOST_BOUNCES * before and np.median(np.diff(times[end:])) < before:
+        # (rings and echoes of its impacts repeat its earlier intervals) do not.
+        if np.median(np.diff(times[end:])) < before:
             continue
         return end
     return times.size
