@@ -734,6 +734,19 @@ def test_a_sound_left_last_by_the_later_checks_is_judged_for_a_secondary_delay_a
     assert (grown_out, secondaries_out, faint_out) == (0, 1, 1)
 
 
+def test_a_train_whose_first_two_chains_are_no_bounce_train_is_chosen_a_third_time(tmp_path):
+    # A development train (seed 20291333) with a ring burst as loud as the impact 7.6 ms
+    # after it, a ring at 17.7 ms and an echo at 42 ms: the first chain took the first burst
+    # and then the rings for impacts, and measured from it the secondaries' delays were
+    # wrong; chosen without those, the chain still followed the rings. Chosen once more
+    # without the secondaries of that second chain, the first chain's members kept, it is
+    # the train: every impact is found, and the file is not refused as clicks.
+    samples, onsets, _ = disturbed_train(20291333)
+    path = write_audio(tmp_path / "rings.wav", samples, RATE, subtype="FLOAT")
+    found = detect_impacts(path)["time"].to_numpy()
+    assert np.all(np.abs(onsets[:, None] - found[None, :]).min(axis=1) < MATCH)
+
+
 def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact():
     # Impacts fading by 7 % per bounce, each with a ring 12 ms later at 0.35 of its loudness
     # and, on every other impact, a click at 0.9 of it 30 ms later.

@@ -58,8 +58,9 @@ runs them over the file.
    impact whatever ring or echo falls on it (:func:`_sets_off_secondaries`). A chain refused
    as no bounce train is chosen once more without the transients at a recurring secondary
    delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
-   form a chain of their own), and judged again once bursts hiding impacts and missed
-   impacts are resolved. There is no fixed dead time.
+   form a chain of their own), a third time with the delays measured after that second
+   chain's impacts (taken only if it passes), and judged again once bursts hiding impacts
+   and missed impacts are resolved. There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -293,17 +294,28 @@ def _impact_table(path, stream, sample_rate, duration):
     # A chain that fails the check of a bounce train is chosen again once the transients
     # explained as the rings, bursts and echoes of louder ones (at the delays at which they
     # recur after the first choice's impacts) are set aside: where secondaries come at
-    # evenly spaced delays, they form a chain of their own as long as the train's tail.
+    # evenly spaced delays, they form a chain of their own as long as the train's tail. Where
+    # that one fails too, a third choice measures the delays after its impacts instead (a
+    # first chain that took secondaries for impacts measures them wrong, and sets impacts
+    # aside), with the first choice's members selectable; it is taken only if it passes.
     selectable = np.arange(len(candidates))
-    for attempt in range(2):
-        chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem = _choose(
-            path, stream, candidates, rough, strength, amplitude, strong, precise, selectable)
-        if not problem or attempt:
+    choices = []
+    for attempt in range(3):
+        choices.append((selectable, _choose(path, stream, candidates, rough, strength,
+                                            amplitude, strong, precise, selectable)))
+        chain, problem = choices[-1][1][0], choices[-1][1][-1]
+        if not problem or attempt == 2:
             break
         explained = _explained_secondaries(rough, amplitude, chain)
+        if attempt:
+            explained[choices[0][1][0]] = False
         if not explained.any():
             break
         selectable = np.flatnonzero(~explained)
+    # The last choice, or the second where the third fails too (judged again below, once
+    # the impacts its bursts hide are found).
+    selectable, chosen = choices[-1] if len(choices) < 3 or not choices[-1][1][-1] else choices[1]
+    chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem = chosen
     set_aside = len(candidates) - selectable.size
     order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
