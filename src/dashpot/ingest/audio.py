@@ -49,8 +49,8 @@ runs them over the file.
    after which the sounds do not come back to shorter intervals, and does not end on a
    sound at the delay of a recurring ring, burst or echo after an earlier impact that is
    no louder than such a secondary, nor on one that sets off none of the secondaries every
-   impact before it sets off (:func:`_train_end`). An impact that starts on the loud ring of the one before
-   barely raises the power; it is looked for in the error of a linear predictor of that
+   impact before it sets off (:func:`_train_end`). An impact that starts on the loud ring
+   of the one before barely raises the power; it is looked for in the error of a linear predictor of that
    sound [6]_ (a ring is a sum of damped sinusoids, which the predictor continues; a new
    impact is an impulse into the same resonances): one recurring burst delay before each
    burst the chain took (:func:`_hidden_causes`), and wherever the trend predicts an impact
@@ -312,10 +312,12 @@ def _impact_table(path, stream, sample_rate, duration):
         if not explained.any():
             break
         selectable = np.flatnonzero(~explained)
-    # The last choice, or the second where the third fails too (judged again below, once
-    # the impacts its bursts hide are found).
-    selectable, chosen = choices[-1] if len(choices) < 3 or not choices[-1][1][-1] else choices[1]
-    chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem = chosen
+    if len(choices) == 3 and choices[-1][1][-1]:
+        # The third fails too: the second is judged again below, once the impacts its
+        # bursts hide are found.
+        choices.pop()
+    selectable, (chain, skipped, times, sigmas, amplitudes, clipped_flags, timing,
+                 problem) = choices[-1]
     set_aside = len(candidates) - selectable.size
     order = np.argsort(times)
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)

@@ -1206,18 +1206,18 @@ def _trim_growing_end(times, sigmas, scatter):
 def _rest_time(times, coefficients, scatter, bounces=10):
     """Number of impacts to keep: none after the ball has come to rest.
 
-    The flights after an impact shrink by the ratio the trend gives (:func:`_trend_step`,
-    continued along its tangent below the shortest interval and held within the ratio
-    bounds) and sum to a finite rest time, reached when a flight falls below the merge
-    window (a geometric series for a constant restitution [5]_). Each of the last `bounces`
-    impacts whose two interval ratios before it follow the trend (to 3 `scatter`, in log)
-    gives an estimate of that time, stepped on from the median of the three intervals before
-    it: the impacts of one train give the same (a mis-timed onset or a transient taken for an
-    impact give outliers). Sounds later than their median by more than 3 robust standard
-    deviations of the estimates, plus the merge window, are not bounces of this train (a run
-    of echoes of its impacts that continues its intervals, a rest click); at most a quarter
-    of the impacts go. The last impacts are used because they are the closest to the rest
-    time: the trend is stepped on over the fewest flights.
+    The flights after an impact shrink and sum to a finite rest time: for a ratio r held
+    constant, T·r/(1 − r) after a flight of T s (a geometric series [5]_). Each of the last
+    `bounces` impacts whose two interval ratios before it follow the trend (to 3 `scatter`,
+    in log) gives an estimate of that time, from the median T of the three intervals before
+    it and the trend's ratio there (held within the ratio bounds; no rest time where it is
+    1 or more): the impacts of one train give about the same (a mis-timed onset or a
+    transient taken for an impact give outliers). The ratio is not stepped on along the
+    trend below the intervals it was fitted to, where a parabola can bend back to 1. Sounds
+    later than the estimates' median by more than 3 of their robust standard deviations,
+    plus the merge window, are not bounces of this train (a run of echoes of its impacts that
+    continues its intervals, a rest click); at most a quarter of the impacts go. The last
+    impacts are used because they are the closest to the rest time.
     """
     keep = times.size
     if keep < 8:
@@ -1234,9 +1234,6 @@ def _rest_time(times, coefficients, scatter, bounces=10):
         return keep
     flights = np.median(np.stack([intervals[chosen - 3], intervals[chosen - 2],
                                   intervals[chosen - 1]]), axis=0)
-    # Each estimate holds the trend's ratio at its own flight for all the flights after it:
-    # stepped on along the trend below the shortest flights, a parabola fitted to the longer
-    # ones can bend back to ratios near 1, and the rest time run off far past the train.
     log_lo, log_hi = (log(bound) for bound in _RATIO_BOUNDS)
     ratio = np.exp(np.clip(np.polyval(coefficients, np.log(flights)), log_lo, log_hi))
     moment = np.full(chosen.size, np.inf)  # where the flights do not shrink: no rest time
