@@ -19,7 +19,7 @@ import pytest
 from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
+from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between, _echoing_members,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
@@ -745,6 +745,37 @@ def test_a_train_whose_first_two_chains_are_no_bounce_train_is_chosen_a_third_ti
     path = write_audio(tmp_path / "rings.wav", samples, RATE, subtype="FLOAT")
     found = detect_impacts(path)["time"].to_numpy()
     assert np.all(np.abs(onsets[:, None] - found[None, :]).min(axis=1) < MATCH)
+
+
+def test_the_members_of_a_chain_that_followed_an_echo_of_the_train_are_found():
+    # Impacts shrinking by 0.85, fading by 4 % each, each with an echo at half its loudness
+    # 145 ms later; a chain took the first impact and then the echoes (a copy of the train's
+    # intervals, longer by the delay). The echoes are found as such; the first impact, and
+    # the impacts left out, are not.
+    impacts = 0.2 + np.cumsum(np.r_[0.0, 0.116 * 0.85 ** np.arange(18)])
+    loudness = 0.5 * 0.96 ** np.arange(impacts.size)
+    echoes = impacts + 0.145
+    order = np.argsort(np.r_[impacts, echoes])
+    times = np.r_[impacts, echoes][order]
+    amplitude = np.r_[loudness, 0.5 * loudness][order]
+    is_echo = np.r_[np.zeros(impacts.size, bool), np.ones(impacts.size, bool)][order]
+    chain = np.r_[0, np.flatnonzero(is_echo)]
+    echoing = _echoing_members(times, amplitude, chain)
+    np.testing.assert_array_equal(echoing, is_echo)
+    # A chain of the impacts has no louder sound one recurring delay before its members.
+    assert not _echoing_members(times, amplitude, np.flatnonzero(~is_echo)).any()
+
+
+def test_a_chain_that_followed_an_echo_of_the_train_is_chosen_again_without_it(tmp_path):
+    # A development train (seed 20301443) with an echo at half the loudness 145 ms after
+    # each impact: the chain took the first impact and then the echoes, and the louder
+    # impacts between its members made the file refused as clicks.
+    samples, onsets, _ = disturbed_train(20301443)
+    path = write_audio(tmp_path / "echo.wav", samples, RATE, subtype="FLOAT")
+    found = detect_impacts(path)["time"].to_numpy()
+    distance = np.abs(onsets[:, None] - found[None, :])
+    assert np.mean(distance.min(axis=1) < MATCH) >= 0.9
+    assert np.sum(distance.min(axis=0) >= MATCH) <= 1
 
 
 def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact():

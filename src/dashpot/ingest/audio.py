@@ -59,8 +59,10 @@ runs them over the file.
    as no bounce train is chosen once more without the transients at a recurring secondary
    delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
    form a chain of their own), a third time with the delays measured after that second
-   chain's impacts (taken only if it passes), and judged again once bursts hiding impacts
-   and missed impacts are resolved. There is no fixed dead time.
+   chain's impacts, a fourth without the first chain's members that are echoes of louder
+   transients between them (:func:`_echoing_members`; each taken only if it passes), and
+   judged again once bursts hiding impacts and missed impacts are resolved. There is no
+   fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -107,8 +109,8 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _explained_secondaries, _fill_impacts, _fixed_delays,
-                    _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
+from .chain import (_SECONDARY_MARGIN, _echoing_members, _explained_secondaries, _fill_impacts,
+                    _fixed_delays, _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
                     _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
                     _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
@@ -297,25 +299,45 @@ def _impact_table(path, stream, sample_rate, duration):
     # evenly spaced delays, they form a chain of their own as long as the train's tail. Where
     # that one fails too, a third choice measures the delays after its impacts instead (a
     # first chain that took secondaries for impacts measures them wrong, and sets impacts
-    # aside), with the first choice's members selectable; it is taken only if it passes.
-    selectable = np.arange(len(candidates))
-    choices = []
-    for attempt in range(3):
-        choices.append((selectable, _choose(path, stream, candidates, rough, strength,
-                                            amplitude, strong, precise, selectable)))
-        chain, problem = choices[-1][1][0], choices[-1][1][-1]
-        if not problem or attempt == 2:
+    # aside), with the first choice's members selectable, and where louder sounds lie between
+    # the first choice's members a fourth sets aside those that are echoes of louder
+    # transients; each is taken only if it passes.
+    def choose(selectable):
+        return selectable, _choose(path, stream, candidates, rough, strength, amplitude,
+                                   strong, precise, selectable)
+
+    def passes(choice):
+        return not choice[1][-1]
+
+    choices = [choose(np.arange(len(candidates)))]
+    first_chain = choices[0][1][0]
+    if not passes(choices[0]):
+        explained = _explained_secondaries(rough, amplitude, first_chain)
+        if explained.any():
+            choices.append(choose(np.flatnonzero(~explained)))
+    later = []
+    if not passes(choices[-1]):
+        if len(choices) == 2:
+            # The delays measured after the second choice's impacts instead.
+            explained = _explained_secondaries(rough, amplitude, choices[1][1][0])
+            explained[first_chain] = False
+            if explained.any():
+                later.append(np.flatnonzero(~explained))
+        # Where louder sounds lie between its members, without the first choice's members
+        # that follow louder transients it left out at a recurring delay: it followed an
+        # echo of the train.
+        if _louder_between(rough, strength / stream.settings.min_power, amplitude, strong,
+                           first_chain):
+            echoing = _echoing_members(rough, amplitude, first_chain)
+            if echoing.any():
+                later.append(np.flatnonzero(~echoing))
+    for selectable in later:
+        choice = choose(selectable)
+        if passes(choice):
+            # Taken only if it passes; else the last of the first two is judged again
+            # below, once the impacts its bursts hide are found.
+            choices.append(choice)
             break
-        explained = _explained_secondaries(rough, amplitude, chain)
-        if attempt:
-            explained[choices[0][1][0]] = False
-        if not explained.any():
-            break
-        selectable = np.flatnonzero(~explained)
-    if len(choices) == 3 and choices[-1][1][-1]:
-        # The third fails too: the second is judged again below, once the impacts its
-        # bursts hide are found.
-        choices.pop()
     selectable, (chain, skipped, times, sigmas, amplitudes, clipped_flags, timing,
                  problem) = choices[-1]
     set_aside = len(candidates) - selectable.size

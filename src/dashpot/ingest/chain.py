@@ -827,6 +827,47 @@ def _explained_secondaries(times, amplitude, chain):
     return explained
 
 
+def _echoing_members(times, amplitude, chain):
+    """Which transients of `chain` are the secondaries of louder ones it left out.
+
+    A chain can follow an echo of the train instead of the train (an echo copies its
+    intervals, and outlasts it by its delay): each member then comes at one delay after a
+    louder transient left out, the impact. A delay (1 ms bins, each pooled with the one
+    before, from 3 ms to twice the longest secondary delay) at which a quarter of the members
+    (three at least) follow a louder transient left out recurs; the members within 0.3 ms
+    of it after a louder transient (left out or not) are its secondaries. `times` (s, increasing) and
+    `amplitude` (full scale) are those of all the transients; returns a boolean mask of
+    them.
+    """
+    echoing = np.zeros(times.size, dtype=bool)
+    others = np.setdiff1d(np.arange(times.size), chain)
+    if chain.size < 4 or others.size == 0:
+        return echoing
+    delays = times[chain][:, None] - times[others][None, :]
+    valid = ((amplitude[others][None, :] >= amplitude[chain][:, None])
+             & (delays >= _CAUSE_DELAY_SECONDS[0]) & (delays < 2 * _SECONDARY_SECONDS))
+    if not valid.any():
+        return echoing
+    # Each member counts once per millisecond bin.
+    member, column = np.nonzero(valid)
+    bins = np.round(delays[member, column] * 1e3).astype(np.int64)
+    pairs = np.unique(np.stack([member, bins]), axis=1)
+    counts = np.bincount(pairs[1])
+    pooled = counts + np.concatenate(([0], counts[:-1]))
+    # Marked after any louder transient, the chain's own members too (the first impact's
+    # echo follows it in the chain).
+    after_any = times[chain][:, None] - times[None, :]
+    louder = amplitude[None, :] >= amplitude[chain][:, None]
+    for value in np.flatnonzero(pooled >= max(3, chain.size / 4)):
+        close = valid & (np.abs(delays - value / 1e3 + 0.5e-3) <= 1e-3)
+        if not close.any():
+            continue
+        delay = float(np.median(delays[close]))
+        echoing[chain[np.any(louder & (np.abs(after_any - delay) <= _CAUSE_TOLERANCE),
+                             axis=1)]] = True
+    return echoing
+
+
 def _fixed_delays(times, chain):
     """Most common delay (s) of the transients left out after the preceding impact, and count."""
     impacts = times[chain]
