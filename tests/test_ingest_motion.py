@@ -265,6 +265,51 @@ def test_blanks_only_matter_between_the_values_read(tmp_path, capstone_three_run
         read_motion_sensor(path)
 
 
+def write_vernier_format2(frame, path, runs, names, *, decimal="."):
+    """The runs as Logger Pro exports them as text ("Vernier Format 2"): per data set the
+    mark, the source and date, the data set's name, long names, short names, units and a
+    blank line, then tab-separated rows (blank where a derivative is not defined); the data
+    sets one below the other, CRLF line ends."""
+    lines = []
+    for run, name in zip(runs, names):
+        lines += ["Vernier Format 2", "bumper.cmbl 11/26/2025 9:41:07 .", name,
+                  "Time\tPosition\tVelocity\tAcceleration", "t\tx\tv\ta",
+                  "s\tm\tm/s\tm/s²", ""]
+        columns = [frame[f"{quantity} Run #{run}"].dropna() if quantity == "Time"
+                   else frame[f"{quantity} Run #{run}"]
+                   for quantity in ("Time (s)", "Position (m)", "Velocity (m/s)",
+                                    "Acceleration (m/s²)")]
+        length = columns[0].size
+        for k in range(length):  # writing the fixture, a few hundred rows
+            lines.append("\t".join(
+                "" if math.isnan(values.iloc[k]) else
+                f"{values.iloc[k]:.{digits}f}".replace(".", decimal)
+                for values, digits in zip(columns, (2, 4, 3, 2))))
+    path.write_text("\r\n".join(lines) + "\r\n", encoding="utf-8")
+
+
+@pytest.mark.parametrize("decimal", [".", ","])
+def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, decimal):
+    """Logger Pro's text export (six header lines per data set, the data sets one below the
+    other; a German system writes decimal commas): every data set is a run, every reversal
+    of each is found and timed within 4 of its stated σ, on the command line too."""
+    frame, truths = capstone_three_runs
+    path = tmp_path / "bumper.txt"
+    write_vernier_format2(frame, path, (1, 3), ("Run 1", "Latest"), decimal=decimal)
+    assert sniff_table(path) == "motion_sensor"
+    impacts = read_motion_sensor(path)
+    assert sorted(impacts["run"].unique()) == [0, 1]
+    for run, truth in zip((0, 1), (truths[0], truths[2])):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    notes = " ".join(impacts.attrs["notes"])
+    assert "'Run 1'" in notes and "'Latest'" in notes
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "impacts.csv")])
+    assert status == 0, err
+    assert len(read_impact_table(tmp_path / "impacts.csv")) == len(impacts)
+
+
 @pytest.mark.parametrize("rate", [20.0, 30.0, 50.0])
 def test_five_degree_incline_every_bounce_timed_from_the_first(tmp_path, rate):
     """A cart released from rest on a 5° incline, sampled at 20-50 Hz: the first bounce (after

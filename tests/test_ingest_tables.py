@@ -188,6 +188,21 @@ def test_timestamps_uncertainty_column_and_no_header(tmp_path):
     assert frame["time_uncertainty"].tolist() == pytest.approx([1.5e-3, 2.5e-3])
 
 
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_timestamps_with_a_separator_after_every_field(tmp_path, stiff, separator, decimal):
+    """A column of impact times saved from a spreadsheet that kept a formatted, empty column
+    beside it (or from a logger ending each field with a separator): every line ends with a
+    separator. The empty column is no column; every time is read."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / "times.csv"
+    path.write_bytes(("time (s)" + separator + "\r\n" + "".join(
+        f"{t:.6f}".replace(".", decimal) + separator + "\r\n" for t in times)).encode())
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+
+
 def test_timestamps_unit_argument_contradicting_header(tmp_path):
     path = tmp_path / "t.csv"
     write_timestamps(path, [0.0, 0.5], unit="ms")

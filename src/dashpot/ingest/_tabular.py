@@ -236,8 +236,16 @@ def _text_table(path, raw, member):
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
     # Tracker's layouts build on this module's cell conventions (imported here, not above).
     from .tracker import multi_track_layout, stacked_tracks, titled_track
+    from .vernier import format2_layout
 
-    tracker = multi_track_layout(lines[comments:])
+    vernier = format2_layout(lines[comments:])
+    if vernier is not None:
+        # Vernier's text export: six header lines per data set, restated as one header row.
+        text = vernier
+        lines = text.splitlines()
+        comments = 0
+        head = lines[:20]
+    tracker = None if vernier is not None else multi_track_layout(lines[comments:])
     if tracker is not None:
         separator, text, owner, tracks = tracker
         head = text.splitlines()[:20]
@@ -267,7 +275,8 @@ def _text_table(path, raw, member):
     variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
-               + (f", {comments} comment line(s) skipped" if comments else ""))
+               + (f", {comments} comment line(s) skipped" if comments else "")
+               + (", Vernier Format 2 text export" if vernier is not None else ""))
     if tracker is None and not blocks:
         if title:
             variant += f", first line names the track '{title}' (Tracker data export)"
@@ -289,11 +298,22 @@ def _text_table(path, raw, member):
     return table
 
 
+def _used_width(cells):
+    """Number of columns up to the last one with any cell written (header included).
+
+    A separator after the last column on every line (a spreadsheet that saved a formatted
+    but empty column, a logger that ends each field with one) adds columns of nothing.
+    """
+    used = np.flatnonzero((cells != "").any(axis=0))
+    return int(used[-1]) + 1 if used.size else cells.shape[1]
+
+
 def _finish_table(path, cells, decimal, variant, member):
     """Split off the header row (if the first row is not all numbers) and check for data."""
     where = f"'{member}': " if member else ""
     if cells.size == 0 or not np.any(cells != ""):
         raise InputError(path, f"{where}file is empty")
+    cells = cells[:, :_used_width(cells)]
     first = cells[0]
     if np.all(_is_number(first[first != ""], decimal)):
         columns = None
