@@ -203,6 +203,28 @@ def test_timestamps_with_a_separator_after_every_field(tmp_path, stiff, separato
     np.testing.assert_allclose(frame["time"], times, atol=5e-7)
 
 
+@pytest.mark.parametrize("labels", ["numbered", "empty", "regions"])
+def test_audacity_label_export(tmp_path, stiff, labels):
+    """Impacts marked by hand in Audacity and exported as labels (start, end in s with six
+    decimals, the label's text, tab-separated, no header): the starts are the impact times,
+    in s whatever their spacing, to the written digits; an empty label text leaves a line
+    ending in a tab, and its end column must not be read as the times' uncertainty."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    ends = times + (0.004 if labels == "regions" else 0.0)
+    text = {"numbered": [str(k + 1) for k in range(times.size)],
+            "empty": [""] * times.size, "regions": ["bounce"] * times.size}[labels]
+    path = tmp_path / "labels.txt"
+    path.write_text("".join(f"{t:f}\t{e:f}\t{x}\n" for t, e, x in zip(times, ends, text)))
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    np.testing.assert_allclose(frame["time_uncertainty"], 1e-6 / 12 ** 0.5, rtol=1e-6)
+    assert any("Audacity" in note for note in frame.attrs["notes"])
+    with pytest.raises(InputError, match=r"labels\.txt: .*Audacity.*unit='ms'"):
+        read_timestamps(path, unit="ms")
+
+
 def test_timestamps_unit_argument_contradicting_header(tmp_path):
     path = tmp_path / "t.csv"
     write_timestamps(path, [0.0, 0.5], unit="ms")

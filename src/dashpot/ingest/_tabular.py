@@ -19,6 +19,8 @@ References
    ``0.000000000E0``, separators comma/tab/semicolon with decimal point or comma, one CSV per
    set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
    with ``NaN``.
+.. [9] Audacity manual, "Label Tracks", exporting labels: a text file of one label per line,
+   start and end time in seconds and the label's text, tab-separated, no header.
 """
 
 from __future__ import annotations
@@ -315,7 +317,9 @@ def _finish_table(path, cells, decimal, variant, member):
         raise InputError(path, f"{where}file is empty")
     cells = cells[:, :_used_width(cells)]
     first = cells[0]
-    if np.all(_is_number(first[first != ""], decimal)):
+    # A row of numbers is data; so is a label of Audacity's export (two times and its text).
+    if np.all(_is_number(first[first != ""], decimal)) or (
+            first.size == 3 and np.all(_is_number(first[:2], decimal))):
         columns = None
     else:
         columns = [_parse_header(h) for h in first]
@@ -554,6 +558,24 @@ def _is_state(column):
     return "state" in column.name or column.name in {"gate", "photogate", "blocked"}
 
 
+def _is_label_track(table):
+    """True for Audacity's label export [9]_: no header; per label its start and end in s
+    and its text (which may be empty), tab-separated; every label ends at or after its start.
+
+    Two header-less columns whose second is never below the first are such labels, never
+    times with their uncertainties (an uncertainty as large as the time itself is none).
+    """
+    if table.columns is not None or table.cells.shape[1] not in (2, 3):
+        return False
+    bounds = table.cells[:, :2]
+    if np.any(bounds == "") or not np.all(_is_number(bounds.ravel(), table.decimal)):
+        return False
+    if table.decimal == ",":
+        bounds = np.char.replace(bounds, ",", ".")
+    start, end = bounds.astype(float).T
+    return bool(np.all(np.isfinite(start)) and np.all(end >= start))
+
+
 def _kind_of(table):
     """Which reader a single table belongs to, or None."""
     if _phyphox_layout(table) is not None:
@@ -561,7 +583,8 @@ def _kind_of(table):
     if _is_impact_header(table):
         return "timestamps"  # dashpot's own impact table, read by read_impact_table
     if table.columns is None:
-        return "timestamps" if table.cells.shape[1] <= 2 else None
+        return ("timestamps" if table.cells.shape[1] <= 2 or _is_label_track(table)
+                else None)
     names = _names(table)
     has_time = any(n in _TIME_NAMES for n in names)
     if not has_time:
