@@ -310,6 +310,38 @@ def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, de
     assert len(read_impact_table(tmp_path / "impacts.csv")) == len(impacts)
 
 
+def test_lost_echoes_of_the_motion_sensor_invent_no_impact(tmp_path, capstone_three_runs):
+    """An ultrasonic motion sensor that loses the cart for one ping writes one reading far
+    off (an echo from something nearer, or none: a reading at its range limit). Such single
+    readings, one in a flight just before a contact, one mid-flight beyond the bumper, one
+    in the resting tail, are left out (noted): every run keeps exactly its reversals, timed
+    within 4 of their stated σ, none invented or flagged for the glitch."""
+    frame, truths = capstone_three_runs
+    glitched = frame.copy()
+    rng = np.random.default_rng(SEED + 1)
+    for run, truth in zip((1, 2, 3), truths):
+        time = glitched[f"Time (s) Run #{run}"].to_numpy()
+        column = f"Position (m) Run #{run}"
+        before_hit = int(np.searchsorted(time, truth["impact_times"][1])) - 1
+        mid_flight = int(np.searchsorted(time, 0.5 * (truth["impact_times"][2]
+                                                      + truth["impact_times"][3])))
+        resting = int(np.searchsorted(time, truth["end"] - 1.0))
+        glitched.loc[before_hit, column] = round(rng.uniform(0.15, 0.3), 4)  # a nearer echo
+        glitched.loc[mid_flight, column] = 2.5  # no echo: the range limit
+        glitched.loc[resting, column] = round(rng.uniform(-0.9, -0.5), 4)
+    path = tmp_path / "glitches.csv"
+    write_capstone_csv(glitched, path)
+    impacts = read_motion_sensor(path)
+    assert sorted(impacts["run"].unique()) == [0, 1, 2]
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        assert (found["flag"] == "ok").all()
+        assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    glitch_notes = [n for n in impacts.attrs["notes"] if "isolated reading" in n]
+    assert len(glitch_notes) == 3 and all("3 isolated" in n for n in glitch_notes)
+
+
 @pytest.mark.parametrize("rate", [20.0, 30.0, 50.0])
 def test_five_degree_incline_every_bounce_timed_from_the_first(tmp_path, rate):
     """A cart released from rest on a 5° incline, sampled at 20-50 Hz: the first bounce (after
