@@ -15,6 +15,7 @@ import openpyxl
 import pandas as pd
 import pytest
 
+from cli_run import run_cli
 import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS, MOTION_SPEED_ERROR_COLUMNS
@@ -223,6 +224,22 @@ def test_audacity_label_export(tmp_path, stiff, labels):
     assert any("Audacity" in note for note in frame.attrs["notes"])
     with pytest.raises(InputError, match=r"labels\.txt: .*Audacity.*unit='ms'"):
         read_timestamps(path, unit="ms")
+
+
+def test_header_less_second_column_that_is_no_uncertainty_is_refused(tmp_path, stiff):
+    """Instants exported by an annotation tool as 'time,label' with numbered labels (no
+    header): the labels 1, 2, 3 ... are no 1σ of the times (an uncertainty as large as the
+    interval between impacts would not tell them apart). One line naming the file, the row
+    and the problem, exit 2, instead of a table with 1 s, 2 s, 3 s uncertainties."""
+    times = np.round(stiff.impact_times + 0.5, 9)
+    path = tmp_path / "instants.csv"
+    path.write_text("".join(f"{t:.9f},{k + 1}\n" for k, t in enumerate(times)))
+    with pytest.raises(InputError, match=r"instants\.csv, row 1: the second column \(no header\) "
+                                         r"cannot be the times' uncertainties"):
+        dashpot.read_impacts(path)
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "out.csv")])
+    assert status == 2 and err.count("\n") == 1 and "instants.csv" in err
+    assert not (tmp_path / "out.csv").exists()
 
 
 def test_timestamps_unit_argument_contradicting_header(tmp_path):

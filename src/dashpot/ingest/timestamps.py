@@ -149,11 +149,43 @@ def read_timestamps(path, *, unit=None):
             k = int(np.flatnonzero(bad)[0])
             raise InputError(path, f"{where}uncertainty '{table.cells[k, uncertainty_index]}' is "
                                    f"missing or negative", row=k + 1)
+        if table.columns is None and times.size > 1:
+            _check_unnamed_uncertainties(path, table, times, sigma, uncertainty_index)
         notes.append("time uncertainties from the file's uncertainty column")
     else:
         sigma = resolution * factor / np.sqrt(12.0)
         notes.append("time uncertainty: rounding of the written digits (last digit/√12)")
     return _impact_frame(path, "timestamps", notes, times, sigma)
+
+
+def _check_unnamed_uncertainties(path, table, times, sigma, index):
+    """InputError if a header-less second column cannot be the times' 1σ.
+
+    An impact time uncertain by as much as the typical interval between impacts would not
+    tell them apart; such a column is something else (a label, a counter, an end time),
+    and reading it as uncertainties would weight the fit by nonsense.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, for the message.
+    table : _Table
+        The header-less table.
+    times, sigma : numpy.ndarray
+        Impact times and the second column read as their 1σ, both in s.
+    index : int
+        The second column's index.
+    """
+    median_interval = float(np.median(np.diff(times)))
+    large = sigma >= median_interval
+    if large.any():
+        k = int(np.flatnonzero(large)[0])
+        raise InputError(path, f"{table.where}the second column (no header) cannot be the "
+                               f"times' uncertainties: '{table.cells[k, index]}' is not below "
+                               f"the median interval between impacts ({median_interval:.4g} s); "
+                               f"name the columns in a header row, e.g. 'time (s)' and "
+                               f"'uncertainty (s)' (a label or counter column is not read)",
+                         row=k + 1)
 
 
 # ---------------------------------------------------------------------------------------------
