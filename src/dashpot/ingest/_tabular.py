@@ -686,6 +686,37 @@ def _column_resolution(values, resolution):
     return max(float(np.min(steps)), finest)
 
 
+def _velocity_spread(time, values):
+    """Spread of the velocity along one coordinate: the range of its central 90 %.
+
+    A bouncing object's velocity along the bounce reverses at every impact, so it spans
+    about twice the impact speed; along a coordinate it merely drifts or travels (a ball
+    thrown forward, bouncing along the floor) the velocity stays near one value, however far
+    the object goes. The coordinate with the larger spread is the one bounced along.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times in s (NaN where missing).
+    values : numpy.ndarray
+        Positions along the coordinate (NaN where not marked).
+
+    Returns
+    -------
+    float
+        The 5-95 percentile range of the velocities between consecutive marked samples
+        (units of `values` per s); -1 where fewer than two samples are marked.
+    """
+    marked = np.isfinite(time) & np.isfinite(values)
+    t, x = time[marked], values[marked]
+    steps = np.diff(t)
+    velocity = np.diff(x)[steps > 0] / steps[steps > 0]
+    if velocity.size == 0:
+        return -1.0
+    low, high = np.percentile(velocity, [5.0, 95.0])
+    return float(high - low)
+
+
 def _span(present):
     """First and last index (inclusive) where `present` is True, or None if it never is."""
     where = np.flatnonzero(present)
@@ -739,8 +770,10 @@ def _runs(path, table, quantities, *, skip_blanks=False):
             else:
                 read.append((j, filled, None, None))
         if len(read) > 1:
-            # Several coordinates (Tracker's x and y): the one the object moves along most.
-            spread = [np.nanstd(v) if np.any(np.isfinite(v)) else -1.0 for _, _, v, _ in read]
+            # Several coordinates (Tracker's x and y): the one the object bounces along.
+            seconds = time * (_unit_factor(path, where, columns[time_index], table, "time")
+                              or 1.0)
+            spread = [_velocity_spread(seconds, v) for _, _, v, _ in read]
             read = [read[int(np.argmax(spread))]]
         j, filled, values, res = read[0]
         span = _span(filled)

@@ -1450,7 +1450,7 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         if "column" in run.columns and len([c for c in table.columns if c.run == run.label
                                             and c.name in _POSITION_NAMES]) > 1:
             notes.append(f"run {number}: position read from column '{run.columns['column']}' "
-                         f"(the coordinate that moves most)")
+                         f"(the coordinate bounced along: its velocity spreads most)")
     merged = [np.concatenate([p[q] for p in parts]) for q in range(12)]
     counts = [p[0].size for p in parts]
     if max(counts) == 1:
