@@ -19,6 +19,7 @@ BIFF8) and as .ods; and as Tracker writes its data export (a first line naming t
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -129,8 +130,9 @@ def write_capstone_csv(frame, path, *, separator=",", decimal="."):
     """As Capstone writes its CSV: fixed decimals per quantity, blank cells; on a system with
     a decimal comma, semicolon separated."""
     decimals = {"Time": 2, "Position": 4, "Velocity": 3, "Acceleration": 2}
-    text = [separator.join(frame.columns)]
-    formats = [decimals[c.split()[0]] for c in frame.columns]
+    # A header holding the separator is quoted, as every CSV writer does.
+    text = [separator.join(f'"{c}"' if separator in c else c for c in frame.columns)]
+    formats = [decimals[c.split()[0].rstrip(",")] for c in frame.columns]
     for row in frame.to_numpy():  # writing the fixture, a few hundred rows
         text.append(separator.join("" if math.isnan(v) else f"{v:.{d}f}".replace(".", decimal)
                                    for v, d in zip(row, formats)))
@@ -308,6 +310,28 @@ def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, de
     status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "impacts.csv")])
     assert status == 0, err
     assert len(read_impact_table(tmp_path / "impacts.csv")) == len(impacts)
+
+
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_capstone_names_measurements_after_the_interface_channel(tmp_path, capstone_three_runs,
+                                                                 separator, decimal):
+    """A wired motion sensor on a PASCO 850 interface: Capstone heads its columns
+    'Position, Ch 1&2 (m) Run #1' (quoted where the comma is the separator). The quantity is
+    the part before the channel; every run is read as from the plain headers."""
+    frame, truths = capstone_three_runs
+    renamed = frame.rename(columns=lambda c: re.sub(r"^(Position|Velocity|Acceleration) ",
+                                                    r"\1, Ch 1&2 ", c))
+    assert "Position, Ch 1&2 (m) Run #2" in renamed.columns
+    plain, channels = tmp_path / "plain.csv", tmp_path / "channels.csv"
+    write_capstone_csv(frame, plain, separator=separator, decimal=decimal)
+    write_capstone_csv(renamed, channels, separator=separator, decimal=decimal)
+    assert sniff_table(channels) == "motion_sensor"
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(channels)
+    assert sorted(impacts["run"].unique()) == [0, 1, 2]
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
 
 
 def test_lost_echoes_of_the_motion_sensor_invent_no_impact(tmp_path, capstone_three_runs):

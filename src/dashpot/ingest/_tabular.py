@@ -64,6 +64,7 @@ _HEADER = re.compile(
     r"(?:[(\[]\s*(?P<unit>[^()\[\]]*?)\s*[)\]])?\s*"  # unit: '(m/s)' or '[ms]'
     r"(?P<suffix>run\s*#?\s*\d+)?\s*$",              # PASCO run label: 'Run #1'
     re.IGNORECASE)
+_CHANNEL = re.compile(r",\s*ch(?:annel)?\s*[\w&/ -]*$")  # ', Ch 1&2', ', Ch P3', ', Ch A'
 _NUMBER = re.compile(r"^[+-]?(?P<int>\d*)(?:\.(?P<frac>\d*))?(?:[eE](?P<exp>[+-]?\d+))?$")
 # Zip archives (phyphox exports, .xlsx): what a member may expand to. A lab table of impacts
 # or of a motion sensor's samples is at most a few MB; the ratio limit is Apache POI's
@@ -93,6 +94,9 @@ def _parse_header(header):
     if match is None:  # e.g. nested brackets: keep the whole header as the name
         return _Column(text, " ".join(text.lower().replace("_", " ").split()), None, "")
     name = " ".join(match["name"].lower().replace("_", " ").split())
+    # PASCO Capstone names a wired sensor's measurement after its interface channel too
+    # ('Position, Ch 1&2 (m) Run #1', 'Voltage, Ch A (V)'): the quantity is before the comma.
+    name = _CHANNEL.sub("", name)
     run = match["prefix"] or match["suffix"] or ""
     run = " ".join(run.split())
     unit = match["unit"]
