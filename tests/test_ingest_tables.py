@@ -242,6 +242,22 @@ def test_header_less_second_column_that_is_no_uncertainty_is_refused(tmp_path, s
     assert not (tmp_path / "out.csv").exists()
 
 
+@pytest.mark.parametrize("unit", ["s", "ms"])
+def test_header_less_column_with_decimal_commas(tmp_path, stiff, unit):
+    """One column of impact times without a header, saved by a spreadsheet on a system with
+    a decimal comma: no separator at all, each line '1,234568'. It is one column of decimal
+    numbers, not two comma-separated integers (which read as a time of 1 s with an
+    uncertainty of 0.234568 s, or were refused as not increasing)."""
+    scale, digits = (1.0, 6) if unit == "s" else (1e3, 3)
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / "times.csv"
+    path.write_text("".join(f"{t * scale:.{digits}f}".replace(".", ",") + "\n" for t in times))
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    assert frame["time_uncertainty"].max() < 1e-6
+
+
 def test_timestamps_unit_argument_contradicting_header(tmp_path):
     path = tmp_path / "t.csv"
     write_timestamps(path, [0.0, 0.5], unit="ms")

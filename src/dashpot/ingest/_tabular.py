@@ -164,6 +164,30 @@ def _sniff_separator(lines):
     return None
 
 
+_DECIMAL_COMMA_NUMBER = re.compile(r"^\s*[+-]?(\d+),(\d+)\s*$")
+
+
+def _comma_is_decimal(text):
+    """True if every line of `text` is one number with a decimal comma, not two fields.
+
+    A spreadsheet on a system with a decimal comma saves a single column of numbers without
+    any separator (``1,234568``), which reads as two comma-separated integer fields. It is a
+    decimal comma where every non-blank line is digits, a comma and digits, and the two
+    fields could not be times with their uncertainties: the first not increasing, or a
+    second field as large as the median step of the first (see timestamps' check of an
+    unnamed uncertainty column).
+    """
+    matches = [_DECIMAL_COMMA_NUMBER.match(line) for line in text.splitlines() if line.strip()]
+    if len(matches) < 2 or not all(matches):
+        return False
+    first = np.array([float(m[1]) for m in matches])
+    second = np.array([float(m[2]) for m in matches])
+    steps = np.diff(first)
+    if np.any(steps <= 0):
+        return True
+    return bool(np.any(second >= np.median(steps)))
+
+
 def _decode(path, raw, member):
     """Text of a table file and the name of its encoding.
 
@@ -257,6 +281,8 @@ def _text_table(path, raw, member):
         head = text.splitlines()[:20]
     else:
         separator = _sniff_separator(head)
+        if separator == "," and _comma_is_decimal(text):
+            separator = None  # one header-less column of numbers with a decimal comma
     title = None
     if tracker is None and separator is None:
         titled = titled_track(head, lines[comments:])
