@@ -18,6 +18,7 @@ BIFF8) and as .ods; and as Tracker writes its data export (a first line naming t
 
 from __future__ import annotations
 
+import csv
 import math
 import re
 
@@ -332,6 +333,29 @@ def test_capstone_names_measurements_after_the_interface_channel(tmp_path, capst
     for run, truth in enumerate(truths):
         found = impacts[impacts["run"] == run].reset_index(drop=True)
         assert len(found) == (truth["rebound_speeds"] > 0).sum()
+
+
+def test_capstone_resaved_comma_separated_with_quoted_decimal_commas(tmp_path,
+                                                                    capstone_three_runs):
+    """The Capstone export re-saved by a spreadsheet on a system with a decimal comma, as
+    comma-separated values: every number holding a comma is quoted ("0,7499"). The comma
+    inside the quotes is the decimal mark; every run reads as from Capstone's own file."""
+    import csv
+
+    frame, truths = capstone_three_runs
+    plain = tmp_path / "capstone.csv"
+    write_capstone_csv(frame, plain)
+    rows = list(csv.reader(plain.read_text(encoding="utf-8").splitlines()))
+    resaved = tmp_path / "resaved.csv"
+    with resaved.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle, lineterminator="\r\n")
+        writer.writerow(rows[0])
+        writer.writerows([cell.replace(".", ",") for cell in row] for row in rows[1:])
+    assert '"0,' in resaved.read_text(encoding="utf-8")
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(resaved)
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    np.testing.assert_array_equal(impacts["run"], reference["run"])
+    assert "decimal comma" in impacts.attrs["notes"][0]
 
 
 def test_lost_echoes_of_the_motion_sensor_invent_no_impact(tmp_path, capstone_three_runs):

@@ -188,6 +188,23 @@ def _comma_is_decimal(text):
     return bool(np.any(second >= np.median(steps)))
 
 
+_QUOTED_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+_DECIMAL_POINT = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?")
+
+
+def _quoted_decimal_commas(cells):
+    """True if a comma-separated table's numbers carry decimal commas (each quoted).
+
+    A spreadsheet on a system with a decimal comma that saves comma-separated values quotes
+    every number holding a comma (``"0,7499"``). Such cells, and none with a decimal point,
+    make the comma the decimal mark inside the fields.
+    """
+    flat = pd.Series(cells.ravel(), dtype=object).astype(str)
+    commas = flat.str.fullmatch(_QUOTED_DECIMAL_COMMA.pattern).sum()
+    points = flat.str.fullmatch(_DECIMAL_POINT.pattern).sum()
+    return bool(commas > 0 and points == 0)
+
+
 def _decode(path, raw, member):
     """Text of a table file and the name of its encoding.
 
@@ -303,6 +320,8 @@ def _text_table(path, raw, member):
         owner = list(np.repeat(tracks, [part.shape[1] for part in parts]))
     else:
         cells = _parse_cells(path, text, separator, decimal, member)
+        if separator == "," and _quoted_decimal_commas(cells[1:]):
+            decimal = ","  # comma separated, each number quoted with its decimal comma
     spelled = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
     variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
