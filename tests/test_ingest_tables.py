@@ -258,6 +258,25 @@ def test_header_less_column_with_decimal_commas(tmp_path, stiff, unit):
     assert frame["time_uncertainty"].max() < 1e-6
 
 
+def test_two_tables_one_below_the_other_say_so(tmp_path, stiff):
+    """phyphox's Acoustic Stopwatch sets 'Simple' and 'Multiple' written one below the other
+    into one CSV: not one table. Refused in one line that says why (the numbers of fields
+    differ), not 'no numeric data'; exit 2."""
+    t = stiff.impact_times + 0.5
+    number = lambda v: f"{v:.9E}".replace("E+0", "E").replace("E-0", "E-")  # noqa: E731
+    path = tmp_path / "stopwatch.csv"
+    path.write_text('"Start (s)","Stop (s)","Difference (s)"\n'
+                    + ",".join(number(v) for v in (t[0], t[1], t[1] - t[0])) + "\n"
+                    + '"Start (s)",' + ",".join(f'"Stop {k} (s)"' for k in range(1, 6)) + "\n"
+                    + ",".join(number(v) for v in t[:6]) + "\n")
+    problem = (r"stopwatch\.csv: not a table: its lines have different numbers of "
+               r"comma-separated fields \(3 on the first non-blank line, 6 on the 3rd\)")
+    with pytest.raises(InputError, match=problem):
+        dashpot.read_impacts(path)
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "out.csv")])
+    assert status == 2 and err.count("\n") == 1 and "6 on the 3rd" in err
+
+
 def test_timestamps_unit_argument_contradicting_header(tmp_path):
     path = tmp_path / "t.csv"
     write_timestamps(path, [0.0, 0.5], unit="ms")

@@ -205,6 +205,32 @@ def _quoted_decimal_commas(cells):
     return bool(commas > 0 and points == 0)
 
 
+def _ordinal(number):
+    """'1st', '2nd', '3rd', '4th', ... '11th', '21st'."""
+    suffix = "th" if 10 <= number % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(
+        number % 10, "th")
+    return f"{number}{suffix}"
+
+
+def _ragged_problem(lines):
+    """Why separated lines make no table: their numbers of fields differ (or None).
+
+    A file whose lines split at a separator into different numbers of fields has no single
+    separator (see _sniff_separator); told plainly, the reader sees it is not one table
+    (several tables one below the other, a title line above the header).
+    """
+    spelled = {"\t": "tab", ";": "semicolon", ",": "comma"}
+    for candidate in ("\t", ";", ","):
+        counts = [len(fields) for fields in csv.reader(lines, delimiter=candidate)]
+        if counts and max(counts) > 1:
+            k = next(k for k, count in enumerate(counts) if count != counts[0])
+            return (f"its lines have different numbers of {spelled[candidate]}-separated "
+                    f"fields ({counts[0]} on the first non-blank line, {counts[k]} on the "
+                    f"{_ordinal(k + 1)}), as several tables one below the other or a title "
+                    f"line above the header would")
+    return None
+
+
 def _decode(path, raw, member):
     """Text of a table file and the name of its encoding.
 
@@ -331,7 +357,14 @@ def _text_table(path, raw, member):
     if tracker is None and not blocks:
         if title:
             variant += f", first line names the track '{title}' (Tracker data export)"
-        table = _finish_table(path, cells, decimal, variant, member)
+        try:
+            table = _finish_table(path, cells, decimal, variant, member)
+        except InputError:
+            ragged = _ragged_problem(head) if separator is None else None
+            if ragged is None:
+                raise
+            raise InputError(path, f"{member + ': ' if member else ''}not a table: {ragged}"
+                             ) from None
         table.tracks = (title,) if title else ()
         return table
     if blocks:
