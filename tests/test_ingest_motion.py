@@ -358,6 +358,22 @@ def test_capstone_resaved_comma_separated_with_quoted_decimal_commas(tmp_path,
     assert "decimal comma" in impacts.attrs["notes"][0]
 
 
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_capstone_export_under_title_lines(tmp_path, capstone_three_runs, separator, decimal):
+    """The Capstone export with a title and a date typed above its header (the title with a
+    comma in it): the title lines are skipped, noted, and every run reads as without them."""
+    frame, _ = capstone_three_runs
+    plain = tmp_path / "plain.csv"
+    write_capstone_csv(frame, plain, separator=separator, decimal=decimal)
+    titled = tmp_path / "titled.csv"
+    titled.write_text("Cart on the incline, group 3\r\n26.11.2025\r\n"
+                      + plain.read_text(encoding="utf-8"), encoding="utf-8")
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(titled)
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    np.testing.assert_array_equal(impacts["run"], reference["run"])
+    assert "2 title line(s) above the header skipped" in impacts.attrs["notes"][0]
+
+
 def test_lost_echoes_of_the_motion_sensor_invent_no_impact(tmp_path, capstone_three_runs):
     """An ultrasonic motion sensor that loses the cart for one ping writes one reading far
     off (an echo from something nearer, or none: a reading at its range limit). Such single

@@ -277,6 +277,31 @@ def test_two_tables_one_below_the_other_say_so(tmp_path, stiff):
     assert status == 2 and err.count("\n") == 1 and "6 on the 3rd" in err
 
 
+@pytest.mark.parametrize("suffix", [".csv", ".xlsx"])
+def test_title_rows_above_the_header(tmp_path, stiff, suffix):
+    """A column of impact times under a title and a blank row, as a spreadsheet's author
+    writes it (the title with a comma in it): the header is the row right above the first
+    row of numbers; the title rows are skipped, and said to be."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / f"times{suffix}"
+    if suffix == ".csv":
+        path.write_text("Bouncing ball, group 3\n\nTime (s)\n"
+                        + "".join(f"{t:.6f}\n" for t in times))
+    else:
+        book = openpyxl.Workbook()
+        sheet = book.active
+        sheet.append(["Bouncing ball, group 3"])
+        sheet.append([])
+        sheet.append(["Time (s)"])
+        for t in times:  # writing the fixture
+            sheet.append([float(t)])
+        book.save(path)
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    assert "title row(s) above the header skipped" in frame.attrs["notes"][0]
+
+
 def test_timestamps_unit_argument_contradicting_header(tmp_path):
     path = tmp_path / "t.csv"
     write_timestamps(path, [0.0, 0.5], unit="ms")

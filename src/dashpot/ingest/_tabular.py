@@ -205,6 +205,28 @@ def _quoted_decimal_commas(cells):
     return bool(commas > 0 and points == 0)
 
 
+def _below_title_lines(head, lines, most=3):
+    """A table under up to `most` title lines (words, a date: no number among their fields),
+    as a spreadsheet's author writes above the header; None if `head` is not that.
+
+    Returns (separator, the number of title lines, the text from the header on, the head
+    from the header on).
+    """
+    for skip in range(1, min(most, len(head) - 2) + 1):
+        separator = _sniff_separator(head[skip:])
+        if separator is None:
+            continue
+        if separator == "," and all(_DECIMAL_COMMA_NUMBER.match(line) for line in head[skip:]):
+            return None  # a header above one column of numbers with decimal commas
+        above = [field.strip() for line in head[:skip]
+                 for field in next(csv.reader([line], delimiter=separator)) if field.strip()]
+        if np.any(_is_number(above, ".")) or np.any(_is_number(above, ",")):
+            return None  # a line of numbers above is data: no title
+        written = [k for k, line in enumerate(lines) if line.strip()]
+        return separator, skip, "\n".join(lines[written[skip]:]), head[skip:]
+    return None
+
+
 def _ordinal(number):
     """'1st', '2nd', '3rd', '4th', ... '11th', '21st'."""
     suffix = "th" if 10 <= number % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(
@@ -331,6 +353,11 @@ def _text_table(path, raw, member):
         titled = titled_track(head, lines[comments:])
         if titled is not None:
             separator, title, text, head = titled
+    titles = 0
+    if tracker is None and separator is None and title is None:
+        titled = _below_title_lines(head, lines[comments:])
+        if titled is not None:
+            separator, titles, text, head = titled
     body = "\n".join(head[1:])
     decimal = "," if separator != "," and re.search(r"\d,\d", body) else "."
     blocks = stacked_tracks(text, separator) if title else []
@@ -353,7 +380,8 @@ def _text_table(path, raw, member):
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
                + (f", {comments} comment line(s) skipped" if comments else "")
-               + (", Vernier Format 2 text export" if vernier is not None else ""))
+               + (", Vernier Format 2 text export" if vernier is not None else "")
+               + (f", {titles} title line(s) above the header skipped" if titles else ""))
     if tracker is None and not blocks:
         if title:
             variant += f", first line names the track '{title}' (Tracker data export)"
@@ -392,6 +420,21 @@ def _used_width(cells):
     return int(used[-1]) + 1 if used.size else cells.shape[1]
 
 
+def _title_rows(cells, decimal, most=10):
+    """How many rows above the header are a title (0 if none): rows of at most one written
+    cell (a title, a date, a blank row) above a header row that sits right above the first
+    row of numbers, within the first `most` rows."""
+    written = cells[:most + 2] != ""
+    numeric = written & _is_number(cells[:most + 2].ravel(), decimal).reshape(written.shape)
+    data = np.flatnonzero(written.any(axis=1) & (numeric == written).all(axis=1))
+    if data.size == 0 or data[0] < 2:
+        return 0
+    header = int(data[0]) - 1
+    if not np.all(written[:header].sum(axis=1) <= 1) or numeric[header].all():
+        return 0
+    return header
+
+
 def _finish_table(path, cells, decimal, variant, member):
     """Split off the header row (if the first row is not all numbers) and check for data."""
     where = f"'{member}': " if member else ""
@@ -407,6 +450,16 @@ def _finish_table(path, cells, decimal, variant, member):
         columns = [_parse_header(h) for h in first]
         cells = cells[1:]
     table = _Table(member, columns, cells, decimal, variant)
+    if columns is not None and _kind_of(table) is None:
+        # A title (and blank rows) above the header, as a spreadsheet's author writes one:
+        # the header is the row right above the first row of numbers.
+        skip = _title_rows(np.vstack([first, cells]), decimal)
+        if skip:
+            below = _Table(member, [_parse_header(h) for h in cells[skip - 1]], cells[skip:],
+                           decimal, variant + f", {skip} title row(s) above the header skipped")
+            if _kind_of(below) is not None:
+                table = below
+                cells = below.cells
     if cells.shape[0] == 0:
         raise InputError(path, f"{table.where}no data rows below the header")
     numeric = _is_number(cells.ravel(), decimal) & (cells.ravel() != "")
