@@ -268,16 +268,22 @@ def test_blanks_only_matter_between_the_values_read(tmp_path, capstone_three_run
         read_motion_sensor(path)
 
 
-def write_vernier_format2(frame, path, runs, names, *, decimal="."):
+def write_vernier_format2(frame, path, runs, names, *, decimal=".", quoted=False,
+                          zeros_between=False):
     """The runs as Logger Pro exports them as text ("Vernier Format 2"): per data set the
     mark, the source and date, the data set's name, long names, short names, units and a
     blank line, then tab-separated rows (blank where a derivative is not defined); the data
-    sets one below the other, CRLF line ends."""
+    sets one below the other, CRLF line ends. `quoted`: long names in quotes; `zeros_between`:
+    a row of zeros ends each data set followed by another (the format's set delimiter)."""
     lines = []
-    for run, name in zip(runs, names):
+    for number, (run, name) in enumerate(zip(runs, names)):
+        if number and zeros_between:
+            lines.append("\t".join(["0"] * 4))
+        long_names = ("Time", "Position", "Velocity", "Acceleration")
+        if quoted:
+            long_names = tuple(f'"{long}"' for long in long_names)
         lines += ["Vernier Format 2", "bumper.cmbl 11/26/2025 9:41:07 .", name,
-                  "Time\tPosition\tVelocity\tAcceleration", "t\tx\tv\ta",
-                  "s\tm\tm/s\tm/s²", ""]
+                  "\t".join(long_names), "t\tx\tv\ta", "s\tm\tm/s\tm/s²", ""]
         columns = [frame[f"{quantity} Run #{run}"].dropna() if quantity == "Time"
                    else frame[f"{quantity} Run #{run}"]
                    for quantity in ("Time (s)", "Position (m)", "Velocity (m/s)",
@@ -291,14 +297,17 @@ def write_vernier_format2(frame, path, runs, names, *, decimal="."):
     path.write_text("\r\n".join(lines) + "\r\n", encoding="utf-8")
 
 
-@pytest.mark.parametrize("decimal", [".", ","])
-def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, decimal):
-    """Logger Pro's text export (six header lines per data set, the data sets one below the
-    other; a German system writes decimal commas): every data set is a run, every reversal
-    of each is found and timed within 4 of its stated σ, on the command line too."""
+@pytest.mark.parametrize("decimal, delimited", [(".", False), (",", False), (".", True)])
+def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, decimal,
+                                               delimited):
+    """Vernier's text format (six header lines per data set, the data sets one below the
+    other; a German system writes decimal commas; long names may be quoted and a row of
+    zeros may end a data set before the next): every data set is a run, every reversal of
+    each is found and timed within 4 of its stated σ, on the command line too."""
     frame, truths = capstone_three_runs
     path = tmp_path / "bumper.txt"
-    write_vernier_format2(frame, path, (1, 3), ("Run 1", "Latest"), decimal=decimal)
+    write_vernier_format2(frame, path, (1, 3), ("Run 1", "Latest"), decimal=decimal,
+                          quoted=delimited, zeros_between=delimited)
     assert sniff_table(path) == "motion_sensor"
     impacts = read_motion_sensor(path)
     assert sorted(impacts["run"].unique()) == [0, 1]

@@ -1,13 +1,15 @@
 """Vernier's text export ("Vernier Format 2"): which columns and data sets a file holds.
 
-Logger Pro and Graphical Analysis 3 export a data set as tab-delimited text under six lines
-of header [8]_: ``Vernier Format 2``; the source and date; the data set's name (``Latest``,
+Logger Pro and Graphical Analysis 3 exchange data sets as tab-delimited text, each under six
+lines of header [8]_: ``Vernier Format 2``; the source and date; the data set's name (``Latest``,
 ``Run 1``, ...); the columns' long names (``Time``, ``Position``, ...); their short names
 (``t``, ``x``, ...); their units (``s``, ``m``, ...); then a blank line and one row per
 sample. Several data sets follow one another, each under its own six lines; columns may be
 shorter than others. Each data set is read here into the columns of :mod:`._tabular` side by
 side, each column headed ``<data set>: <long name> (<unit>)``, the data set's name as its run
 label, as Vernier's CSV export heads it.
+Long names may be quoted (``"Greenwich Mean Time"``); a data set followed by another may
+end in a row of zeros (the format's data set delimiter [8]_), which is not a sample.
 
 References
 ----------
@@ -28,6 +30,15 @@ _HEADER_LINES = 6  # the mark, source and date, data set name, long names, short
 def _label(text):
     """A data set's name as a run label: brackets and colons (header syntax) left out."""
     return " ".join(re.sub(r"[:()\[\]]", " ", text).split())
+
+
+def _all_zero(row):
+    """True for a row whose every cell is a zero (either decimal mark)."""
+    cells = [cell.strip().replace(",", ".") for cell in row if cell.strip()]
+    try:
+        return bool(cells) and all(float(cell) == 0.0 for cell in cells)
+    except ValueError:
+        return False
 
 
 def format2_layout(lines):
@@ -59,7 +70,7 @@ def format2_layout(lines):
         seen[name] = seen.get(name, 0) + 1
         if seen[name] > 1:  # two data sets of one name stay apart
             name = f"{name} {seen[name]}"
-        long_names = head[3].rstrip("\r\n").split("\t")
+        long_names = [long.strip().strip('"') for long in head[3].rstrip("\r\n").split("\t")]
         units = head[5].rstrip("\r\n").split("\t")
         width = len(long_names)
         units += [""] * (width - len(units))
@@ -68,6 +79,8 @@ def format2_layout(lines):
                     for j, (long, unit) in enumerate(zip(long_names, units))]
         rows = [line.rstrip("\r\n").split("\t") for line in lines[start + _HEADER_LINES:end]
                 if line.strip()]
+        if end < len(lines) and len(rows) > 1 and _all_zero(rows[-1]):
+            rows = rows[:-1]  # the row of zeros that may end a data set before the next [8]_
         blocks.append([(row + [""] * width)[:width] for row in rows])
         widths.append(width)
     length = max(len(block) for block in blocks)
