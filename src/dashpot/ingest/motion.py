@@ -1261,9 +1261,13 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         and/or velocity column in the export's words: PASCO Capstone ``Time (s) Run #1``,
         ``Position (m) Run #1``, ``Velocity (m/s) Run #1`` (and ``Acceleration`` columns, not
         used); Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``, ``Latest: Velocity
-        (m/s)``; Tracker's data export (a first line naming the track, ``t``, ``x``, ``y``
-        without units [7]_; several tracks in Tracker 6's layout or one below the other: see
-        `track`) or any ``t,y`` table. Several runs side by side. Blanks at a
+        (m/s)``, ``Data Set 1:Position(m)`` and Vernier's text format (``Vernier Format 2``,
+        a data set per run); Tracker's data export (a first line naming the track, ``t``,
+        ``x``, ``y`` without units [7]_; several tracks in Tracker 6's layout or one below
+        the other: see `track`; of several coordinates the one whose velocity spreads most,
+        the one bounced along) or any ``t,y`` table. Several runs side by side. A single
+        reading far off both its neighbours (a motion sensor's lost echo) is left out,
+        noted. Blanks at a
         column's start or end are normal (a derivative starts a sample or two after the
         position; shorter runs end early); a blank between a column's values is an error. The
         position is read when there is one, and the velocity beside it is then not used. Units
