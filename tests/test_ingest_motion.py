@@ -18,7 +18,9 @@ BIFF8) and as .ods; and as Tracker writes its data export (a first line naming t
 
 from __future__ import annotations
 
+import csv
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -129,8 +131,9 @@ def write_capstone_csv(frame, path, *, separator=",", decimal="."):
     """As Capstone writes its CSV: fixed decimals per quantity, blank cells; on a system with
     a decimal comma, semicolon separated."""
     decimals = {"Time": 2, "Position": 4, "Velocity": 3, "Acceleration": 2}
-    text = [separator.join(frame.columns)]
-    formats = [decimals[c.split()[0]] for c in frame.columns]
+    # A header holding the separator is quoted, as every CSV writer does.
+    text = [separator.join(f'"{c}"' if separator in c else c for c in frame.columns)]
+    formats = [decimals[c.split()[0].rstrip(",")] for c in frame.columns]
     for row in frame.to_numpy():  # writing the fixture, a few hundred rows
         text.append(separator.join("" if math.isnan(v) else f"{v:.{d}f}".replace(".", decimal)
                                    for v, d in zip(row, formats)))
@@ -263,6 +266,153 @@ def test_blanks_only_matter_between_the_values_read(tmp_path, capstone_three_run
     with pytest.raises(InputError, match=r"position-gap\.csv, row 58: Position \(m\) Run #2 is "
                                          r"missing inside the run"):
         read_motion_sensor(path)
+
+
+def write_vernier_format2(frame, path, runs, names, *, decimal=".", quoted=False,
+                          zeros_between=False):
+    """The runs as Logger Pro exports them as text ("Vernier Format 2"): per data set the
+    mark, the source and date, the data set's name, long names, short names, units and a
+    blank line, then tab-separated rows (blank where a derivative is not defined); the data
+    sets one below the other, CRLF line ends. `quoted`: long names in quotes; `zeros_between`:
+    a row of zeros ends each data set followed by another (the format's set delimiter)."""
+    lines = []
+    for number, (run, name) in enumerate(zip(runs, names)):
+        if number and zeros_between:
+            lines.append("\t".join(["0"] * 4))
+        long_names = ("Time", "Position", "Velocity", "Acceleration")
+        if quoted:
+            long_names = tuple(f'"{long}"' for long in long_names)
+        lines += ["Vernier Format 2", "bumper.cmbl 11/26/2025 9:41:07 .", name,
+                  "\t".join(long_names), "t\tx\tv\ta", "s\tm\tm/s\tm/s²", ""]
+        columns = [frame[f"{quantity} Run #{run}"].dropna() if quantity == "Time"
+                   else frame[f"{quantity} Run #{run}"]
+                   for quantity in ("Time (s)", "Position (m)", "Velocity (m/s)",
+                                    "Acceleration (m/s²)")]
+        length = columns[0].size
+        for k in range(length):  # writing the fixture, a few hundred rows
+            lines.append("\t".join(
+                "" if math.isnan(values.iloc[k]) else
+                f"{values.iloc[k]:.{digits}f}".replace(".", decimal)
+                for values, digits in zip(columns, (2, 4, 3, 2))))
+    path.write_text("\r\n".join(lines) + "\r\n", encoding="utf-8")
+
+
+@pytest.mark.parametrize("decimal, delimited", [(".", False), (",", False), (".", True)])
+def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, decimal,
+                                               delimited):
+    """Vernier's text format (six header lines per data set, the data sets one below the
+    other; a German system writes decimal commas; long names may be quoted and a row of
+    zeros may end a data set before the next): every data set is a run, every reversal of
+    each is found and timed within 4 of its stated σ, on the command line too."""
+    frame, truths = capstone_three_runs
+    path = tmp_path / "bumper.txt"
+    write_vernier_format2(frame, path, (1, 3), ("Run 1", "Latest"), decimal=decimal,
+                          quoted=delimited, zeros_between=delimited)
+    assert sniff_table(path) == "motion_sensor"
+    impacts = read_motion_sensor(path)
+    assert sorted(impacts["run"].unique()) == [0, 1]
+    for run, truth in zip((0, 1), (truths[0], truths[2])):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    notes = " ".join(impacts.attrs["notes"])
+    assert "'Run 1'" in notes and "'Latest'" in notes
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "impacts.csv")])
+    assert status == 0, err
+    assert len(read_impact_table(tmp_path / "impacts.csv")) == len(impacts)
+
+
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_capstone_names_measurements_after_the_interface_channel(tmp_path, capstone_three_runs,
+                                                                 separator, decimal):
+    """A wired motion sensor on a PASCO 850 interface: Capstone heads its columns
+    'Position, Ch 1&2 (m) Run #1' (quoted where the comma is the separator). The quantity is
+    the part before the channel; every run is read as from the plain headers."""
+    frame, truths = capstone_three_runs
+    renamed = frame.rename(columns=lambda c: re.sub(r"^(Position|Velocity|Acceleration) ",
+                                                    r"\1, Ch 1&2 ", c))
+    assert "Position, Ch 1&2 (m) Run #2" in renamed.columns
+    plain, channels = tmp_path / "plain.csv", tmp_path / "channels.csv"
+    write_capstone_csv(frame, plain, separator=separator, decimal=decimal)
+    write_capstone_csv(renamed, channels, separator=separator, decimal=decimal)
+    assert sniff_table(channels) == "motion_sensor"
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(channels)
+    assert sorted(impacts["run"].unique()) == [0, 1, 2]
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+
+
+def test_capstone_resaved_comma_separated_with_quoted_decimal_commas(tmp_path,
+                                                                    capstone_three_runs):
+    """The Capstone export re-saved by a spreadsheet on a system with a decimal comma, as
+    comma-separated values: every number holding a comma is quoted ("0,7499"). The comma
+    inside the quotes is the decimal mark; every run reads as from Capstone's own file."""
+    import csv
+
+    frame, truths = capstone_three_runs
+    plain = tmp_path / "capstone.csv"
+    write_capstone_csv(frame, plain)
+    rows = list(csv.reader(plain.read_text(encoding="utf-8").splitlines()))
+    resaved = tmp_path / "resaved.csv"
+    with resaved.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle, lineterminator="\r\n")
+        writer.writerow(rows[0])
+        writer.writerows([cell.replace(".", ",") for cell in row] for row in rows[1:])
+    assert '"0,' in resaved.read_text(encoding="utf-8")
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(resaved)
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    np.testing.assert_array_equal(impacts["run"], reference["run"])
+    assert "decimal comma" in impacts.attrs["notes"][0]
+
+
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_capstone_export_under_title_lines(tmp_path, capstone_three_runs, separator, decimal):
+    """The Capstone export with a title and a date typed above its header (the title with a
+    comma in it): the title lines are skipped, noted, and every run reads as without them."""
+    frame, _ = capstone_three_runs
+    plain = tmp_path / "plain.csv"
+    write_capstone_csv(frame, plain, separator=separator, decimal=decimal)
+    titled = tmp_path / "titled.csv"
+    titled.write_text("Cart on the incline, group 3\r\n26.11.2025\r\n"
+                      + plain.read_text(encoding="utf-8"), encoding="utf-8")
+    reference, impacts = read_motion_sensor(plain), read_motion_sensor(titled)
+    np.testing.assert_array_equal(impacts["time"], reference["time"])
+    np.testing.assert_array_equal(impacts["run"], reference["run"])
+    assert "2 title line(s) above the header skipped" in impacts.attrs["notes"][0]
+
+
+def test_lost_echoes_of_the_motion_sensor_invent_no_impact(tmp_path, capstone_three_runs):
+    """An ultrasonic motion sensor that loses the cart for one ping writes one reading far
+    off (an echo from something nearer, or none: a reading at its range limit). Such single
+    readings, one in a flight just before a contact, one mid-flight beyond the bumper, one
+    in the resting tail, are left out (noted): every run keeps exactly its reversals, timed
+    within 4 of their stated σ, none invented or flagged for the glitch."""
+    frame, truths = capstone_three_runs
+    glitched = frame.copy()
+    rng = np.random.default_rng(SEED + 1)
+    for run, truth in zip((1, 2, 3), truths):
+        time = glitched[f"Time (s) Run #{run}"].to_numpy()
+        column = f"Position (m) Run #{run}"
+        before_hit = int(np.searchsorted(time, truth["impact_times"][1])) - 1
+        mid_flight = int(np.searchsorted(time, 0.5 * (truth["impact_times"][2]
+                                                      + truth["impact_times"][3])))
+        resting = int(np.searchsorted(time, truth["end"] - 1.0))
+        glitched.loc[before_hit, column] = round(rng.uniform(0.15, 0.3), 4)  # a nearer echo
+        glitched.loc[mid_flight, column] = 2.5  # no echo: the range limit
+        glitched.loc[resting, column] = round(rng.uniform(-0.9, -0.5), 4)
+    path = tmp_path / "glitches.csv"
+    write_capstone_csv(glitched, path)
+    impacts = read_motion_sensor(path)
+    assert sorted(impacts["run"].unique()) == [0, 1, 2]
+    for run, truth in enumerate(truths):
+        found = impacts[impacts["run"] == run].reset_index(drop=True)
+        assert len(found) == (truth["rebound_speeds"] > 0).sum()
+        assert (found["flag"] == "ok").all()
+        assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    glitch_notes = [n for n in impacts.attrs["notes"] if "isolated reading" in n]
+    assert len(glitch_notes) == 3 and all("3 isolated" in n for n in glitch_notes)
 
 
 @pytest.mark.parametrize("rate", [20.0, 30.0, 50.0])
@@ -556,6 +706,25 @@ def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
     if layout.startswith("tracker-txt"):
         assert "track 'mass_A'" in notes and "Tracker column layout" in notes
         assert "from column 'y'" in notes
+
+
+@pytest.mark.parametrize("speed", [0.5, 1.5, 3.0])
+def test_tracker_ball_thrown_forward_is_read_along_its_bounces(tmp_path, tracked_ball, speed):
+    """A ball thrown forward, bouncing along the floor as it travels (x grows by up to 4.5 m,
+    farther than the 0.8 m the ball bounces in y): the bounces are along y, where the
+    velocity reverses at each impact, not along x, the coordinate that spans most. Every
+    bounce is found and timed within 4σ."""
+    time, _, height, truth = tracked_ball
+    rng = np.random.default_rng([SEED, 8])
+    x = 0.1 + speed * time + 1.5e-3 * rng.standard_normal(time.size)
+    path = tmp_path / "thrown.txt"
+    lines = ["mass_A", "t\tx\ty"] + ["\t".join(java_scientific(v) for v in row)
+                                     for row in zip(time, x, height)]
+    path.write_text("\n".join(lines) + "\n")
+    found = read_impacts(path)
+    assert len(found) == (truth["rebound_speeds"] > 0).sum()
+    assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    assert "from column 'y'" in " ".join(found.attrs["notes"])
 
 
 def tracker6_export(path, time, tracks, *, columns=("x", "y"), delimiter="\t", mark="."):

@@ -15,6 +15,7 @@ import openpyxl
 import pandas as pd
 import pytest
 
+from cli_run import run_cli
 import dashpot
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS, MOTION_SPEED_ERROR_COLUMNS
@@ -186,6 +187,119 @@ def test_timestamps_uncertainty_column_and_no_header(tmp_path):
     frame = read_timestamps(path)
     assert frame["time"].tolist() == pytest.approx([0.512, 1.13])
     assert frame["time_uncertainty"].tolist() == pytest.approx([1.5e-3, 2.5e-3])
+
+
+@pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
+def test_timestamps_with_a_separator_after_every_field(tmp_path, stiff, separator, decimal):
+    """A column of impact times saved from a spreadsheet that kept a formatted, empty column
+    beside it (or from a logger ending each field with a separator): every line ends with a
+    separator. The empty column is no column; every time is read."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / "times.csv"
+    path.write_bytes(("time (s)" + separator + "\r\n" + "".join(
+        f"{t:.6f}".replace(".", decimal) + separator + "\r\n" for t in times)).encode())
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+
+
+@pytest.mark.parametrize("labels", ["numbered", "empty", "regions"])
+def test_audacity_label_export(tmp_path, stiff, labels):
+    """Impacts marked by hand in Audacity and exported as labels (start, end in s with six
+    decimals, the label's text, tab-separated, no header): the starts are the impact times,
+    in s whatever their spacing, to the written digits; an empty label text leaves a line
+    ending in a tab, and its end column must not be read as the times' uncertainty."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    ends = times + (0.004 if labels == "regions" else 0.0)
+    text = {"numbered": [str(k + 1) for k in range(times.size)],
+            "empty": [""] * times.size, "regions": ["bounce"] * times.size}[labels]
+    path = tmp_path / "labels.txt"
+    path.write_text("".join(f"{t:f}\t{e:f}\t{x}\n" for t, e, x in zip(times, ends, text)))
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    np.testing.assert_allclose(frame["time_uncertainty"], 1e-6 / 12 ** 0.5, rtol=1e-6)
+    assert any("Audacity" in note for note in frame.attrs["notes"])
+    with pytest.raises(InputError, match=r"labels\.txt: .*Audacity.*unit='ms'"):
+        read_timestamps(path, unit="ms")
+
+
+def test_header_less_second_column_that_is_no_uncertainty_is_refused(tmp_path, stiff):
+    """Instants exported by an annotation tool as 'time,label' with numbered labels (no
+    header): the labels 1, 2, 3 ... are no 1σ of the times (an uncertainty as large as the
+    interval between impacts would not tell them apart). One line naming the file, the row
+    and the problem, exit 2, instead of a table with 1 s, 2 s, 3 s uncertainties."""
+    times = np.round(stiff.impact_times + 0.5, 9)
+    path = tmp_path / "instants.csv"
+    path.write_text("".join(f"{t:.9f},{k + 1}\n" for k, t in enumerate(times)))
+    with pytest.raises(InputError, match=r"instants\.csv, row 1: the second column \(no header\) "
+                                         r"cannot be the times' uncertainties"):
+        dashpot.read_impacts(path)
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "out.csv")])
+    assert status == 2 and err.count("\n") == 1 and "instants.csv" in err
+    assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize("unit", ["s", "ms"])
+def test_header_less_column_with_decimal_commas(tmp_path, stiff, unit):
+    """One column of impact times without a header, saved by a spreadsheet on a system with
+    a decimal comma: no separator at all, each line '1,234568'. It is one column of decimal
+    numbers, not two comma-separated integers (which read as a time of 1 s with an
+    uncertainty of 0.234568 s, or were refused as not increasing)."""
+    scale, digits = (1.0, 6) if unit == "s" else (1e3, 3)
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / "times.csv"
+    path.write_text("".join(f"{t * scale:.{digits}f}".replace(".", ",") + "\n" for t in times))
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    assert frame["time_uncertainty"].max() < 1e-6
+
+
+def test_two_tables_one_below_the_other_say_so(tmp_path, stiff):
+    """phyphox's Acoustic Stopwatch sets 'Simple' and 'Multiple' written one below the other
+    into one CSV: not one table. Refused in one line that says why (the numbers of fields
+    differ), not 'no numeric data'; exit 2."""
+    t = stiff.impact_times + 0.5
+    number = lambda v: f"{v:.9E}".replace("E+0", "E").replace("E-0", "E-")  # noqa: E731
+    path = tmp_path / "stopwatch.csv"
+    path.write_text('"Start (s)","Stop (s)","Difference (s)"\n'
+                    + ",".join(number(v) for v in (t[0], t[1], t[1] - t[0])) + "\n"
+                    + '"Start (s)",' + ",".join(f'"Stop {k} (s)"' for k in range(1, 6)) + "\n"
+                    + ",".join(number(v) for v in t[:6]) + "\n")
+    problem = (r"stopwatch\.csv: not a table: its lines have different numbers of "
+               r"comma-separated fields \(3 on the first non-blank line, 6 on the 3rd\)")
+    with pytest.raises(InputError, match=problem):
+        dashpot.read_impacts(path)
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "out.csv")])
+    assert status == 2 and err.count("\n") == 1 and "6 on the 3rd" in err
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".xlsx"])
+def test_title_rows_above_the_header(tmp_path, stiff, suffix):
+    """A column of impact times under a title and a blank row, as a spreadsheet's author
+    writes it (the title with a comma in it): the header is the row right above the first
+    row of numbers; the title rows are skipped, and said to be."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    path = tmp_path / f"times{suffix}"
+    if suffix == ".csv":
+        path.write_text("Bouncing ball, group 3\n\nTime (s)\n"
+                        + "".join(f"{t:.6f}\n" for t in times))
+    else:
+        book = openpyxl.Workbook()
+        sheet = book.active
+        sheet.append(["Bouncing ball, group 3"])
+        sheet.append([])
+        sheet.append(["Time (s)"])
+        for t in times:  # writing the fixture
+            sheet.append([float(t)])
+        book.save(path)
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    assert "title row(s) above the header skipped" in frame.attrs["notes"][0]
 
 
 def test_timestamps_unit_argument_contradicting_header(tmp_path):

@@ -19,6 +19,8 @@ References
    ``0.000000000E0``, separators comma/tab/semicolon with decimal point or comma, one CSV per
    set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
    with ``NaN``.
+.. [9] Audacity manual, "Label Tracks", exporting labels: a text file of one label per line,
+   start and end time in seconds and the label's text, tab-separated, no header.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ _HEADER = re.compile(
     r"(?:[(\[]\s*(?P<unit>[^()\[\]]*?)\s*[)\]])?\s*"  # unit: '(m/s)' or '[ms]'
     r"(?P<suffix>run\s*#?\s*\d+)?\s*$",              # PASCO run label: 'Run #1'
     re.IGNORECASE)
+_CHANNEL = re.compile(r",\s*ch(?:annel)?\s*[\w&/ -]*$")  # ', Ch 1&2', ', Ch P3', ', Ch A'
 _NUMBER = re.compile(r"^[+-]?(?P<int>\d*)(?:\.(?P<frac>\d*))?(?:[eE](?P<exp>[+-]?\d+))?$")
 # Zip archives (phyphox exports, .xlsx): what a member may expand to. A lab table of impacts
 # or of a motion sensor's samples is at most a few MB; the ratio limit is Apache POI's
@@ -91,6 +94,9 @@ def _parse_header(header):
     if match is None:  # e.g. nested brackets: keep the whole header as the name
         return _Column(text, " ".join(text.lower().replace("_", " ").split()), None, "")
     name = " ".join(match["name"].lower().replace("_", " ").split())
+    # PASCO Capstone names a wired sensor's measurement after its interface channel too
+    # ('Position, Ch 1&2 (m) Run #1', 'Voltage, Ch A (V)'): the quantity is before the comma.
+    name = _CHANNEL.sub("", name)
     run = match["prefix"] or match["suffix"] or ""
     run = " ".join(run.split())
     unit = match["unit"]
@@ -155,6 +161,95 @@ def _sniff_separator(lines):
             differing = sum(count != counts[0] for count in counts)
             if differing <= max(1, len(counts) // 10):
                 return candidate
+    return None
+
+
+_DECIMAL_COMMA_NUMBER = re.compile(r"^\s*[+-]?(\d+),(\d+)\s*$")
+
+
+def _comma_is_decimal(text):
+    """True if every line of `text` is one number with a decimal comma, not two fields.
+
+    A spreadsheet on a system with a decimal comma saves a single column of numbers without
+    any separator (``1,234568``), which reads as two comma-separated integer fields. It is a
+    decimal comma where every non-blank line is digits, a comma and digits, and the two
+    fields could not be times with their uncertainties: the first not increasing, or a
+    second field as large as the median step of the first (see timestamps' check of an
+    unnamed uncertainty column).
+    """
+    matches = [_DECIMAL_COMMA_NUMBER.match(line) for line in text.splitlines() if line.strip()]
+    if len(matches) < 2 or not all(matches):
+        return False
+    first = np.array([float(m[1]) for m in matches])
+    second = np.array([float(m[2]) for m in matches])
+    steps = np.diff(first)
+    if np.any(steps <= 0):
+        return True
+    return bool(np.any(second >= np.median(steps)))
+
+
+_QUOTED_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?")
+_DECIMAL_POINT = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?")
+
+
+def _quoted_decimal_commas(cells):
+    """True if a comma-separated table's numbers carry decimal commas (each quoted).
+
+    A spreadsheet on a system with a decimal comma that saves comma-separated values quotes
+    every number holding a comma (``"0,7499"``). Such cells, and none with a decimal point,
+    make the comma the decimal mark inside the fields.
+    """
+    flat = pd.Series(cells.ravel(), dtype=object).astype(str)
+    commas = flat.str.fullmatch(_QUOTED_DECIMAL_COMMA.pattern).sum()
+    points = flat.str.fullmatch(_DECIMAL_POINT.pattern).sum()
+    return bool(commas > 0 and points == 0)
+
+
+def _below_title_lines(head, lines, most=3):
+    """A table under up to `most` title lines (words, a date: no number among their fields),
+    as a spreadsheet's author writes above the header; None if `head` is not that.
+
+    Returns (separator, the number of title lines, the text from the header on, the head
+    from the header on).
+    """
+    for skip in range(1, min(most, len(head) - 2) + 1):
+        separator = _sniff_separator(head[skip:])
+        if separator is None:
+            continue
+        if separator == "," and all(_DECIMAL_COMMA_NUMBER.match(line) for line in head[skip:]):
+            return None  # a header above one column of numbers with decimal commas
+        above = [field.strip() for line in head[:skip]
+                 for field in next(csv.reader([line], delimiter=separator)) if field.strip()]
+        if np.any(_is_number(above, ".")) or np.any(_is_number(above, ",")):
+            return None  # a line of numbers above is data: no title
+        written = [k for k, line in enumerate(lines) if line.strip()]
+        return separator, skip, "\n".join(lines[written[skip]:]), head[skip:]
+    return None
+
+
+def _ordinal(number):
+    """'1st', '2nd', '3rd', '4th', ... '11th', '21st'."""
+    suffix = "th" if 10 <= number % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(
+        number % 10, "th")
+    return f"{number}{suffix}"
+
+
+def _ragged_problem(lines):
+    """Why separated lines make no table: their numbers of fields differ (or None).
+
+    A file whose lines split at a separator into different numbers of fields has no single
+    separator (see _sniff_separator); told plainly, the reader sees it is not one table
+    (several tables one below the other, a title line above the header).
+    """
+    spelled = {"\t": "tab", ";": "semicolon", ",": "comma"}
+    for candidate in ("\t", ";", ","):
+        counts = [len(fields) for fields in csv.reader(lines, delimiter=candidate)]
+        if counts and max(counts) > 1:
+            k = next(k for k, count in enumerate(counts) if count != counts[0])
+            return (f"its lines have different numbers of {spelled[candidate]}-separated "
+                    f"fields ({counts[0]} on the first non-blank line, {counts[k]} on the "
+                    f"{_ordinal(k + 1)}), as several tables one below the other or a title "
+                    f"line above the header would")
     return None
 
 
@@ -236,18 +331,33 @@ def _text_table(path, raw, member):
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
     # Tracker's layouts build on this module's cell conventions (imported here, not above).
     from .tracker import multi_track_layout, stacked_tracks, titled_track
+    from .vernier import format2_layout
 
-    tracker = multi_track_layout(lines[comments:])
+    vernier = format2_layout(lines[comments:])
+    if vernier is not None:
+        # Vernier's text export: six header lines per data set, restated as one header row.
+        text = vernier
+        lines = text.splitlines()
+        comments = 0
+        head = lines[:20]
+    tracker = None if vernier is not None else multi_track_layout(lines[comments:])
     if tracker is not None:
         separator, text, owner, tracks = tracker
         head = text.splitlines()[:20]
     else:
         separator = _sniff_separator(head)
+        if separator == "," and _comma_is_decimal(text):
+            separator = None  # one header-less column of numbers with a decimal comma
     title = None
     if tracker is None and separator is None:
         titled = titled_track(head, lines[comments:])
         if titled is not None:
             separator, title, text, head = titled
+    titles = 0
+    if tracker is None and separator is None and title is None:
+        titled = _below_title_lines(head, lines[comments:])
+        if titled is not None:
+            separator, titles, text, head = titled
     body = "\n".join(head[1:])
     decimal = "," if separator != "," and re.search(r"\d,\d", body) else "."
     blocks = stacked_tracks(text, separator) if title else []
@@ -263,15 +373,26 @@ def _text_table(path, raw, member):
         owner = list(np.repeat(tracks, [part.shape[1] for part in parts]))
     else:
         cells = _parse_cells(path, text, separator, decimal, member)
+        if separator == "," and _quoted_decimal_commas(cells[1:]):
+            decimal = ","  # comma separated, each number quoted with its decimal comma
     spelled = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
     variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
-               + (f", {comments} comment line(s) skipped" if comments else ""))
+               + (f", {comments} comment line(s) skipped" if comments else "")
+               + (", Vernier Format 2 text export" if vernier is not None else "")
+               + (f", {titles} title line(s) above the header skipped" if titles else ""))
     if tracker is None and not blocks:
         if title:
             variant += f", first line names the track '{title}' (Tracker data export)"
-        table = _finish_table(path, cells, decimal, variant, member)
+        try:
+            table = _finish_table(path, cells, decimal, variant, member)
+        except InputError:
+            ragged = _ragged_problem(head) if separator is None else None
+            if ragged is None:
+                raise
+            raise InputError(path, f"{member + ': ' if member else ''}not a table: {ragged}"
+                             ) from None
         table.tracks = (title,) if title else ()
         return table
     if blocks:
@@ -289,18 +410,56 @@ def _text_table(path, raw, member):
     return table
 
 
+def _used_width(cells):
+    """Number of columns up to the last one with any cell written (header included).
+
+    A separator after the last column on every line (a spreadsheet that saved a formatted
+    but empty column, a logger that ends each field with one) adds columns of nothing.
+    """
+    used = np.flatnonzero((cells != "").any(axis=0))
+    return int(used[-1]) + 1 if used.size else cells.shape[1]
+
+
+def _title_rows(cells, decimal, most=10):
+    """How many rows above the header are a title (0 if none): rows of at most one written
+    cell (a title, a date, a blank row) above a header row that sits right above the first
+    row of numbers, within the first `most` rows."""
+    written = cells[:most + 2] != ""
+    numeric = written & _is_number(cells[:most + 2].ravel(), decimal).reshape(written.shape)
+    data = np.flatnonzero(written.any(axis=1) & (numeric == written).all(axis=1))
+    if data.size == 0 or data[0] < 2:
+        return 0
+    header = int(data[0]) - 1
+    if not np.all(written[:header].sum(axis=1) <= 1) or numeric[header].all():
+        return 0
+    return header
+
+
 def _finish_table(path, cells, decimal, variant, member):
     """Split off the header row (if the first row is not all numbers) and check for data."""
     where = f"'{member}': " if member else ""
     if cells.size == 0 or not np.any(cells != ""):
         raise InputError(path, f"{where}file is empty")
+    cells = cells[:, :_used_width(cells)]
     first = cells[0]
-    if np.all(_is_number(first[first != ""], decimal)):
+    # A row of numbers is data; so is a label of Audacity's export (two times and its text).
+    if np.all(_is_number(first[first != ""], decimal)) or (
+            first.size == 3 and np.all(_is_number(first[:2], decimal))):
         columns = None
     else:
         columns = [_parse_header(h) for h in first]
         cells = cells[1:]
     table = _Table(member, columns, cells, decimal, variant)
+    if columns is not None and _kind_of(table) is None:
+        # A title (and blank rows) above the header, as a spreadsheet's author writes one:
+        # the header is the row right above the first row of numbers.
+        skip = _title_rows(np.vstack([first, cells]), decimal)
+        if skip:
+            below = _Table(member, [_parse_header(h) for h in cells[skip - 1]], cells[skip:],
+                           decimal, variant + f", {skip} title row(s) above the header skipped")
+            if _kind_of(below) is not None:
+                table = below
+                cells = below.cells
     if cells.shape[0] == 0:
         raise InputError(path, f"{table.where}no data rows below the header")
     numeric = _is_number(cells.ravel(), decimal) & (cells.ravel() != "")
@@ -534,6 +693,24 @@ def _is_state(column):
     return "state" in column.name or column.name in {"gate", "photogate", "blocked"}
 
 
+def _is_label_track(table):
+    """True for Audacity's label export [9]_: no header; per label its start and end in s
+    and its text (which may be empty), tab-separated; every label ends at or after its start.
+
+    Two header-less columns whose second is never below the first are such labels, never
+    times with their uncertainties (an uncertainty as large as the time itself is none).
+    """
+    if table.columns is not None or table.cells.shape[1] not in (2, 3):
+        return False
+    bounds = table.cells[:, :2]
+    if np.any(bounds == "") or not np.all(_is_number(bounds.ravel(), table.decimal)):
+        return False
+    if table.decimal == ",":
+        bounds = np.char.replace(bounds, ",", ".")
+    start, end = bounds.astype(float).T
+    return bool(np.all(np.isfinite(start)) and np.all(end >= start))
+
+
 def _kind_of(table):
     """Which reader a single table belongs to, or None."""
     if _phyphox_layout(table) is not None:
@@ -541,7 +718,8 @@ def _kind_of(table):
     if _is_impact_header(table):
         return "timestamps"  # dashpot's own impact table, read by read_impact_table
     if table.columns is None:
-        return "timestamps" if table.cells.shape[1] <= 2 else None
+        return ("timestamps" if table.cells.shape[1] <= 2 or _is_label_track(table)
+                else None)
     names = _names(table)
     has_time = any(n in _TIME_NAMES for n in names)
     if not has_time:
@@ -643,6 +821,37 @@ def _column_resolution(values, resolution):
     return max(float(np.min(steps)), finest)
 
 
+def _velocity_spread(time, values):
+    """Spread of the velocity along one coordinate: the range of its central 90 %.
+
+    A bouncing object's velocity along the bounce reverses at every impact, so it spans
+    about twice the impact speed; along a coordinate it merely drifts or travels (a ball
+    thrown forward, bouncing along the floor) the velocity stays near one value, however far
+    the object goes. The coordinate with the larger spread is the one bounced along.
+
+    Parameters
+    ----------
+    time : numpy.ndarray
+        Sample times in s (NaN where missing).
+    values : numpy.ndarray
+        Positions along the coordinate (NaN where not marked).
+
+    Returns
+    -------
+    float
+        The 5-95 percentile range of the velocities between consecutive marked samples
+        (units of `values` per s); -1 where fewer than two samples are marked.
+    """
+    marked = np.isfinite(time) & np.isfinite(values)
+    t, x = time[marked], values[marked]
+    steps = np.diff(t)
+    velocity = np.diff(x)[steps > 0] / steps[steps > 0]
+    if velocity.size == 0:
+        return -1.0
+    low, high = np.percentile(velocity, [5.0, 95.0])
+    return float(high - low)
+
+
 def _span(present):
     """First and last index (inclusive) where `present` is True, or None if it never is."""
     where = np.flatnonzero(present)
@@ -696,8 +905,10 @@ def _runs(path, table, quantities, *, skip_blanks=False):
             else:
                 read.append((j, filled, None, None))
         if len(read) > 1:
-            # Several coordinates (Tracker's x and y): the one the object moves along most.
-            spread = [np.nanstd(v) if np.any(np.isfinite(v)) else -1.0 for _, _, v, _ in read]
+            # Several coordinates (Tracker's x and y): the one the object bounces along.
+            seconds = time * (_unit_factor(path, where, columns[time_index], table, "time")
+                              or 1.0)
+            spread = [_velocity_spread(seconds, v) for _, _, v, _ in read]
             read = [read[int(np.argmax(spread))]]
         j, filled, values, res = read[0]
         span = _span(filled)

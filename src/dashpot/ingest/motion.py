@@ -45,6 +45,61 @@ def _mad_sigma(values):
     return float(_MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
 
 
+def _isolated_glitches(x, sigma):
+    """Readings off both their neighbours by more than any motion around them allows.
+
+    A motion sensor that loses its target for one ping (an echo off something else) writes
+    one reading far from the cart. The reading k is such a glitch where its departure from
+    the mean of its neighbours, |x_k − (x_{k−1} + x_{k+1})/2|, exceeds three times the
+    largest step beside it, max(|x_{k−1} − x_{k−2}|, |x_{k+2} − x_{k+1}|), plus 8σ of the
+    noise. A real turn cannot do that: at a reversal against the bumper the turning reading
+    departs from its neighbours' mean by at most one step of the faster side, v·Δt, and in
+    free flight by a·Δt² (constant acceleration [5]_); the steps beside a glitch are the
+    cart's own.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        Positions in m, in time order.
+    sigma : float
+        1σ position noise in m.
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True at the glitches (never at the first two or last two readings).
+    """
+    glitch = np.zeros(x.size, dtype=bool)
+    if x.size < 5:
+        return glitch
+    departure = np.abs(x[2:-2] - 0.5 * (x[1:-3] + x[3:-1]))
+    beside = np.maximum(np.abs(x[1:-3] - x[:-4]), np.abs(x[4:] - x[3:-1]))
+    glitch[2:-2] = departure > 3.0 * beside + 8.0 * sigma
+    return glitch
+
+
+def _without_glitches(run, notes):
+    """The run without its isolated glitch readings (see _isolated_glitches), noted."""
+    if "position" not in run.columns:
+        return run
+    values, resolution = run.columns["position"]
+    floor = float(np.nanmax(resolution)) / np.sqrt(12.0) if resolution.size else 0.0
+    sigma = max(_mad_sigma(np.diff(values, 3)) / np.sqrt(20.0), floor)
+    glitch = _isolated_glitches(values, sigma)
+    if not glitch.any():
+        return run
+    keep = ~glitch
+    notes.append(f"run '{run.label or 0}': {int(glitch.sum())} isolated reading(s) off both "
+                 f"neighbours by more than three of the steps beside them left out (a lost "
+                 f"echo of the sensor), at t = "
+                 + ", ".join(f"{t:.4g} s" for t in run.time[glitch][:5])
+                 + (" ..." if glitch.sum() > 5 else ""))
+    columns = {key: ((value[0][keep], value[1][keep]) if isinstance(value, tuple) else
+                     value[keep] if isinstance(value, np.ndarray) else value)
+               for key, value in run.columns.items()}
+    return type(run)(run.label, run.rows[keep], run.time[keep], columns)
+
+
 def _runs_of(state):
     """Start, end (inclusive) and value of each run of equal values in an integer array."""
     change = np.flatnonzero(np.diff(state)) + 1
@@ -1206,9 +1261,13 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         and/or velocity column in the export's words: PASCO Capstone ``Time (s) Run #1``,
         ``Position (m) Run #1``, ``Velocity (m/s) Run #1`` (and ``Acceleration`` columns, not
         used); Vernier ``Latest: Time (s)``, ``Run 1: Position (m)``, ``Latest: Velocity
-        (m/s)``; Tracker's data export (a first line naming the track, ``t``, ``x``, ``y``
-        without units [7]_; several tracks in Tracker 6's layout or one below the other: see
-        `track`) or any ``t,y`` table. Several runs side by side. Blanks at a
+        (m/s)``, ``Data Set 1:Position(m)`` and Vernier's text format (``Vernier Format 2``,
+        a data set per run); Tracker's data export (a first line naming the track, ``t``,
+        ``x``, ``y`` without units [7]_; several tracks in Tracker 6's layout or one below
+        the other: see `track`; of several coordinates the one whose velocity spreads most,
+        the one bounced along) or any ``t,y`` table. Several runs side by side. A single
+        reading far off both its neighbours (a motion sensor's lost echo) is left out,
+        noted. Blanks at a
         column's start or end are normal (a derivative starts a sample or two after the
         position; shorter runs end early); a blank between a column's values is an error. The
         position is read when there is one, and the velocity beside it is then not used. Units
@@ -1387,6 +1446,7 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
     parts, legs = [], []
     for number, run in enumerate(runs):  # loop over runs
         before = len(legs)
+        run = _without_glitches(run, notes)
         result = _motion_run(run, bumper_position, notes, legs)
         parts.append(result + (np.full(result[0].size, number),))
         if len(legs) > before:
@@ -1394,7 +1454,7 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
         if "column" in run.columns and len([c for c in table.columns if c.run == run.label
                                             and c.name in _POSITION_NAMES]) > 1:
             notes.append(f"run {number}: position read from column '{run.columns['column']}' "
-                         f"(the coordinate that moves most)")
+                         f"(the coordinate bounced along: its velocity spreads most)")
     merged = [np.concatenate([p[q] for p in parts]) for q in range(12)]
     counts = [p[0].size for p in parts]
     if max(counts) == 1:

@@ -13,16 +13,23 @@ file, the 1-based data row (counted after the header) where that applies, and th
 
 Text tables are sniffed, not configured: the separator is the one of tab, semicolon or comma
 that splits the first lines into the same number (> 1) of fields, and the decimal mark is a
-comma when the separator is not and numbers like ``1,25`` occur. A first line that is a single
-word above a separated header names a Tracker track (``mass_A``) and is skipped. Workbooks —
+comma when the separator is not and numbers like ``1,25`` occur (also inside quoted fields of a
+comma-separated file, and in a header-less single column, where ``1,234568`` is one number).
+A first line that is a single word above a separated header names a Tracker track
+(``mass_A``) and is skipped; other title lines (no number among their fields) above a header
+are skipped, noted. Vernier's text format (``Vernier Format 2``: six header lines per data
+set) is read data set by data set (:mod:`.vernier`); separators ending every line add no
+column; Audacity's label export (start, end, text; no header) is a list of impact times.
+Workbooks —
 Excel ``.xlsx``, legacy Excel 97-2003 ``.xls`` (BIFF8, phyphox's "Excel" export) and
 OpenDocument ``.ods`` — are read sheet by sheet through pandas' calamine engine, and zip
 archives (phyphox's CSV export) member by member.
 
 Column headers are read in the exporting program's own words: a name, a unit in parentheses or
 brackets, and a run label either in front (Vernier: ``Latest: Time (s)``, ``Run 2: Position
-(m)``) or behind (PASCO Capstone: ``Time (s) Run #1``). Tracker writes bare names (``t``,
-``x``, ``y``) in its calibrated units (s and, usually, m).
+(m)``, ``Data Set 1:Time(s)``) or behind (PASCO Capstone: ``Time (s) Run #1``; a wired
+sensor's interface channel, ``Position, Ch 1&2 (m) Run #1``, is not part of the name).
+Tracker writes bare names (``t``, ``x``, ``y``) in its calibrated units (s and, usually, m).
 
 
 The formats' sources are cited in the module of each reader.

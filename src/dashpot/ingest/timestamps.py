@@ -11,7 +11,8 @@ from ..errors import InputError
 from . import (AUDIO_SUFFIXES, FLIGHT_CORRELATION_COLUMN, SPEED_OWN_COLUMNS,
                is_speed_error_column)
 from ._tabular import (_TIME_NAMES, _UNCERTAINTY_NAMES, _check_duplicates, _check_times,
-                       _impact_columns, _impact_frame, _is_impact_header, _kind_of,
+                       _impact_columns, _impact_frame, _is_impact_header, _is_label_track,
+                       _kind_of,
                        _load_tables, _numbers, _unit_factor)
 
 # ---------------------------------------------------------------------------------------------
@@ -30,7 +31,9 @@ def read_timestamps(path, *, unit=None):
         Text table (any separator/decimal mark, sniffed) or workbook: a header like
         ``time (ms)``, ``t [s]``, ``impact time`` and optionally an uncertainty column
         (``uncertainty``, ``sigma``, ``error``, … with or without its own unit), or no header
-        at all (first column times, optional second column uncertainties).
+        at all (first column times, optional second column uncertainties), or Audacity's
+        label export (start, end and text of a label per line, no header: the starts are read,
+        in s).
     unit : {"s", "ms"}, optional
         Unit of the times when the file does not say; must agree with the header if both do.
 
@@ -81,7 +84,21 @@ def read_timestamps(path, *, unit=None):
     where = table.where
     notes = [f"file variant: {table.variant}"]
     _check_duplicates(path, table)
-    if table.columns is None:
+    labels = _is_label_track(table)
+    if labels:
+        # Audacity's label export: the labels' starts are the marked impacts, in seconds.
+        time_index, uncertainty_index = 0, None
+        time_column = uncertainty_column = None
+        regions = bool(np.any(_numbers(path, table, 1, what="label end")[0]
+                              > _numbers(path, table, 0, what="label start")[0]))
+        notes.append("no header, every second column at or after the first: an Audacity "
+                     "label export (start, end, text), the label starts read as impact times "
+                     "in s" + ("; region labels: their starts, not their ends, are the impacts"
+                               if regions else ""))
+        if unit == "ms":
+            raise InputError(path, f"{where}an Audacity label export holds times in s; "
+                                   f"unit='ms' contradicts it")
+    elif table.columns is None:
         time_index, uncertainty_index = 0, (1 if table.cells.shape[1] > 1 else None)
         time_column = uncertainty_column = None
         notes.append("no header: first column read as times"
@@ -104,7 +121,9 @@ def read_timestamps(path, *, unit=None):
                                f"'{time_column.unit}' but unit={unit!r} was given")
     _check_times(path, table, values, rows, unit="")
     factor = header_factor if header_factor is not None else argument_factor
-    if factor is None:
+    if labels:
+        factor = 1.0
+    elif factor is None:
         if values.size < 2:
             factor = 1.0
             notes.append("time unit not declared and only one time: read as seconds")
@@ -130,11 +149,43 @@ def read_timestamps(path, *, unit=None):
             k = int(np.flatnonzero(bad)[0])
             raise InputError(path, f"{where}uncertainty '{table.cells[k, uncertainty_index]}' is "
                                    f"missing or negative", row=k + 1)
+        if table.columns is None and times.size > 1:
+            _check_unnamed_uncertainties(path, table, times, sigma, uncertainty_index)
         notes.append("time uncertainties from the file's uncertainty column")
     else:
         sigma = resolution * factor / np.sqrt(12.0)
         notes.append("time uncertainty: rounding of the written digits (last digit/√12)")
     return _impact_frame(path, "timestamps", notes, times, sigma)
+
+
+def _check_unnamed_uncertainties(path, table, times, sigma, index):
+    """InputError if a header-less second column cannot be the times' 1σ.
+
+    An impact time uncertain by as much as the typical interval between impacts would not
+    tell them apart; such a column is something else (a label, a counter, an end time),
+    and reading it as uncertainties would weight the fit by nonsense.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, for the message.
+    table : _Table
+        The header-less table.
+    times, sigma : numpy.ndarray
+        Impact times and the second column read as their 1σ, both in s.
+    index : int
+        The second column's index.
+    """
+    median_interval = float(np.median(np.diff(times)))
+    large = sigma >= median_interval
+    if large.any():
+        k = int(np.flatnonzero(large)[0])
+        raise InputError(path, f"{table.where}the second column (no header) cannot be the "
+                               f"times' uncertainties: '{table.cells[k, index]}' is not below "
+                               f"the median interval between impacts ({median_interval:.4g} s); "
+                               f"name the columns in a header row, e.g. 'time (s)' and "
+                               f"'uncertainty (s)' (a label or counter column is not read)",
+                         row=k + 1)
 
 
 # ---------------------------------------------------------------------------------------------
