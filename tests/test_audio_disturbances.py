@@ -19,8 +19,9 @@ import pytest
 from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between, _echoing_members,
+from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
+                                  _echoing_members,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_levels, _shift_to_causes, _train_end,
@@ -46,8 +47,8 @@ MEASURED = ("measured on this block: recall 0.985 (3926 of 3985 impacts timed wi
             "burst's delay, are timed on the burst of the one before or lost under it; rings "
             "and echoes of the last impacts measured louder than twice their usual level (they "
             "start on the decaying sounds of the impacts before) pass for one more bounce; and "
-            "a chain that takes a "
-            "burst, ring or echo for its first impacts can follow their copy of the train. "
+            "a chain that takes a burst, ring or echo for its first impacts can follow their "
+            "copy of the train. "
             "Earlier: recall 0.977, 45 false (16 after the last impact), 0.696 / 0.964; before "
             "impacts were looked for in the error of a linear predictor of the ring before "
             "them: recall 0.944, 64 false (12 after the last impact), 2 refused (57 impacts), "
