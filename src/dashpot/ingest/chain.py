@@ -794,17 +794,20 @@ def _secondary_delays(times, chain):
     delays = (times[others][:, None] - impacts[None, :]).ravel()
     delays = delays[(delays > _MERGE_SECONDS) & (delays < 2 * _SECONDARY_SECONDS)]
     counts = np.bincount(np.round(delays * 1e3).astype(np.int64))
-    # Neighbouring milliseconds belong together (a delay of 9.4 ms rounds to 9 or 10); a peak
-    # of the pooled histogram (each millisecond with the one before) is a candidate delay.
+    return _recurring_delays(delays, counts, max(3, chain.size / 4))
+
+
+def _recurring_delays(delays, counts, threshold):
+    """The delays (s) among `delays` that recur: peaks of `counts` (how many there are per
+    millisecond, rounded) reaching `threshold`, each refined to the median of the delays
+    within 1 ms of it. Neighbouring milliseconds belong together (a delay of 9.4 ms rounds
+    to 9 or 10): each is pooled with the one before."""
     pooled = counts + np.concatenate(([0], counts[:-1]))
     dense = np.zeros(pooled.size + 2)
     dense[1:-1] = pooled
-    peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= max(3, chain.size / 4))
-    found = []
-    for value in np.flatnonzero(peaks) / 1e3:
-        close = delays[np.abs(delays - value + 0.5e-3) <= 1e-3]
-        found.append(float(np.median(close)))
-    return np.array(found)
+    peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= threshold)
+    return np.array([float(np.median(delays[np.abs(delays - value + 0.5e-3) <= 1e-3]))
+                     for value in np.flatnonzero(peaks) / 1e3])
 
 
 def _explained_secondaries(times, amplitude, chain):
@@ -832,10 +835,10 @@ def _echoing_members(times, amplitude, chain):
 
     A chain can follow an echo of the train instead of the train (an echo copies its
     intervals, and outlasts it by its delay): each member then comes at one delay after a
-    louder transient left out, the impact. A delay (1 ms bins, each pooled with the one
-    before, from 3 ms to twice the longest secondary delay) at which a quarter of the members
-    (three at least) follow a louder transient left out recurs; the members within 0.3 ms
-    of it after a louder transient (left out or not) are its secondaries. `times` (s, increasing) and
+    louder transient left out, the impact. A delay (from 3 ms to twice the longest secondary
+    delay) at which a quarter of the members (three at least) follow a louder transient left
+    out recurs (:func:`_recurring_delays`); the members within 0.3 ms of it after a louder
+    transient (left out or not) are its secondaries. `times` (s, increasing) and
     `amplitude` (full scale) are those of all the transients; returns a boolean mask of
     them.
     """
@@ -848,21 +851,15 @@ def _echoing_members(times, amplitude, chain):
              & (delays >= _CAUSE_DELAY_SECONDS[0]) & (delays < 2 * _SECONDARY_SECONDS))
     if not valid.any():
         return echoing
-    # Each member counts once per millisecond bin.
+    # Each member counts once per millisecond.
     member, column = np.nonzero(valid)
     bins = np.round(delays[member, column] * 1e3).astype(np.int64)
-    pairs = np.unique(np.stack([member, bins]), axis=1)
-    counts = np.bincount(pairs[1])
-    pooled = counts + np.concatenate(([0], counts[:-1]))
+    counts = np.bincount(np.unique(np.stack([member, bins]), axis=1)[1])
     # Marked after any louder transient, the chain's own members too (the first impact's
     # echo follows it in the chain).
     after_any = times[chain][:, None] - times[None, :]
     louder = amplitude[None, :] >= amplitude[chain][:, None]
-    for value in np.flatnonzero(pooled >= max(3, chain.size / 4)):
-        close = valid & (np.abs(delays - value / 1e3 + 0.5e-3) <= 1e-3)
-        if not close.any():
-            continue
-        delay = float(np.median(delays[close]))
+    for delay in _recurring_delays(delays[valid], counts, max(3, chain.size / 4)):
         echoing[chain[np.any(louder & (np.abs(after_any - delay) <= _CAUSE_TOLERANCE),
                              axis=1)]] = True
     return echoing
