@@ -20,7 +20,7 @@ import numpy as np
 
 from .bounces import DRAG_CORRECTION_COLUMNS, drag_correction
 from .errors import InputError
-from .plausibility import check_bounce_train
+from .plausibility import acceleration_problem, check_bounce_train
 from .ingest import read_impacts
 from .ingest.tables import is_impact_table, read_impact_table
 from .scene import Scene
@@ -207,6 +207,12 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
             check_bounce_train(table, path)
         except InputError as error:
             raise InputError(path, where + error.problem) from None
+    # A cart fitted under free fall (or a ball under a cart's g_eff) misfits by orders of
+    # magnitude: said beside the fits, where the measured speeds show it.
+    problem = acceleration_problem(impacts, scene.driving_acceleration)
+    if problem:
+        logger.info("%s: %s", path, problem)
+        impacts.attrs["notes"] = [*impacts.attrs.get("notes", []), problem]
     models = tuple(models or scene.models)
     noise = scene.noise if noise is None else noise
     per_run = len(models) + (len(dict.fromkeys(NOISE_LAWS + models)) if noise else 0)

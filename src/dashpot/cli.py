@@ -152,6 +152,7 @@ def _refuse_standard_output(args, what):
 def _fit(args, console):
     from .analysis import analyze_runs, recording_note
     from .fit.data import flight_notes
+    from .plausibility import acceleration_problem
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -172,7 +173,8 @@ def _fit(args, console):
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
     console.say(f"{args.impacts}: {len(impacts)} impacts -> {args.output}")
-    _say_reports(console, runs_fit, [recording_note(args.impacts, scene), *flight_notes(scene)])
+    _say_reports(console, runs_fit, [recording_note(args.impacts, scene), *flight_notes(scene),
+                                     acceleration_problem(impacts, scene.driving_acceleration)])
 
 
 def _analyze(args, console):
@@ -186,6 +188,7 @@ def _analyze(args, console):
     from .figures import load_record, save_scene_figures
     from .fit.data import flight_notes
     from .fit_report import parameter_table
+    from .plausibility import acceleration_problem
     from .scene import Scene, load_scene
     from .store import write_scene_fit
 
@@ -254,7 +257,8 @@ def _analyze(args, console):
     console.say(f"{recording}: {len(impacts)} impacts -> {out / f'{name}.h5'}, "
                 f"{out / parameters}, figures in {out / name}/")
     _say_reports(console, runs_fit, [recording_note(recording, scene if args.scene else None),
-                                     *flight_notes(scene)])
+                                     *flight_notes(scene),
+                                     acceleration_problem(impacts, scene.driving_acceleration)])
 
 
 def _with_uncertainty(scene, args):

@@ -31,12 +31,15 @@ import pandas as pd
 from .errors import InputError
 
 __all__ = ["ratio_trend", "bounce_train_problem", "check_bounce_train", "NOT_A_BOUNCE_TRAIN",
-           "MAX_GROWING_FRACTION", "MAX_RATIO_SCATTER"]
+           "MAX_GROWING_FRACTION", "MAX_RATIO_SCATTER", "implied_acceleration",
+           "acceleration_problem"]
 
 MAX_GROWING_FRACTION = 0.25  # of the interval ratios that may exceed 1 beyond the timing noise
 MAX_RATIO_SCATTER = 0.05  # of ln(interval ratio) about its trend, beyond the timing noise
 _MIN_RATIOS_FOR_SCATTER = 6
 NOT_A_BOUNCE_TRAIN = "intervals do not shrink as a bouncing ball's do"  # start of the message
+ACCELERATION_TOLERANCE = 0.25  # relative: friction makes a cart's legs differ by ~5-10 %
+_MIN_FLIGHTS = 3
 
 
 def ratio_trend(impact_times, *, floor=0.0, rounds=3):
@@ -161,3 +164,66 @@ def check_bounce_train(impacts, source):
     problem = bounce_train_problem(table["time"].to_numpy(float), sigma)
     if problem:
         raise InputError(source, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
+
+
+def implied_acceleration(impacts):
+    """Driving acceleration (m/s²) the measured speeds and flight times imply, and the number
+    of flights it comes from.
+
+    Under a constant acceleration a along the track, a flight that leaves an impact at the
+    rebound speed u and meets the next at the impact speed w lasts T = (u + w)/a (up and
+    back down, [2]_): a = (u + w)/T. The median over the flights of each run (consecutive
+    rows of one run with both speeds measured) is returned; on an incline with rolling
+    friction the up and down legs' accelerations differ by a few %, and this is about their
+    harmonic mean.
+
+    Parameters
+    ----------
+    impacts : pandas.DataFrame
+        Impact table of :mod:`dashpot.ingest` (``time``, ``impact_speed``, ``rebound_speed``,
+        optional ``run``).
+
+    Returns
+    -------
+    acceleration : float
+        m/s²; NaN where no flight has both speeds.
+    flights : int
+
+    References
+    ----------
+    .. [2] Kinematics of constant acceleration: v = u − a·t up, w = a·t' down, T = t + t'.
+    """
+    if not {"impact_speed", "rebound_speed"} <= set(impacts.columns):
+        return float("nan"), 0
+    runs = impacts["run"] if "run" in impacts else pd.Series(0, index=impacts.index)
+    values = []
+    for _, table in impacts.groupby(runs, sort=True):
+        table = table.sort_values("time")
+        flight = np.diff(table["time"].to_numpy(float))
+        launch = table["rebound_speed"].to_numpy(float)[:-1]
+        landing = table["impact_speed"].to_numpy(float)[1:]
+        usable = np.isfinite(launch) & np.isfinite(landing) & (flight > 0)
+        values.append((launch[usable] + landing[usable]) / flight[usable])
+    values = np.concatenate(values) if values else np.zeros(0)
+    if values.size == 0:
+        return float("nan"), 0
+    return float(np.median(values)), int(values.size)
+
+
+def acceleration_problem(impacts, driving_acceleration):
+    """Plain words where the measured speeds and flight times disagree with the driving
+    acceleration the fits assume (m/s²), by more than a quarter over three flights or more
+    (:func:`implied_acceleration`); "" where they agree or cannot tell.
+
+    A cart on an incline fitted under free fall, or a dropped ball under a cart's g_eff,
+    misfits by orders of magnitude (χ²/ν of 10⁵ and more) and its contact parameters mean
+    nothing: the scene must give the acceleration.
+    """
+    implied, flights = implied_acceleration(impacts)
+    if flights < _MIN_FLIGHTS or not np.isfinite(implied) or (
+            abs(implied / driving_acceleration - 1.0) <= ACCELERATION_TOLERANCE):
+        return ""
+    return (f"the measured speeds and flight times imply a driving acceleration of "
+            f"{implied:.3g} m/s² (median of {flights} flights: (rebound + next impact "
+            f"speed) / flight time), the fits assume {driving_acceleration:.6g} m/s²: give the "
+            f"scene's g_eff or incline angle (apparatus: g_eff, incline_angle)")
