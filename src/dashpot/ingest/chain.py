@@ -219,8 +219,9 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     trend = _trend(times[chain])
     chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
     chain = _polish_chain(times, chain, trend)
-    chain, skipped = _extend_chain(times, amplitude, chain, trend, precise,
-                                   _secondary_delays(times, chain))
+    delays = _secondary_delays(times, chain)
+    chain, skipped = _extend_chain(times, amplitude, chain, trend, precise, delays,
+                                   _secondary_levels(times, amplitude, chain, delays))
     chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
     chain = _move_to_causes(times, amplitude, chain)
     chain = _back_to_louder_causes(times, amplitude, chain)
@@ -309,10 +310,11 @@ def _move_to_causes(times, amplitude, chain):
     within 0.8 of the interval before it, and at least half as loud as the member: a burst
     may swell to 1.5 times its impact) is that transient's secondary where the impact itself
     was passed over, often for a run of bounces once the impacts grow quiet. The members so
-    placed are moved together (a run of them fits the trend as well as the impacts inside
-    the run; only its ends tell), and kept moved unless the chain's interval ratios then
-    follow their trend worse (:func:`_chain_cost`) by more than the cost of one ratio one
-    scatter off it, ln(3/2): a tie goes to the causes, the onset of an impact being where
+    placed are moved together, a run of consecutive members at a time (a run of them fits
+    the trend as well as the impacts inside the run; only its ends tell), and each run is
+    kept moved unless the chain's interval ratios then follow their trend worse
+    (:func:`_chain_cost`) by more than the cost of one ratio one scatter off it, ln(3/2):
+    a tie goes to the causes, the onset of an impact being where
     its first burst starts. Each moved member is then put back on its own
     where that fits better still (a true impact that happens to follow a secondary of an
     earlier one).
@@ -347,10 +349,22 @@ def _move_to_causes(times, amplitude, chain):
             moved[position] = best
     if np.array_equal(moved, chain):
         return chain
-    # A tie goes to the causes: where the secondaries of the impacts hidden under the ones
-    # before them continue the run to the train's end, the run of members and the run of
-    # their causes each break the trend once, where they join the chain's impacts.
-    if _chain_cost(times[np.sort(moved)]) >= _chain_cost(members) + _COST_TIE:
+    # Each run of consecutive members so placed is judged on its own (runs of bursts taken
+    # on the long first intervals and late in the train are independent). A tie goes to
+    # the causes: where the secondaries of the impacts hidden under the ones before them
+    # continue the run to the train's end, the run of members and the run of their causes
+    # each break the trend once, where they join the chain's impacts.
+    changed = np.flatnonzero(moved != chain)
+    runs = np.split(changed, np.flatnonzero(np.diff(changed) > 1) + 1)
+    kept, cost = chain.copy(), _chain_cost(members)
+    for run in runs:
+        trial = kept.copy()
+        trial[run] = moved[run]
+        trial_cost = _chain_cost(times[np.sort(trial)])
+        if trial_cost < cost + _COST_TIE:
+            kept, cost = trial, trial_cost
+    moved = kept
+    if np.array_equal(moved, chain):
         return chain
     for position in np.flatnonzero(moved != chain):
         trial = moved.copy()
@@ -654,7 +668,7 @@ def _predict_next(anchors, step, missing=0):
     return median(moments), median(intervals)
 
 
-def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None):
+def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None, levels=None):
     """Follow the bounce trend past the end of `chain`, through up to two missing impacts.
 
     The trend predicts the next impact time from each of the last three impacts and the
@@ -683,6 +697,9 @@ def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None):
         trend = _trend(precise(chain))
     coefficients, scatter = trend
     step = _trend_step(coefficients, np.diff(times[chain]).min())
+    if delays is not None:
+        usual = (np.full(delays.size, np.inf) if levels is None else
+                 np.where(np.isfinite(levels), levels, np.inf))  # unknown level: any loudness
     chain = list(chain)
     anchors = list(precise(np.array(chain[-4:])))  # one bounce apart (skips filled in)
     skipped, missing = 0, 0
@@ -708,8 +725,13 @@ def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None):
         if delays is not None and delays.size and near.size:
             members = precise(np.array(chain))
             echoing = np.abs(fitted[:, None, None] - delays[None, :, None]
-                             - members[None, None, :]).min(axis=(1, 2))
-            inside &= echoing > _ONSET_JITTER
+                         - members[None, None, :]) <= _ONSET_JITTER
+            # A transient far louder than that secondary usually is after its impact is
+            # not it (the delays are many, and their sums with the intervals soon cover
+            # the predictions by chance).
+            echoing &= amplitude[near][:, None, None] <= (
+                _SECONDARY_MARGIN * usual[None, :, None] * amplitude[np.array(chain)][None, None, :])
+            inside &= ~echoing.any(axis=(1, 2))
         near, fitted = near[inside], fitted[inside]
         if near.size:
             nearest = int(np.argmin(np.abs(fitted - predicted_time)))
