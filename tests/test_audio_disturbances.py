@@ -21,11 +21,11 @@ from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
-                                  _echoing_members,
+                                  _echoing_members, _extend_chain,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
-                                  _secondary_levels, _shift_to_causes, _train_end,
-                                  _trend_step, _trim_growing_end)
+                                  _secondary_delays, _secondary_levels, _shift_to_causes,
+                                  _train_end, _trend, _trend_step, _trim_growing_end)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
@@ -384,6 +384,41 @@ def test_a_run_of_ring_bursts_in_the_chain_moves_back_onto_their_impacts():
     # A true chain stays, and so does a burst that is its own train's extra member.
     true_chain = np.searchsorted(times, impacts)
     np.testing.assert_array_equal(_move_to_causes(times, amplitude, true_chain), true_chain)
+
+
+def test_runs_of_ring_bursts_in_the_chain_are_judged_one_run_at_a_time():
+    # Impacts shrinking by 0.9, each followed 6.5 ms later by a burst as loud as itself; the
+    # chain took the bursts of impacts 1 and 2 (on the long first intervals the trend barely
+    # tells them apart). A click 6.5 ms before impact 18, left out, is no cause: moving
+    # that member breaks the trend, and must not keep the first run from moving.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(24))
+    click = impacts[18] - 6.5e-3
+    times = np.sort(np.concatenate([impacts, impacts + 6.5e-3, [click]]))
+    amplitude = np.ones(times.size)
+    chain = np.searchsorted(times, impacts)
+    chain[1:3] = np.searchsorted(times, impacts[1:3] + 6.5e-3)
+    moved = _move_to_causes(times, amplitude, chain)
+    np.testing.assert_array_equal(times[moved], impacts)
+
+
+def test_the_chain_goes_on_through_an_impact_far_louder_than_the_echo_it_meets():
+    # Impacts shrinking by 0.9, each echoed at a fifth of its loudness; the echo delay
+    # happens to be the span from impact 10 to impact 15, so impact 15 (five times louder
+    # than that echo) comes exactly where an echo of the chain is due. Followed on from the
+    # first 15 impacts, the chain takes it and goes on to the end.
+    impacts = np.cumsum(0.2 * 0.9 ** np.arange(24))
+    echo_delay = impacts[15] - impacts[10]
+    echoes = np.delete(impacts + echo_delay, 10)
+    times = np.concatenate([impacts, echoes])
+    amplitude = np.concatenate([np.ones(impacts.size), np.full(echoes.size, 0.2)])
+    order = np.argsort(times)
+    times, amplitude = times[order], amplitude[order]
+    chain = np.searchsorted(times, impacts[:15])
+    delays = _secondary_delays(times, chain)
+    levels = _secondary_levels(times, amplitude, chain, delays)
+    extended, _ = _extend_chain(times, amplitude, chain, _trend(times[chain]), None, delays,
+                                levels)
+    np.testing.assert_allclose(times[extended], impacts)
 
 
 def test_the_ratio_trend_is_not_bent_by_ring_bursts_taken_for_impacts():

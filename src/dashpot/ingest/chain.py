@@ -687,8 +687,11 @@ def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None, lev
     the rough onsets jitter by up to half a millisecond, a tenth of the last intervals.
 
     `delays` (s), the fixed delays of the rings and echoes left out of the chain, reject a
-    transient that comes that long after an impact of the chain: past the last impact the
-    rings of the last ones continue its intervals exactly.
+    transient that comes that long after an impact of the chain (to the rough onsets'
+    jitter): past the last impact the rings of the last ones continue its intervals exactly.
+    With `levels`, the usual loudness of each of these secondaries relative to its impact
+    (:func:`_secondary_levels`; NaN: unknown), a transient more than twice as loud as that
+    secondary usually is after that impact is not rejected.
     """
     if precise is None:
         def precise(indices):
@@ -725,12 +728,12 @@ def _extend_chain(times, amplitude, chain, trend, precise=None, delays=None, lev
         if delays is not None and delays.size and near.size:
             members = precise(np.array(chain))
             echoing = np.abs(fitted[:, None, None] - delays[None, :, None]
-                         - members[None, None, :]) <= _ONSET_JITTER
-            # A transient far louder than that secondary usually is after its impact is
-            # not it (the delays are many, and their sums with the intervals soon cover
-            # the predictions by chance).
-            echoing &= amplitude[near][:, None, None] <= (
-                _SECONDARY_MARGIN * usual[None, :, None] * amplitude[np.array(chain)][None, None, :])
+                             - members[None, None, :]) <= _ONSET_JITTER
+            # A transient far louder than that secondary usually is after its impact is not
+            # it (the delays are many, and with the intervals' sums they soon meet the
+            # predictions by chance).
+            loudest = _SECONDARY_MARGIN * usual[:, None] * amplitude[chain][None, :]
+            echoing &= amplitude[near][:, None, None] <= loudest[None, :, :]
             inside &= ~echoing.any(axis=(1, 2))
         near, fitted = near[inside], fitted[inside]
         if near.size:
