@@ -1251,11 +1251,14 @@ def _trim_growing_end(times, sigmas, scatter):
         if np.log(second / first) <= allowed or _spans_missed_bounces(
                 times[:end], second, allowed):
             continue
-        if end + 1 == times.size or impossible:
+        if impossible:
             return end
         # One impact timed off, early (b) or late (c), or a ring taken for one.
-        if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2) or (
-                _spans_missed_bounces(times[:end], times[end + 1] - b, allowed, most=2)):
+        if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2):
+            continue
+        if end + 1 == times.size:
+            return end
+        if _spans_missed_bounces(times[:end], times[end + 1] - b, allowed, most=2):
             continue
         # The train goes on past a grown interval where the intervals after it come back
         # under those before it (impacts timed off in a row); the sounds after a train
