@@ -310,13 +310,13 @@ def _move_to_causes(times, amplitude, chain):
     within 0.8 of the interval before it, and at least half as loud as the member: a burst
     may swell to 1.5 times its impact) is that transient's secondary where the impact itself
     was passed over, often for a run of bounces once the impacts grow quiet. The members so
-    placed are moved together, a run of consecutive members at a time (a run of them fits
-    the trend as well as the impacts inside the run; only its ends tell), and each run is
-    kept moved unless the chain's interval ratios then follow their trend worse
-    (:func:`_chain_cost`) by more than the cost of one ratio one scatter off it, ln(3/2):
-    a tie goes to the causes, the onset of an impact being where
-    its first burst starts. Each moved member is then put back on its own
-    where that fits better still (a true impact that happens to follow a secondary of an
+    placed are moved together (a run of them fits the trend as well as the impacts inside
+    the run; only its ends tell), and kept moved unless the chain's interval ratios then
+    follow their trend worse (:func:`_chain_cost`) by more than the cost of one ratio one
+    scatter off it, ln(3/2): a tie goes to the causes, the onset of an impact being where
+    its first burst starts. Where they are not kept, each run of consecutive members so
+    placed is moved on its own where the chain then follows its trend better by more than
+    that. Each moved member is then put back on its own where that fits better still (a true impact that happens to follow a secondary of an
     earlier one).
     """
     chain = np.asarray(chain)
@@ -349,23 +349,26 @@ def _move_to_causes(times, amplitude, chain):
             moved[position] = best
     if np.array_equal(moved, chain):
         return chain
-    # Each run of consecutive members so placed is judged on its own (runs of bursts taken
-    # on the long first intervals and late in the train are independent). A tie goes to
-    # the causes: where the secondaries of the impacts hidden under the ones before them
-    # continue the run to the train's end, the run of members and the run of their causes
-    # each break the trend once, where they join the chain's impacts.
-    changed = np.flatnonzero(moved != chain)
-    runs = np.split(changed, np.flatnonzero(np.diff(changed) > 1) + 1)
-    kept, cost = chain.copy(), _chain_cost(members)
-    for run in runs:
-        trial = kept.copy()
-        trial[run] = moved[run]
-        trial_cost = _chain_cost(times[np.sort(trial)])
-        if trial_cost < cost + _COST_TIE:
-            kept, cost = trial, trial_cost
-    moved = kept
-    if np.array_equal(moved, chain):
-        return chain
+    # A tie goes to the causes: where the secondaries of the impacts hidden under the ones
+    # before them continue the run to the train's end, the run of members and the run of
+    # their causes each break the trend once, where they join the chain's impacts.
+    cost = _chain_cost(members)
+    if _chain_cost(times[np.sort(moved)]) >= cost + _COST_TIE:
+        # Moved together they fit worse: each run of consecutive members so placed is moved
+        # on its own where that fits clearly better (a run of bursts taken on the long
+        # first intervals is independent of a member late in the train that happens to
+        # follow a secondary).
+        changed = np.flatnonzero(moved != chain)
+        kept = chain.copy()
+        for run in np.split(changed, np.flatnonzero(np.diff(changed) > 1) + 1):
+            trial = kept.copy()
+            trial[run] = moved[run]
+            trial_cost = _chain_cost(times[np.sort(trial)])
+            if trial_cost < cost - _COST_TIE:
+                kept, cost = trial, trial_cost
+        moved = kept
+        if np.array_equal(moved, chain):
+            return chain
     for position in np.flatnonzero(moved != chain):
         trial = moved.copy()
         trial[position] = chain[position]
@@ -1251,14 +1254,11 @@ def _trim_growing_end(times, sigmas, scatter):
         if np.log(second / first) <= allowed or _spans_missed_bounces(
                 times[:end], second, allowed):
             continue
-        if impossible:
+        if end + 1 == times.size or impossible:
             return end
         # One impact timed off, early (b) or late (c), or a ring taken for one.
-        if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2):
-            continue
-        if end + 1 == times.size:
-            return end
-        if _spans_missed_bounces(times[:end], times[end + 1] - b, allowed, most=2):
+        if _spans_missed_bounces(times[:end - 1], c - a, allowed, most=2) or (
+                _spans_missed_bounces(times[:end], times[end + 1] - b, allowed, most=2)):
             continue
         # The train goes on past a grown interval where the intervals after it come back
         # under those before it (impacts timed off in a row); the sounds after a train
