@@ -290,8 +290,8 @@ def test_capstone_soft_bumper_every_run_rests_on_its_bumper(tmp_path, seed):
     notes = impacts.attrs["notes"]
     for run, true in enumerate(truth["runs"]):
         label = true["label"]
-        assert any(note.startswith(f"run '{label}': bumper position") and "resting tail" in note
-                   for note in notes), (label, notes)
+        assert any(note.startswith(f"run '{label}': bumper position")
+                   and "from the resting tail" in note for note in notes), (label, notes)
         found = impacts[impacts["run"] == run]
         assert len(found) >= 4  # the four bounces of 0.36 m/s and more (23 mm and higher)
         times = np.asarray(true["impact_times"])

@@ -14,6 +14,8 @@ References
    "Datatable view": the data export is tab-delimited text, a first line with the track name,
    a header row (``t``, ``x``, ``y``, ...), numbers as ``0.000000000E0``; derivatives are
    blank at a track's first and last steps.
+.. [8] A. C. Aitken, "On least squares and linear combination of observations", Proc. R. Soc.
+   Edinburgh 55, 42-48 (1935): generalized least squares under correlated errors.
 """
 
 from __future__ import annotations
@@ -273,6 +275,135 @@ def _shared_components(gradient, covariance, shared, bumper_slope, bumper_sd):
         rest = (gradient @ covariance @ gradient.T + np.outer(slope, slope) * bumper_sd ** 2
                 - components @ components.T)
     return components, rest
+
+
+_FLOOR_TEST_SIGMAS = 3.0
+"""One-sided significance (in σ of their difference) at which the resting tail and the
+impacts' zero-speed meeting point are taken to disagree: a 0.13 % false alarm per run."""
+
+
+def _zero_speed_meeting(meets, factor, covariance):
+    """Bumper position from where each impact's incoming and outgoing parabolas meet,
+    extrapolated to an instantaneous contact.
+
+    Parameters
+    ----------
+    meets : ndarray, shape (m,)
+        Position (m, growing toward the bumper) where each impact's two parabolas meet.
+    factor : ndarray, shape (m,)
+        v_in·v_out/(v_in + v_out) of each impact (m/s), from the parabolas' speeds there.
+    covariance : ndarray, shape (m, m)
+        Covariance of `meets` (m²).
+
+    Returns
+    -------
+    tuple of float or None
+        (B, var_B, T, var_T): the bumper position (m) and the contact duration (s) with their
+        variances, by generalized least squares [8]_; the covariance is scaled by the reduced
+        χ² where that exceeds 1. None with fewer than three meeting points (no degree of
+        freedom left to check the model) or a singular system.
+
+    Notes
+    -----
+    A contact of duration T between straight approach and departure at speeds v_in and v_out
+    makes the extended parabolas meet T·v_in·v_out/(v_in + v_out) past the bumper [5]_
+    (gravity adds terms of order a·T², negligible while a·T ≪ v). So
+    meet_k = B + T·x_k, x_k = v_in·v_out/(v_in + v_out): the intercept B is where contact
+    begins, whatever the contact's duration, unlike the meeting points themselves.
+    """
+    ok = np.isfinite(meets) & np.isfinite(factor)
+    if ok.sum() < 3:
+        return None
+    meets, design = meets[ok], np.column_stack([np.ones(ok.sum()), factor[ok]])
+    with np.errstate(all="ignore"):  # a noise-free record: a singular covariance, no answer
+        try:
+            factored = cho_factor(covariance[np.ix_(ok, ok)], check_finite=False)
+            whitened = cho_solve(factored, np.column_stack([design, meets]), check_finite=False)
+            normal = np.linalg.inv(design.T @ whitened[:, :2])
+        except (LinAlgError, ValueError):
+            return None
+        theta = normal @ (design.T @ whitened[:, 2])
+        residual = meets - design @ theta
+        chi2 = float(residual @ cho_solve(factored, residual, check_finite=False))
+        normal = normal * max(chi2 / (meets.size - 2), 1.0)
+    if not (np.all(np.isfinite(normal)) and np.all(np.isfinite(theta)) and normal[0, 0] > 0):
+        return None
+    return float(theta[0]), float(normal[0, 0]), float(theta[1]), float(normal[1, 1])
+
+
+def _floor_choice(rest, var_rest, meeting):
+    """The bumper position from the resting tail or from the impacts' zero-speed meeting point.
+
+    Parameters
+    ----------
+    rest, var_rest : float
+        Median of the resting tail (m, growing toward the bumper) and its variance (m²).
+    meeting : tuple or None
+        :func:`_zero_speed_meeting`'s (B, var_B, T, var_T), or None.
+
+    Returns
+    -------
+    tuple
+        (bumper (m), variance (m²), verdict, z), z = (B − rest)/σ of their difference (NaN
+        without a meeting point). Verdicts: "unchecked" (no meeting point: the tail);
+        "moving" (z > _FLOOR_TEST_SIGMAS, the tail short of where contacts begin: bounces
+        within the noise go on in it; B); "pressed" (z < −_FLOOR_TEST_SIGMAS, the tail past
+        it: a soft bumper compressed by the resting cart, as documented; the tail); "agree"
+        (the tail, the more precise) or "sharper" (B, the more precise).
+
+    Notes
+    -----
+    Only a tail short of B is refused: bounces can only take a ball or cart away from the
+    bumper, while a resting cart presses into a soft one. Of two that agree the more precise
+    is used rather than their inverse-variance mean, which would shrink the stated σ while
+    keeping part of the bias of a tail whose bounces lie just below the test's reach. On a
+    soft bumper a cart's tail is the more precise (a handful of impacts with contacts of
+    0.15 s extrapolate poorly to zero speed), so its reading is unchanged by the check; on a
+    hard bumper (contacts of 11 ms) B often is, and a ball's hundred impacts place it more
+    precisely than its tail.
+    """
+    if meeting is None or not var_rest + meeting[1] > 0:
+        return rest, var_rest, "unchecked", np.nan
+    position, variance = meeting[:2]
+    z = (position - rest) / np.sqrt(var_rest + variance)
+    if z > _FLOOR_TEST_SIGMAS:
+        return position, variance, "moving", z
+    if z < -_FLOOR_TEST_SIGMAS:
+        return rest, var_rest, "pressed", z
+    if variance < var_rest:
+        return position, variance, "sharper", z
+    return rest, var_rest, "agree", z
+
+
+def _floor_note(label, orientation, choice, rest, var_rest, samples, meeting):
+    """The note saying which bumper position a run's impacts are timed from, and why.
+
+    `choice` is :func:`_floor_choice`'s answer, `rest`, `var_rest` and `samples` the resting
+    tail's median (m, growing toward the bumper), its variance (m²) and size, `meeting`
+    :func:`_zero_speed_meeting`'s (or None). Positions are stated on the file's axis.
+    """
+    bumper, variance, verdict, z = choice
+    tail = (f"the resting tail ({samples} samples; a soft bumper's static compression under "
+            f"the cart's weight is included)")
+    if verdict == "unchecked":
+        return (f"run '{label}': bumper position {orientation * bumper:.5g} m from {tail}; too "
+                f"few impacts with free motion on both sides to check it against where their "
+                f"parabolas meet")
+    position, var_meet, duration, var_duration = meeting
+    meet = (f"where the impacts' incoming and outgoing parabolas meet, extrapolated to an "
+            f"instantaneous contact ({orientation * position:.5g} m ± "
+            f"{1e3 * np.sqrt(var_meet):.2g} mm; contact {1e3 * duration:.3g} ± "
+            f"{1e3 * np.sqrt(var_duration):.2g} ms)")
+    if verdict in ("moving", "sharper"):
+        why = (f"lies {z:.1f}σ short of it, so it still holds bounces within the noise"
+               if verdict == "moving" else f"agrees ({z:+.1f}σ) but is less precise")
+        return (f"run '{label}': bumper position {orientation * bumper:.5g} m {meet}: the "
+                f"resting tail ({samples} samples, {orientation * rest:.5g} m ± "
+                f"{1e3 * np.sqrt(var_rest):.2g} mm) {why}")
+    relation = (f"agrees with {meet} ({z:+.1f}σ)" if verdict == "agree" else
+                f"lies {-z:.1f}σ past {meet}: a bumper pressed by the resting cart")
+    return (f"run '{label}': bumper position {orientation * bumper:.5g} ± "
+            f"{1e3 * np.sqrt(variance):.2g} mm from {tail}, which {relation}")
 
 
 def _motion_run(run, bumper_position, notes, legs):
@@ -676,12 +807,19 @@ def _motion_run(run, bumper_position, notes, legs):
                     sd_t_in=sd_t_in, sd_t_out=sd_t_out, sd_v_in=np.where(in_ok, sd_v_in, np.nan),
                     sd_v_out=np.where(out_ok, sd_v_out, np.nan))
 
-    def meeting_bumper(result):
-        """Median position where each impact's incoming and outgoing parabolas meet."""
+    def meeting_points(result):
+        """Where each impact's incoming and outgoing parabolas meet (impacts with both fitted).
+
+        Returns the positions s* (m), v_in·v_out/(v_in + v_out) there (m/s) and the positions'
+        covariance (m²), by linear propagation of the fit's covariance: with s_in, s_out the
+        parabolas' errors at the meeting time, δs* = (v_out·δs_in + v_in·δs_out)/(v_in +
+        v_out) (implicit differentiation of s_in = s_out). Consecutive impacts share a flight
+        and all share the leg accelerations: the covariance is not diagonal.
+        """
         k = np.arange(impacts)
         te_in, te_out = result["last"][k], result["first"][k + 1]
-        in_ok, a_in, c_in, b_in, _ = edge_parabola(result, k, te_in)
-        out_ok, a_out, c_out, b_out, _ = edge_parabola(result, k + 1, te_out)
+        in_ok, a_in, c_in, b_in, blocks_in, jac_in = edge_jacobian(result, k, te_in)
+        out_ok, a_out, c_out, b_out, blocks_out, jac_out = edge_jacobian(result, k + 1, te_out)
         # s_in(u) − s_out(u) = A·u² + B·u + C with u the time after te_in: the root between the
         # two edges (the one nearer their middle); linear when the legs share the acceleration.
         gap = te_out - te_in
@@ -697,8 +835,26 @@ def _motion_run(run, bumper_position, notes, legs):
                                  np.arange(impacts)]
             meet = np.where(np.abs(quadratic * gap) < 1e-9 * np.abs(linear) + 1e-300,
                             -const / linear, nearest)
-        meets = (c_in + b_in * meet + 0.5 * a_in * meet ** 2)[
-            in_ok & out_ok & np.isfinite(meet) & is_impact]
+            speed_in = b_in + a_in * meet
+            speed_out = -(b_out + a_out * (meet - gap))  # moving away: s falls
+            factor = speed_in * speed_out / (speed_in + speed_out)
+            share_in, share_out = (speed_out / (speed_in + speed_out),
+                                   speed_in / (speed_in + speed_out))
+        used = in_ok & out_ok & np.isfinite(meet) & is_impact
+        rows = np.zeros((impacts, result["covariance"].shape[0]))
+        for blocks, jac, u, share in ((blocks_in, jac_in, meet, share_in),
+                                      (blocks_out, jac_out, meet - gap, share_out)):  # 2 legs
+            with np.errstate(all="ignore"):  # impacts not used: anything, set to 0 below
+                along = np.stack([0.5 * u ** 2, np.ones_like(u), u], axis=-1)  # ∂s/∂(a, c, b)
+                row = share[:, None] * np.einsum("ki,kij->kj", along, jac)
+            np.add.at(rows, (k[:, None], blocks), np.where(np.isfinite(row), row, 0.0))
+        rows = rows[used]
+        position = (c_in + b_in * meet + 0.5 * a_in * meet ** 2)[used]
+        return position, factor[used], rows @ result["covariance"] @ rows.T
+
+    def meeting_bumper(result):
+        """Median position where each impact's incoming and outgoing parabolas meet."""
+        meets = meeting_points(result)[0]
         if meets.size == 0:
             return None, None
         spread = float(np.std(meets)) ** 2 / meets.size if meets.size > 1 else result["variance"]
@@ -765,12 +921,13 @@ def _motion_run(run, bumper_position, notes, legs):
         per_flight = compared.size / max(np.isfinite(nearest).sum(), 1)
         margin = (3.0 + np.sqrt(2.0 * np.log(max(per_flight, 2.0)))) * sigma_x
         if tail.sum() >= 5 and np.median(full_s[tail]) > flights_reach - margin:
-            bumper = float(np.median(full_s[tail]))
-            var_bumper = (_MEDIAN_EFFICIENCY * full_sigma_x) ** 2 / tail.sum()
-            source = "rest"
-            notes.append(f"run '{label}': bumper position {orientation * bumper:.5g} m from the "
-                         f"resting tail ({tail.sum()} samples; a soft bumper's static "
-                         f"compression under the cart's weight is included)")
+            # A tail may still hold bounces within the noise (a very elastic ball's last
+            # bounces go on for seconds), which place it short of the bumper: it is checked
+            # against where the impacts' parabolas meet, at zero speed (see _floor_choice).
+            rest = float(np.median(full_s[tail]))
+            var_rest = (_MEDIAN_EFFICIENCY * full_sigma_x) ** 2 / tail.sum()
+            bumper, var_bumper, source, _ = _floor_choice(
+                rest, var_rest, _zero_speed_meeting(*meeting_points(first)))
         else:
             bumper, var_bumper = meeting_bumper(first)
             if bumper is None:
@@ -880,6 +1037,12 @@ def _motion_run(run, bumper_position, notes, legs):
         notes.append(f"run '{label}': no resting tail; bumper position "
                      f"{orientation * bumper:.5g} m where the fitted trajectories meet (biased "
                      f"past the bumper by a long contact)")
+    elif source != "given":  # the rest checked again against the refit's meeting points
+        meeting = _zero_speed_meeting(*meeting_points(result))
+        choice = _floor_choice(rest, var_rest, meeting)
+        bumper, var_bumper = choice[:2]
+        notes.append(_floor_note(label, orientation, choice, rest, var_rest, int(tail.sum()),
+                                 meeting))
     cross = crossings(result, bumper, var_bumper)
     errors = speed_errors(result, bumper, var_bumper)
     resolved_count = int(is_impact.sum())
@@ -1078,7 +1241,7 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after, origin
         fit.solve = solve
         return apex, solution, worst
 
-    for _ in range(4):  # split excursions that hold two flights (below)
+    for attempt in range(4):  # split excursions that hold two flights (below)
         long_enough = ends - starts + 1 >= 2
         if not long_enough.any():
             return empty
@@ -1092,8 +1255,9 @@ def _tail_excursions(time, s, bumper, var_bumper, sigma_x, fitted, after, origin
         # A contact whose neighbouring samples both stay 4σ off the bumper joins two flights
         # into one excursion, which no parabola fits: split it at the sample nearest the
         # bumper (the contact is next to it), leaving that sample out.
+        # The last attempt splits nothing: the excursions stay those just fitted.
         joined = np.flatnonzero((worst > 5.0 * sigma_x) & (ends - starts >= 4))
-        if joined.size == 0:
+        if joined.size == 0 or attempt == 3:
             break
         index = np.arange(time.size)
         inside = [(index > starts[k]) & (index < ends[k]) for k in joined]  # a few at most
@@ -1377,7 +1541,15 @@ def read_motion_sensor(path, *, bumper_position=None, track=None):
        position stays within 4σ of where the record ends (the cart at rest; it includes a
        soft bumper's static compression g·sin θ/ω0², which makes the times late by that
        distance over the impact speed); else the median point where incoming and outgoing
-       parabolas meet (past the bumper by a long contact; noted).
+       parabolas meet (past the bumper by a long contact; noted). That tail may still hold
+       bounces within the noise, which only take the object away from the bumper (a very
+       elastic ball, ε ≈ 0.98, bounces for seconds after its last visible bounce): it is
+       checked against the impacts' meeting points extrapolated to an instantaneous contact,
+       the intercept B of meet_k = B + T·v_in·v_out/(v_in + v_out) (T the contact duration)
+       by generalized least squares over the impacts [8]_, their covariance propagated from
+       the fit's. Where the tail lies more than 3σ of the difference short of B, B is used;
+       more than 3σ past it, the tail; between, the more precise of the two (a cart's tail
+       on a soft bumper; a ball's B). The notes say which and why, with B and T.
     8. Speeds: each leg's slope at those crossings, √(b² + 2a·D) with D the distance left and
        a that leg's acceleration, so the impact speed of a bounce and the rebound speed of
        the one before are measured separately; 1σ by linear propagation of the fit covariance
