@@ -4,7 +4,8 @@ dashpot.ingest.audio_kernels runs the high-pass, the power envelope and its trig
 onset picker and the chain's dynamic programme compiled; the numpy forms in
 dashpot.ingest.envelope and dashpot.ingest.chain stay as the reference (envelope.COMPILED =
 False runs them). The kernels do the same operations in the same order and take their
-logarithms from numpy, so the two must agree to the last bit: each kernel against its
+logarithms from numpy, so the two must agree to the last bit (the onset fit's regression, whose
+reference calls LAPACK, to about 1e-9 sample): each kernel against its
 reference (and the high-pass against scipy.signal.sosfilt itself) on random input, and the
 whole detector on synthetic recordings with the disturbances of real ones (seeds 20261125 + k,
 not tuned) and on the real recordings where ../shared/data is present.
@@ -173,9 +174,13 @@ def _assert_same_impacts(path, monkeypatch, **options):
         assert compiled == reference
         return 0
     assert len(compiled) == len(reference)
-    for column in ("time", "time_uncertainty", "amplitude"):
-        np.testing.assert_array_equal(compiled[column].to_numpy(), reference[column].to_numpy(),
-                                      err_msg=column)
+    np.testing.assert_array_equal(compiled["amplitude"].to_numpy(),
+                                  reference["amplitude"].to_numpy())
+    # The onset fit's regression is the one kernel that does not reproduce its reference to
+    # the last bit (see dashpot.ingest.audio_kernels): times agree to far below a sample.
+    for column in ("time", "time_uncertainty"):
+        np.testing.assert_allclose(compiled[column].to_numpy(), reference[column].to_numpy(),
+                                   rtol=0, atol=1e-12, err_msg=column)
     assert compiled.attrs["notes"] == reference.attrs["notes"]
     return len(reference)
 
@@ -241,6 +246,32 @@ def test_batched_polish_equals_member_by_member(monkeypatch):
         np.testing.assert_array_equal(chaining._polish_chain(times, chain, trend), expected)
         replaced += int((expected != chain).sum())
     assert replaced > 50  # the polish did replace members
+
+
+def test_onset_fit_compiled_equals_its_reference(monkeypatch):
+    # Transients of random frequency, decay, phase and SNR (10-70 dB) starting anywhere within
+    # a sample of the rough onset, in white or coloured noise: the compiled regression gives
+    # the onsets and 1σ of the numpy one (LAPACK's Cholesky) to far below a sample.
+    from dashpot.ingest.onset import _onset_posterior
+
+    rng = np.random.default_rng(SEED + 5)
+    rate, n_pre, width = 44100, 48, 96
+    windows = np.empty((150, width))
+    for row in windows:
+        start = n_pre + rng.uniform(-1.0, 1.0)
+        t = np.arange(width) - start
+        tone = np.where(t > 0, np.sin(rng.uniform(0.2, 1.5) * t + rng.uniform(0, 2 * np.pi))
+                        * np.exp(-t / rng.uniform(5, 60)), 0.0)
+        noise = signal.lfilter([1.0], [1.0, -rng.uniform(0.0, 0.9)], rng.standard_normal(width))
+        row[:] = tone / 10 ** (rng.uniform(10, 70) / 20) * 3 + noise * 1e-3 + rng.uniform(-1, 1)
+    monkeypatch.setattr(envelope, "COMPILED", False)
+    onset, sigma, snr = _onset_posterior(windows, n_pre, rate)
+    monkeypatch.setattr(envelope, "COMPILED", True)
+    compiled = _onset_posterior(windows, n_pre, rate)
+    np.testing.assert_allclose(compiled[0], onset, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(compiled[1], sigma, rtol=0, atol=1e-7)
+    np.testing.assert_array_equal(compiled[2], snr)
+    assert np.ptp(onset) > 1.0  # onsets spread over the grid, not one case
 
 
 def test_window_maxima_and_distinct_counts_equal_their_numpy_forms():

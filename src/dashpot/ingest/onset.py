@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import envelope as _envelope
 from .envelope import _NOISE_FLOOR
 
 
@@ -146,6 +147,21 @@ def _onset_posterior(windows, n_pre, sample_rate):
     data_term = np.einsum("kw,kw->k", whitened, whitened)
 
     def log_evidence(onsets):  # onsets: (K, G) in window samples -> (K, G)
+        if _envelope.COMPILED:
+            squared, diagonal = _envelope._kernels().edge_fits(
+                onsets, sample_index, prior_omega, rho, rows, innovation_var, peak, whitened,
+                _POLY_ORDER)
+        else:
+            squared, diagonal = _edge_fits(onsets)
+        log_det = 2.0 * np.log(diagonal).sum(axis=-1)
+        value = -0.5 * (data_term[:, None] / innovation_var[:, None] - squared) - 0.5 * log_det
+        allowed = (onsets >= n_pre - back) & (onsets <= np.minimum(n_pre + back,
+                                                                     n_pre + post_len - 1)[:, None])
+        return np.where(allowed, value, -np.inf)
+
+    def _edge_fits(onsets):
+        # The regression's ‖L⁻¹b‖² and the diagonal of L for each window and onset (the
+        # reference of :func:`.audio_kernels.edge_fits`).
         tau = np.maximum(sample_index[None, None, :] - onsets[..., None], 0.0)
         scaled = prior_omega[:, None, None] * tau
         # Columns (Ωτ)^p / p!, p = 1..P, by successive products (cheaper than powers).
@@ -161,12 +177,7 @@ def _onset_posterior(windows, n_pre, sample_rate):
         projection = np.einsum("kgwp,kw->kgp", white, whitened) / innovation_var[:, None, None]
         cholesky = np.linalg.cholesky(gram)
         solved = np.linalg.solve(cholesky, projection[..., None])[..., 0]
-        log_det = 2.0 * np.log(np.diagonal(cholesky, axis1=-2, axis2=-1)).sum(axis=-1)
-        value = -0.5 * (data_term[:, None] / innovation_var[:, None]
-                        - (solved**2).sum(axis=-1)) - 0.5 * log_det
-        allowed = (onsets >= n_pre - back) & (onsets <= np.minimum(n_pre + back,
-                                                                     n_pre + post_len - 1)[:, None])
-        return np.where(allowed, value, -np.inf)
+        return (solved**2).sum(axis=-1), np.diagonal(cholesky, axis1=-2, axis2=-1)
 
     def summarise(onsets, log_post, step):
         weights = np.exp(log_post - log_post.max(axis=1, keepdims=True))
