@@ -241,7 +241,7 @@ def test_an_impact_an_echo_falls_on_is_kept_where_the_ball_must_have_bounced():
     level = 0.4
 
     def probe_with(amplitude):
-        def probe(predicted, tolerance, not_before=None, predicted_sound=False):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
             if not_before is None and abs(impacts[15] - predicted) <= tolerance:
                 return impacts[15], 1e-5, amplitude, False
             return None
@@ -261,7 +261,7 @@ def test_an_impact_the_trend_predicts_is_looked_for_in_the_prediction_error_too(
     timed = impacts[:-3]
     coefficients, scatter = _robust_trend(timed)
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
         nearest = impacts[np.abs(impacts - predicted).argmin()]
         if not predicted_sound or abs(nearest - predicted) > tolerance:
             return None
