@@ -316,8 +316,8 @@ def _move_to_causes(times, amplitude, chain):
     scatter off it, ln(3/2): a tie goes to the causes, the onset of an impact being where
     its first burst starts. Where they are not kept, each run of consecutive members so
     placed is moved on its own where the chain then follows its trend better by more than
-    that. Each moved member is then put back on its own where that fits better still (a true impact that happens to follow a secondary of an
-    earlier one).
+    that. Each moved member is then put back on its own where that fits better still (a true
+    impact that happens to follow a secondary of an earlier one).
     """
     chain = np.asarray(chain)
     if chain.size < 6:
