@@ -534,6 +534,43 @@ def test_a_last_impact_one_burst_delay_after_the_one_before_that_sets_off_its_ow
     assert retimed == {timed.size - 1: None}
 
 
+def test_a_last_impact_shows_its_burst_when_the_search_for_more_impacts_stops_before_it():
+    # A later pass of the search looks for no impact past the last one (`stop`), but the
+    # burst that tells the last impact from the burst of the one before comes after it, and
+    # is still looked for (up to the recording's end).
+    impacts, burst, timed, coefficients, scatter = _ending_one_burst_after()
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        return onset_near(timed + burst, predicted, tolerance)
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([burst]), probe, timed[-1] + 1.0, np.array([1.0]),
+                                   stop=timed[-1] + 1e-3)
+    assert not retimed and not added
+
+
+def test_a_burst_an_impact_lands_on_is_not_asked_of_the_impact_before_it():
+    # The last interval is the bursts' delay, the one before 1/0.85 of it: the burst of the
+    # impact two before the last comes about 1 ms before the impact in between, whose onset
+    # the probe finds instead. That impact shows nothing either way; the last impact sets off
+    # its own burst and stays.
+    impacts, burst, timed, coefficients, scatter = _ending_one_burst_after()
+    lead = timed[-2] - (timed[-3] + burst)
+    assert 0.5e-3 < lead < 1e-3
+
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        # An impact starting within the search's reach (its tolerance and the 0.5 ms window
+        # after it) is what the probe finds; else the nearest burst.
+        reach = (timed > predicted - tolerance) & (timed <= predicted + tolerance + 0.5e-3)
+        if reach.any():
+            return (timed[reach][0], 1e-5, 1.0, False)
+        return onset_near(timed + burst, predicted, tolerance)
+
+    added, retimed = _fill_impacts(timed, np.ones(timed.size), coefficients, scatter,
+                                   np.array([burst]), probe, timed[-1] + 1.0, np.array([1.0]))
+    assert not retimed and not added
+
+
 def test_a_trend_stepped_outside_its_intervals_stays_within_the_ratio_bounds(tmp_path):
     # A parabola fitted on a chain that scatters widely (log ratio 3.5 + 2.3 ln T + 0.3 ln² T)
     # gives absurd ratios away from its intervals: 1.28 at 0.15 s, 34 at 1 s, 617 at 3 s,

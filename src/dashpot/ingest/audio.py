@@ -370,7 +370,8 @@ def _impact_table(path, stream, sample_rate, duration):
         for _ in range(_FILL_PASSES):
             count = times.size
             times, sigmas, amplitudes, clipped_flags, added, again = _fill_pass(
-                times, sigmas, amplitudes, clipped_flags, delays, levels, probe, stop)
+                times, sigmas, amplitudes, clipped_flags, delays, levels, probe, duration,
+                stop)
             filled += added
             retimed += list(again.values())
             if not again:
@@ -542,14 +543,14 @@ def _choose(path, stream, candidates, rough, strength, amplitude, strong, precis
     return chain, skipped, times, sigmas, amplitudes, clipped_flags, timing, problem
 
 
-def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, levels, probe, duration):
-    """One pass of :func:`_fill_impacts` over the impacts, applied: times (s), 1σ (s),
-    amplitudes, clip flags with the impacts it timed again, left out or added; the added
-    rows and the retimed ones."""
+def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, levels, probe, duration, stop):
+    """One pass of :func:`_fill_impacts` over the impacts (none looked for past `stop`, s, in
+    a recording of `duration`, s), applied: times (s), 1σ (s), amplitudes, clip flags with
+    the impacts it timed again, left out or added; the added rows and the retimed ones."""
     order = np.argsort(times)
     coefficients, scatter = _robust_trend(times[order])
     filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients, scatter,
-                                    delays, probe, duration, levels)
+                                    delays, probe, duration, levels, stop=stop)
     times, sigmas, amplitudes = times.copy(), sigmas.copy(), amplitudes.copy()
     clipped_flags = list(clipped_flags)
     for position, result in retimed.items():

@@ -24,7 +24,7 @@ from ..plausibility import ratio_trend
 from . import envelope as _envelope
 from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
-                       _MERGE_SECONDS, _NOISE_FLOOR, _RING_GAP_SECONDS,
+                       _MERGE_SECONDS, _NOISE_FLOOR, _RING_GAP_SECONDS, _STA_SECONDS,
                        _WEAK_JUMP_FACTOR, _onset_picks)
 from .onset import _onset_posterior
 
@@ -1406,17 +1406,29 @@ def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
 
-def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_by=()):
+def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_by=(),
+                          impacts=()):
     """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
     as its impact, 3 ms or more after it, that the recording (to `end`, s) holds: a sound
     that does is an impact, whatever ring or echo of an earlier one falls on it; False where
     none can be tested. Given `shown_by`, (moment, amplitude) of impacts, only secondaries
     that each of them is seen to set off are tested (a ring of low modes landing on the
-    sounds of the last bounces may not stand out in the predictor's error after any)."""
+    sounds of the last bounces may not stand out in the predictor's error after any). A
+    secondary of one of them that one of `impacts` (s) starts on, or up to 1 ms after, is
+    not looked for: the probe would find that impact's onset (the last intervals come down
+    to a ring burst's delay), which shows nothing either way."""
+    impacts = np.asarray(impacts, dtype=float)
+
+    def masked(at, delay):
+        gap = impacts - (at + delay)
+        return bool(np.any((gap > -_CAUSE_SEARCH_SECONDS)
+                           & (gap <= _CAUSE_SEARCH_SECONDS + _STA_SECONDS)))
+
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
                 and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end
-                and all(_shows_secondary(probe, at, loud, delay, level, expected=True)
+                and all(masked(at, delay)
+                        or _shows_secondary(probe, at, loud, delay, level, expected=True)
                         for at, loud in shown_by)]
     return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level,
                                                    expected=True)
@@ -1534,7 +1546,8 @@ def _train_end(times, sigmas, amplitudes, scatter, delays, levels, probe, probed
 
     def impact(k):
         return _sets_off_secondaries(probe, times[k], amplitudes[k], delays, levels, end,
-                                     list(zip(times[k - 3:k - 1], amplitudes[k - 3:k - 1])))
+                                     list(zip(times[k - 3:k - 1], amplitudes[k - 3:k - 1])),
+                                     times)
 
     kept = _drop_trailing_secondaries(times[:grown], amplitudes[:grown], delays, levels,
                                       impact)
@@ -1579,7 +1592,8 @@ def _spans_missed_bounces(times, interval, allowed, most=3):
     return False
 
 
-def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, levels=None):
+def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, levels=None,
+                  stop=None):
     """Impacts the bounce trend predicts where none was timed, found by `probe`.
 
     Parameters
@@ -1598,6 +1612,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     levels : ndarray, optional
         Usual loudness of the secondaries at `delays` relative to their impact
         (:func:`_secondary_levels`; NaN or not given: unknown).
+    stop : float, optional
+        No impact is looked for past this time (s; default `end`). The secondaries of a sound
+        are still looked for up to `end`.
 
     Returns
     -------
@@ -1726,7 +1743,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         # seen to set off) is one.
         return result is not None and _sets_off_secondaries(
             probe, result[0], result[2], delays, usual, end,
-            [(anchors[k], loudness[k]) for k in range(max(0, i - 1), i + 1) if heard[k]])
+            [(anchors[k], loudness[k]) for k in range(max(0, i - 1), i + 1) if heard[k]],
+            [anchors[k] for k in range(len(anchors)) if heard[k]] + [result[0]])
 
     def accept(result, predicted, tolerance, before=None, bounded=False, impact=False):
         # In time order between its neighbours: where the ratios scatter widely the tolerance
@@ -1778,7 +1796,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             # from the next anchor. Only past the last impact does the train end there.
             i += 1
             continue
-        if interval < _MERGE_SECONDS or predicted > end:
+        if interval < _MERGE_SECONDS or predicted > (end if stop is None else stop):
             break
         tolerance = 3.0 * interval * scatter + _EXTENSION_SLACK
         if i + 1 < len(anchors) and anchors[i + 1] - anchors[i] < 1.5 * interval:
@@ -1927,7 +1945,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             and not any(moment > anchors[last] for moment, *_ in added)
             and not _sets_off_secondaries(
                 probe, anchors[last], loudness[last], delays, usual, end,
-                [(anchors[k], loudness[k]) for k in range(last - 3, last - 1) if heard[k]])):
+                [(anchors[k], loudness[k]) for k in range(last - 3, last - 1) if heard[k]],
+                [anchors[k] for k in range(len(anchors)) if heard[k]])):
         retimed[origin[last]] = None
     return added, retimed
 
