@@ -21,7 +21,7 @@ from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
-                                  _echoing_members, _extend_chain,
+                                  _echoed_tail, _echoing_members, _extend_chain,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_delays, _secondary_levels, _shift_to_causes,
@@ -708,6 +708,69 @@ def test_an_echo_of_the_trains_tail_longer_than_a_quarter_of_it_is_left_out():
     assert times.size - impacts.size > times.size / 3
     sigma = np.full(times.size, 30e-6)
     assert _trim_growing_end(times, sigma, 0.02) in (impacts.size, impacts.size + 1)
+
+
+def _train_with_echo(delay, factor=0.3):
+    """Thirty bounces shrinking by 0.9 from 0.2 s (times, s; amplitudes ∝ interval) and their
+    echoes `delay` (s) later, `factor` as loud: (impacts, amplitudes, echoes, echo
+    amplitudes)."""
+    intervals = 0.2 * 0.9 ** np.arange(30)
+    impacts = np.concatenate([[0.0], np.cumsum(intervals)])
+    amplitudes = 0.5 * np.concatenate([[intervals[0]], intervals]) / intervals[0]
+    return impacts, amplitudes, impacts + delay, factor * amplitudes
+
+
+def _as_transients(rng, sounds):
+    """Rough onsets (s, 0.2 ms off the fitted ones) and the fitted onsets' function."""
+    rough = sounds + rng.normal(0.0, 0.2e-3, sounds.size)
+    return rough, lambda indices: sounds[np.asarray(indices)]
+
+
+def test_echoes_of_the_train_after_it_ended_are_left_out():
+    # An echo from a far wall, 0.15 s after each impact: the chain went on past the last
+    # bounce through the echoes of the ones before, and the transients hold the echoes of
+    # the others too. The copy repeats its sources' fitted onsets to within a few µs.
+    rng = np.random.default_rng(20261126)
+    impacts, amplitudes, echoes, echo_amplitudes = _train_with_echo(0.15)
+    after = echoes > impacts[-1]
+    times = np.concatenate([impacts, echoes[after]])
+    loudness = np.concatenate([amplitudes, echo_amplitudes[after]])
+    sigmas = np.full(times.size, 5e-6)
+    sounds = np.concatenate([impacts, echoes])
+    rough, fitted = _as_transients(rng, sounds)
+    keep = _echoed_tail(times + rng.normal(0.0, 3e-6, times.size), sigmas, loudness, rough,
+                        np.concatenate([amplitudes, echo_amplitudes]), fitted)
+    np.testing.assert_array_equal(keep, np.arange(times.size) < impacts.size)
+
+
+def test_impacts_among_the_echoes_of_the_train_stay():
+    # A nearer wall, 40 ms: the echoes of the train's middle come among its last bounces,
+    # which stay; only the echoes go.
+    rng = np.random.default_rng(20261127)
+    impacts, amplitudes, echoes, echo_amplitudes = _train_with_echo(0.04)
+    taken = echoes > impacts[-8]  # the echoes the chain took with the last bounces
+    times = np.concatenate([impacts, echoes[taken]])
+    order = np.argsort(times)
+    is_echo = (np.arange(times.size) >= impacts.size)[order]
+    loudness = np.concatenate([amplitudes, echo_amplitudes[taken]])[order]
+    rough, fitted = _as_transients(rng, np.concatenate([impacts, echoes]))
+    keep = _echoed_tail(times[order], np.full(times.size, 5e-6), loudness, rough,
+                        np.concatenate([amplitudes, echo_amplitudes]), fitted)
+    np.testing.assert_array_equal(keep, ~is_echo)
+
+
+def test_sounds_that_fit_a_delay_only_by_chance_are_no_echo_of_the_train():
+    # The last bounces among many louder transients (a ring's bursts, clicks; one every 3 ms
+    # on average): some delay puts several bounces within 1 ms of them, but none repeats their
+    # fitted onsets.
+    rng = np.random.default_rng(20261128)
+    impacts, amplitudes, _, _ = _train_with_echo(0.15)
+    sounds = np.sort(rng.uniform(0.0, impacts[-1], int(impacts[-1] / 3e-3)))
+    loudness = rng.uniform(1.0, 3.0, sounds.size)
+    rough, fitted = _as_transients(rng, sounds)
+    keep = _echoed_tail(impacts, np.full(impacts.size, 5e-6), amplitudes, rough, loudness,
+                        fitted)
+    assert keep.all()
 
 
 def test_an_impact_timed_off_in_the_last_quarter_does_not_end_the_train():

@@ -109,7 +109,7 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _echoing_members, _explained_secondaries, _fill_impacts,
+from .chain import (_SECONDARY_MARGIN, _echoed_tail, _echoing_members, _explained_secondaries, _fill_impacts,
                     _fixed_delays, _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
                     _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
                     _train_end)
@@ -389,8 +389,13 @@ def _impact_table(path, stream, sample_rate, duration):
     if problem:
         raise InputError(path, f"{NOT_A_BOUNCE_TRAIN}: {problem}")
     clipped_flags = [clipped_flags[k] for k in order]
-    dropped_end = dropped_secondaries = dropped_faint = dropped_rest = 0
+    dropped_end = dropped_secondaries = dropped_faint = dropped_rest = dropped_copy = 0
     if times.size >= 5:
+        # No echo of the train after the ball came to rest.
+        original = _echoed_tail(times, sigmas, amplitudes, rough, amplitude, precise)
+        dropped_copy = int((~original).sum())
+        times, sigmas, amplitudes = times[original], sigmas[original], amplitudes[original]
+        clipped_flags = [flag for flag, kept in zip(clipped_flags, original) if kept]
         coefficients, scatter = _robust_trend(times)
         # Nothing after the ball has come to rest (a run of echoes continuing the intervals).
         rested = _rest_time(times, coefficients, scatter)
@@ -462,6 +467,10 @@ def _impact_table(path, stream, sample_rate, duration):
         notes.append(f"{len(filled)} faint impacts found where the interval trend predicts them "
                      f"(their sound jumps over the decaying sound before it less than a "
                      f"trigger's)")
+    if dropped_copy:
+        notes.append(f"{dropped_copy} transients at the end left out: each is the echo of a "
+                     f"louder sound one common delay before it (an echo of the train after the "
+                     f"ball came to rest)")
     if dropped_rest:
         notes.append(f"{dropped_rest} transients after the ball came to rest left out: later "
                      f"than the end of the flights the interval trend leaves after the last "

@@ -61,6 +61,12 @@ _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this dif
 _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
 # pulled early by up to the jitter (a ring or echo before them)
 _MOST_BOUNCES = 3.0  # an interval spans at most this many of the one before (missed impacts)
+_ECHO_ROUGH_SECONDS = 1e-3  # s: a rough onset lies this close to the fitted one
+_ECHO_SLACK_SECONDS = 2e-5  # s: an echo's fitted onset repeats its source's this closely
+_ECHO_MATCH_SECONDS = 3e-5  # s: the loosest match of an echo to its source
+_ECHO_FACTOR_SPREAD = 1.5  # an echo's amplitude is its source's times one factor, to this
+_ECHO_GRID_SECONDS = 5e-4  # s: step of the delays tried
+_ECHO_LOOSE_END = 2  # sounds after a train's echo that need not be echoes themselves
 _SECONDARY_MARGIN = 2.0  # a secondary is at most this much louder than its usual level
 _CAUSE_SEARCH_SECONDS = 0.5e-3  # s: a hidden impact lies this close to one delay before its burst
 _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long after it
@@ -1503,6 +1509,94 @@ def _drop_unexcited_end(times, probe, probed=None, at_most=2):
                 power[-1][2] * _EXTENSION_LOUDNESS**2 >= median(r[2] for r in power[:-1])):
             break
         keep -= 1
+    return keep
+
+
+def _echoed_tail(times, sigmas, amplitudes, sounds, loudness, fitted, shortest=4):
+    """Which impacts to keep: the train does not end on an echo of its own sounds.
+
+    An echo repeats the train's sounds one fixed delay later, each weakened by the same
+    factor; where the delay is long, the echoes of the last impacts come after the ball has
+    come to rest and continue the train with intervals the ball flew earlier. A sound is
+    the echo of a louder one (an impact so far or any transient the stream found, located by
+    its rough onset to within 1 ms) where it follows it by the echo's delay to within 3·√2
+    of its 1σ plus 20 µs, and never more loosely than 0.1 ms (fitted onsets: an echo
+    repeats the onset of the sound it copies), and where its amplitude is that source's
+    times the echo's factor to within a factor 1.5. The delay and the factor are those the
+    most sounds share. The run of such echoes that reaches the last sounds (all but the
+    last two may be other sounds), going back past single sounds that are not echoes (an
+    echo of a source timed off, another sound among the echoes), is the copy if it holds at
+    least `shortest` echoes. Then every echo at that delay and factor in the last half of
+    the sounds is left out (where the delay is shorter than the train, the echoes come
+    among its last bounces); the sounds between them are judged with the train's end,
+    :func:`_train_end`. Delays of 3-200 ms are tried (the range of rings'
+    bursts and echoes), on a 0.5 ms grid, from the last three sounds back to the louder
+    transients before them; chance coincidences of one delay and one factor with several
+    sounds at once are rare. Only the last half of the
+    sounds is looked at.
+
+    Parameters
+    ----------
+    times, sigmas, amplitudes : ndarray
+        Onsets (s, increasing), 1σ (s) and amplitudes (full scale) of the impacts so far.
+    sounds, loudness : ndarray
+        Rough onsets (s) and amplitudes of all transients the stream found.
+    fitted : callable
+        Fitted onsets (s) of the transients of given indices.
+    shortest : int, default 4
+        Fewest echoes that make a copy.
+
+    Returns
+    -------
+    ndarray of bool
+        False for the echoes of the copy.
+    """
+    count = times.size
+    if count < 2 * shortest:
+        return np.ones(count, dtype=bool)
+    rough = np.concatenate([times, sounds])
+    louder = np.concatenate([amplitudes, loudness])
+    positions = np.arange(count // 2, count)
+    # Sources may be any louder sound (the rows: the last half of the impacts).
+    quieter = louder[None, :] <= amplitudes[positions][:, None]
+    allowed = np.minimum(3.0 * np.sqrt(2.0) * sigmas[positions] + _ECHO_SLACK_SECONDS,
+                         _ECHO_MATCH_SECONDS)
+    ends = np.arange(count - _ECHO_LOOSE_END - 1, count)
+    tried = np.concatenate([times[k] - rough[louder > amplitudes[k]] for k in ends])
+    tried = tried[(tried >= _CAUSE_DELAY_SECONDS[0]) & (tried <= _CAUSE_DELAY_SECONDS[1])]
+    keep = np.ones(count, dtype=bool)
+    # Each delay tried locates sources to 1 ms: delays on a 0.5 ms grid miss none.
+    for delay in np.unique(np.round(tried / _ECHO_GRID_SECONDS)) * _ECHO_GRID_SECONDS:
+        distance = np.abs(times[positions][:, None] - delay - rough[None, :])
+        distance[quieter] = np.inf
+        nearest = np.argmin(distance, axis=1)
+        located = distance[np.arange(positions.size), nearest] <= _ECHO_ROUGH_SECONDS
+        if located.sum() < shortest:
+            continue
+        onsets = np.full(positions.size, np.nan)
+        member = located & (nearest < count)
+        onsets[member] = times[nearest[member]]
+        transient = located & (nearest >= count)
+        if transient.any():
+            onsets[transient] = fitted(nearest[transient] - count)
+        offset = times[positions] - onsets
+        factor = np.log(amplitudes[positions] / louder[nearest])
+        # The delay and factor the most sounds share.
+        close = ((np.abs(offset[:, None] - offset[None, :]) <= allowed[:, None])
+                 & (np.abs(factor[:, None] - factor[None, :]) <= log(_ECHO_FACTOR_SPREAD)))
+        if not close.any():
+            continue
+        echo = close[int(np.argmax(close.sum(axis=1)))]
+        found = np.flatnonzero(echo)
+        if found[-1] < positions.size - 1 - _ECHO_LOOSE_END:
+            continue
+        # Back from there while the sounds are echoes, past single ones that are not (an echo
+        # timed off its source, another sound of the train's tail among the echoes).
+        start = found[-1]
+        while start >= 2 and (echo[start - 1] or echo[start - 2]):
+            start -= 1 if echo[start - 1] else 2
+        if echo[start:].sum() >= shortest:
+            keep[positions[echo]] = False
     return keep
 
 
