@@ -109,10 +109,10 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _echoed_tail, _echoing_members, _explained_secondaries, _fill_impacts,
-                    _fixed_delays, _hidden_causes, _louder_between, _one_per_impact, _probe, _rest_time,
-                    _robust_trend, _secondary_delays, _secondary_levels, _select_bounces,
-                    _train_end)
+from .chain import (_SECONDARY_MARGIN, _echoed_tail, _echoing_members, _explained_secondaries,
+                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
+                    _one_per_impact, _probe, _rest_time, _robust_trend, _secondary_delays,
+                    _secondary_levels, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)

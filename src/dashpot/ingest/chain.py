@@ -1517,23 +1517,22 @@ def _echoed_tail(times, sigmas, amplitudes, sounds, loudness, fitted, shortest=4
 
     An echo repeats the train's sounds one fixed delay later, each weakened by the same
     factor; where the delay is long, the echoes of the last impacts come after the ball has
-    come to rest and continue the train with intervals the ball flew earlier. A sound is
-    the echo of a louder one (an impact so far or any transient the stream found, located by
-    its rough onset to within 1 ms) where it follows it by the echo's delay to within 3·√2
-    of its 1σ plus 20 µs, and never more loosely than 0.1 ms (fitted onsets: an echo
-    repeats the onset of the sound it copies), and where its amplitude is that source's
-    times the echo's factor to within a factor 1.5. The delay and the factor are those the
-    most sounds share. The run of such echoes that reaches the last sounds (all but the
+    come to rest and continue the train with intervals the ball flew earlier. A sound is the
+    echo of a louder one (an impact so far or any transient the stream found, located by its
+    rough onset to within 1 ms) where it follows that sound's fitted onset by the echo's
+    delay to within 3·√2 of its 1σ plus 20 µs, never more loosely than 30 µs (an echo
+    repeats the onset of the sound it copies), and where its amplitude is that sound's times
+    the echo's factor to within a factor 1.5. The delay and the factor are those the most
+    sounds in the last half share. The run of such echoes that reaches the last sounds (the
     last two may be other sounds), going back past single sounds that are not echoes (an
-    echo of a source timed off, another sound among the echoes), is the copy if it holds at
-    least `shortest` echoes. Then every echo at that delay and factor in the last half of
-    the sounds is left out (where the delay is shorter than the train, the echoes come
-    among its last bounces); the sounds between them are judged with the train's end,
-    :func:`_train_end`. Delays of 3-200 ms are tried (the range of rings'
-    bursts and echoes), on a 0.5 ms grid, from the last three sounds back to the louder
-    transients before them; chance coincidences of one delay and one factor with several
-    sounds at once are rare. Only the last half of the
-    sounds is looked at.
+    echo of a source timed off, another sound among the echoes), is a copy if it holds at
+    least `shortest` echoes; then every echo at that delay and factor in the last half is
+    left out (where the delay is shorter than the train, the echoes come among its last
+    bounces), and the sounds between them are judged with the train's end
+    (:func:`_train_end`). Delays of 3-200 ms (those of rings' bursts and echoes) are tried on
+    a 0.5 ms grid, from the last three sounds back to the louder transients before them:
+    one delay and one factor shared by several sounds at once to tens of µs is no chance
+    coincidence.
 
     Parameters
     ----------
