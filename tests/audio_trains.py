@@ -39,3 +39,23 @@ def timed_at_a_secondary(cause, lead):
     timed = impacts.copy()
     timed[12] -= lead
     return impacts, impacts[12] - impacts[cause] - lead, timed, _robust_trend(impacts)
+
+
+def score_train(onsets, found, sigma, match=1e-3):
+    """How a detection `found` (s, with its 1σ `sigma`, s) times the true `onsets` (s): a
+    detection within `match` (s) of a true onset is that impact (the nearest one to it).
+
+    Returns
+    -------
+    dict
+        ``found``: true impacts timed; ``false``: detections that are no impact, ``after``
+        of them past the last true onset; ``z``: |error| / 1σ of each impact timed.
+    """
+    distance = np.abs(onsets[:, None] - found[None, :])
+    nearest = distance.argmin(axis=1)
+    hit = distance[np.arange(onsets.size), nearest] < match
+    owned = np.zeros(found.size, dtype=bool)
+    owned[nearest[hit]] = True
+    return dict(found=int(np.unique(nearest[hit]).size), false=int((~owned).sum()),
+                after=int((~owned & (found > onsets[-1] + match)).sum()),
+                z=np.abs(found[nearest[hit]] - onsets[hit]) / sigma[nearest[hit]])

@@ -16,7 +16,7 @@ binomial standard deviations).
 import numpy as np
 import pytest
 
-from audio_trains import hybrid_train, onset_near, timed_at_a_secondary
+from audio_trains import hybrid_train, onset_near, score_train, timed_at_a_secondary
 from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
@@ -38,8 +38,9 @@ MEASURED = ("measured on this block: recall 0.985 (3926 of 3985 impacts timed wi
             "1σ / 2σ coverage 0.690 / 0.954 (which the coverage test below checks). On three "
             "blocks of 600 further fresh trains (seeds 20341001, 20351001 and 20361001 on, "
             "22793, 23368 and 22771 impacts) recall 0.988 / 0.986 / 0.984 and 142 / 151 / 155 "
-            "false impacts (3.1 / 3.2 / 3.4 per 500; 63 / 54 / 60 after the last impact), none "
-            "refused; before the echo of the train after rest was left out and the fill's last "
+            "false impacts (3.1 / 3.2 / 3.4 per 500; 63 / 54 / 60 after the last impact), one "
+            "train refused (seed 20361079: its chain scattered like clicks; so before); "
+            "before the echo of the train after rest was left out and the fill's last "
             "pass looked for the last sound's secondaries, 291 / 353 / 368 missed and 147 / 183 "
             "/ 162 false. The misses and false impacts are in the "
             "trains with a ring burst 5-8 ms after each impact: without bursts recall 0.996 "
@@ -92,17 +93,12 @@ def held_out(tmp_path_factory):
         except InputError:
             refused += 1
             continue
-        found = table["time"].to_numpy()
-        sigma = table["time_uncertainty"].to_numpy()
-        distance = np.abs(onsets[:, None] - found[None, :])
-        nearest = distance.argmin(axis=1)
-        hit = distance[np.arange(onsets.size), nearest] < MATCH
-        owned = np.zeros(found.size, dtype=bool)
-        owned[nearest[hit]] = True
-        found_count += np.unique(nearest[hit]).size
-        false += int((~owned).sum())
-        after_rest += int((~owned & (found > onsets[-1] + MATCH)).sum())
-        z.append(np.abs(found[nearest[hit]] - onsets[hit]) / sigma[nearest[hit]])
+        score = score_train(onsets, table["time"].to_numpy(),
+                            table["time_uncertainty"].to_numpy(), MATCH)
+        found_count += score["found"]
+        false += score["false"]
+        after_rest += score["after"]
+        z.append(score["z"])
     z = np.concatenate(z)
     return dict(total=total, recall=found_count / total, false=false, after_rest=after_rest,
                 refused=refused, within_1=np.mean(z < 1), within_2=np.mean(z < 2), n=z.size)
