@@ -295,8 +295,12 @@ def test_maximum_likelihood_recovers_the_truth_and_covers_it(trials):
     for level, threshold in ((0.6827, 1.0), (0.9545, 4.0)):
         tolerance = 2.5 * math.sqrt(level * (1.0 - level) / TRIALS)
         np.testing.assert_allclose(np.mean(rises < threshold, axis=1), level, atol=tolerance)
-    # The Hessian's standard errors are the size of the scatter of the estimates.
-    covariance = 2.0 * np.linalg.inv(hessian) * np.outer(UNITS, UNITS)
+    # The Hessian's standard errors are the size of the scatter of the estimates. A train
+    # whose σ_t went to its bound 0 has a flat direction (ln σ_t → −∞, the likelihood no
+    # longer changes with it): the pseudo-inverse leaves that direction out, where the
+    # inverse would be the rounding noise of a zero curvature.
+    covariance = 2.0 * np.linalg.pinv(hessian, rcond=1e-8, hermitian=True) * np.outer(UNITS,
+                                                                                     UNITS)
     errors = np.sqrt(np.diagonal(covariance, axis1=1, axis2=2))
     spread = np.std(best[:, :2], axis=0)
     np.testing.assert_allclose(np.median(errors[:, :2], axis=0), spread, rtol=0.3)

@@ -53,6 +53,10 @@ EFFECT_STEP_BIC = 6.0
 noise fits' nested steps (:data:`dashpot.noise_selection.NESTED_STEP_BIC`): strong evidence on
 the scale of Kass and Raftery [12]_."""
 
+_SAME_MINIMUM_CHISQR = 1e-3
+"""Δχ² under which a restarted fit found the minimum it started from again: a thousandth of
+the change that moves a parameter by one standard error."""
+
 
 def fit_model(data, model, scene=None, *, max_nfev=2000, uncertainty=("covariance",),
               seed=0, accuracy=None, effects=()):
@@ -521,8 +525,11 @@ def _restarted_on_finer_grid(result, params, minimize, captures, model, data, kn
         again[name].set(value=value)
     retry = minimize(again)
     if retry.chisqr < result.chisqr and not captures(retry):
-        notes.append("first fit ended in a local minimum of the misfit; restarted from a "
-                     "finer grid of omega0")
+        # The same minimum reached again differs in χ² by rounding only (and by the machine's
+        # arithmetic): only a clearly lower χ² was another minimum.
+        if retry.chisqr < result.chisqr - _SAME_MINIMUM_CHISQR:
+            notes.append("first fit ended in a local minimum of the misfit; restarted from a "
+                         "finer grid of omega0")
         return retry
     return result
 
