@@ -275,10 +275,11 @@ def test_fits_with_drag_and_friction_agree_with_the_exact_level():
             for level in ("exact", "standard", "fast")}
     assert all("g_eff" in f.estimates for f in fits["fast"])
     assert_levels_agree(fits, ("g_eff", "v0", "sigma_eps", "sigma_j"))
-    # From the times alone, friction and ε are one: a flight's legs scale the speed by
-    # √((g_eff − f)/(g_eff + f)) (uniform deceleration up, acceleration down), which multiplies ε in every interval
-    # ratio. The fit says so (friction undetermined), and along that ridge the levels may stop
-    # at different points of one likelihood: what they must agree on is the product.
+    # From the times alone, friction and ε are one: a flight's legs (uniform deceleration
+    # g_eff + f up, acceleration g_eff − f down) scale the speed by √((g_eff − f)/(g_eff + f)),
+    # which multiplies ε in every interval ratio. The fit says so (friction undetermined),
+    # and along that ridge the levels may stop at different points of one likelihood: what
+    # they must agree on is the product.
     def seen(fit):
         value = {name: fit.estimates[name].value for name in ("e", "g_eff", "friction")}
         return value["e"] * math.sqrt((value["g_eff"] - value["friction"])
