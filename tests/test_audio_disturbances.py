@@ -860,6 +860,22 @@ def test_the_train_does_not_end_on_a_secondary_of_its_last_impacts():
                                       np.array([0.8])) == times.size
 
 
+def test_a_last_impact_that_lands_on_a_faint_ring_is_no_ring():
+    # Bounces shrinking by 0.9, fading by 5 % each, with a ring at 0.4 of its impact's
+    # loudness; the last bounce comes one ring delay after the fourth impact from the end.
+    # Measured at three quarters of the impacts before it, it is closer to them than to the
+    # ring (0.44 of them) and stays, though no louder than twice the ring; a sound at half
+    # their loudness is closer to the ring and goes.
+    impacts = np.cumsum(0.1 * 0.9 ** np.arange(20))
+    loudness = 0.5 * 0.95 ** np.arange(20)
+    delay = np.array([impacts[-1] - impacts[-4]])
+    recent = np.median(loudness[-4:-1])
+    impact = np.append(loudness[:-1], 0.75 * recent)
+    assert _drop_trailing_secondaries(impacts, impact, delay, np.array([0.4])) == impacts.size
+    ring = np.append(loudness[:-1], 0.5 * recent)
+    assert _drop_trailing_secondaries(impacts, ring, delay, np.array([0.4])) == impacts.size - 1
+
+
 def test_a_sound_left_last_by_the_later_checks_is_judged_for_a_secondary_delay_again():
     # Bounces shrinking by 0.9, fading by 5 % each; 6.4 ms after the last one its ring burst
     # at 0.8 of its loudness, and after that a click far fainter than a bounce (a tenth of
@@ -914,6 +930,34 @@ def test_the_members_of_a_chain_that_followed_an_echo_of_the_train_are_found():
     np.testing.assert_array_equal(echoing, is_echo)
     # A chain of the impacts has no louder sound one recurring delay before its members.
     assert not _echoing_members(times, amplitude, np.flatnonzero(~is_echo)).any()
+    # With the echo 0.18 s later, impact 3 falls on the echo of impact 1 (one sound), and the
+    # chain takes impacts 0-3 and then the echoes from that of impact 2 on. Impact 3 is
+    # marked only where the chain's own members count as causes; so are the echoes of
+    # impacts 2 and 3, and those of the impacts left out are marked either way.
+    delay = impacts[3] - impacts[1]
+    echoes = np.delete(impacts + delay, 1)
+    order = np.argsort(np.r_[impacts, echoes])
+    times = np.r_[impacts, echoes][order]
+    amplitude = np.r_[loudness, 0.5 * np.delete(loudness, 1)][order]
+    position = np.argsort(order)  # where each impact and echo went
+    chain = np.r_[position[:4], position[impacts.size + 1:]]
+    assert _echoing_members(times, amplitude, chain)[position[3]]
+    echoing = _echoing_members(times, amplitude, chain, causes_in_chain=False)
+    np.testing.assert_array_equal(np.flatnonzero(echoing), position[impacts.size + 3:])
+
+
+def test_a_passing_chain_that_followed_an_echo_of_the_train_gives_way_to_the_train(tmp_path):
+    # A development train (seed 20381462) with an echo at 0.42 of the loudness 165 ms after
+    # each impact: the chain took impacts 0 and 3 and then the echoes of the impacts from
+    # the second on, which continue its intervals and outlast the train, so it passed as a
+    # bounce train with 10 of the 21 impacts. Chosen again without the members that echo a
+    # louder sound it left out, it is the train.
+    samples, onsets, _ = disturbed_train(20381462)
+    path = write_audio(tmp_path / "echo.wav", samples, RATE, subtype="FLOAT")
+    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
+                        MATCH)
+    assert score["found"] == onsets.size
+    assert score["false"] == 0
 
 
 def test_a_chain_that_followed_an_echo_of_the_train_is_chosen_again_without_it(tmp_path):

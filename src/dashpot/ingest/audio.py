@@ -61,7 +61,9 @@ runs them over the file.
    form a chain of their own), a third time with the delays measured after that second
    chain's impacts, a fourth without the first chain's members that are echoes of louder
    transients between them (:func:`_echoing_members`; each taken only if it passes), and
-   judged again once bursts hiding impacts and missed impacts are resolved. There is no
+   judged again once bursts hiding impacts and missed impacts are resolved. A chain that
+   passes is chosen once more without its members that echo louder transients it left out
+   (it followed an echo of the train), and that choice taken if it passes too. There is no
    fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
@@ -301,7 +303,10 @@ def _impact_table(path, stream, sample_rate, duration):
     # first chain that took secondaries for impacts measures them wrong, and sets impacts
     # aside), with the first choice's members selectable, and where louder sounds lie between
     # the first choice's members a fourth sets aside those that are echoes of louder
-    # transients; each is taken only if it passes.
+    # transients; each is taken only if it passes. A first choice that passes is chosen
+    # again without its members that are echoes of louder transients it left out: a chain
+    # that took the first impacts and then their echo (a copy of the train's intervals that
+    # outlasts it by the delay) passes the check, and the train passes without the echo.
     def choose(selectable):
         return selectable, _choose(path, stream, candidates, rough, strength, amplitude,
                                    strong, precise, selectable)
@@ -311,6 +316,12 @@ def _impact_table(path, stream, sample_rate, duration):
 
     choices = [choose(np.arange(len(candidates)))]
     first_chain = choices[0][1][0]
+    if passes(choices[0]):
+        echoing = _echoing_members(rough, amplitude, first_chain, causes_in_chain=False)
+        if echoing.sum() >= max(3, first_chain.size / 4):
+            alternative = choose(np.flatnonzero(~echoing))
+            if passes(alternative):
+                choices.append(alternative)
     if not passes(choices[0]):
         explained = _explained_secondaries(rough, amplitude, first_chain)
         if explained.any():
@@ -458,7 +469,8 @@ def _impact_table(path, stream, sample_rate, duration):
     if set_aside:
         notes.append(f"{set_aside} transients set aside before the impacts were chosen: they "
                      f"come at the delays at which rings, bursts or echoes recur after louder "
-                     f"sounds, and the chain through them was no bounce train")
+                     f"sounds, and the chain through them was no bounce train or followed "
+                     f"an echo of one")
     if uncovered:
         notes.append(f"{uncovered} impacts found under the ring's burst of the impact before "
                      f"them (in the error of a linear prediction of that sound): the selection "

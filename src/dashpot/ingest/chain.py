@@ -864,7 +864,7 @@ def _explained_secondaries(times, amplitude, chain):
     return explained
 
 
-def _echoing_members(times, amplitude, chain):
+def _echoing_members(times, amplitude, chain, causes_in_chain=True):
     """Which transients of `chain` are the secondaries of louder ones it left out.
 
     A chain can follow an echo of the train instead of the train (an echo copies its
@@ -872,7 +872,9 @@ def _echoing_members(times, amplitude, chain):
     louder transient left out, the impact. A delay (from 3 ms to twice the longest secondary
     delay) at which a quarter of the members (three at least) follow a louder transient left
     out recurs (:func:`_recurring_delays`); the members within 0.3 ms of it after a louder
-    transient (left out or not) are its secondaries. `times` (s, increasing) and
+    transient are its secondaries: any louder transient where `causes_in_chain` (the first
+    impact's echo follows it in the chain), else only one left out (a later impact may
+    come one echo delay after an earlier one by chance). `times` (s, increasing) and
     `amplitude` (full scale) are those of all the transients; returns a boolean mask of
     them.
     """
@@ -889,10 +891,10 @@ def _echoing_members(times, amplitude, chain):
     member, column = np.nonzero(valid)
     bins = np.round(delays[member, column] * 1e3).astype(np.int64)
     counts = np.bincount(np.unique(np.stack([member, bins]), axis=1)[1])
-    # Marked after any louder transient, the chain's own members too (the first impact's
-    # echo follows it in the chain).
     after_any = times[chain][:, None] - times[None, :]
     louder = amplitude[None, :] >= amplitude[chain][:, None]
+    if not causes_in_chain:
+        louder[:, chain] = False
     for delay in _recurring_delays(delays[valid], counts, max(3, chain.size / 4)):
         echoing[chain[np.any(louder & (np.abs(after_any - delay) <= _CAUSE_TOLERANCE),
                              axis=1)]] = True
@@ -1380,7 +1382,11 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels, impact=None):
     louder than twice what that secondary is after its impact (`levels`, the median
     ratio, :func:`_secondary_levels`): the sums of the last intervals span the delays
     closely, so the delay alone would take true last impacts too, but those are about as
-    loud as the impacts before them. At most a quarter of the impacts go, and none for which
+    loud as the impacts before them. Where twice that secondary is still fainter than the
+    last impacts (the median of the three before), the sound must be closer to it than to
+    them in log amplitude (no louder than their geometric mean): an impact that lands on a
+    faint ring is measured fainter than the impacts before it, but far louder than the ring.
+    At most a quarter of the impacts go, and none for which
     `impact` (a function of its index, optional) is true: a sound that sets off the
     secondaries of an impact (:func:`_sets_off_secondaries`) is one, whatever falls on it.
     """
@@ -1391,7 +1397,10 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels, impact=None):
         return keep
     while keep > max(4, int(0.75 * times.size)):
         offsets = times[keep - 1] - times[:keep - 1, None] - delays[None, :]
-        expected = _SECONDARY_MARGIN * amplitudes[:keep - 1, None] * levels[None, :]
+        secondary = amplitudes[:keep - 1, None] * levels[None, :]
+        recent = np.median(amplitudes[max(0, keep - 4):keep - 1])
+        expected = _SECONDARY_MARGIN * secondary
+        expected = np.where(expected < recent, np.sqrt(secondary * recent), expected)
         if not np.any((np.abs(offsets) < _PROBE_SECONDARY_SECONDS)
                       & (amplitudes[keep - 1] <= expected)) or (
                 impact is not None and impact(keep - 1)):
