@@ -960,6 +960,18 @@ def test_a_passing_chain_that_followed_an_echo_of_the_train_gives_way_to_the_tra
     assert score["false"] == 0
 
 
+def test_a_chain_chosen_without_the_echo_that_takes_rings_instead_is_not_taken(tmp_path):
+    # A development train (seed 20401271): the first chain took the echoes of the last
+    # impacts; chosen without them, the chain took the rings and bursts of impacts 10-12 and
+    # stopped at impact 13 of 22, and passed. Five of its 19 members are secondaries of its
+    # own impacts: the first chain is kept, and its later checks find the train.
+    samples, onsets, _ = disturbed_train(20401271)
+    path = write_audio(tmp_path / "rings.wav", samples, RATE, subtype="FLOAT")
+    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
+                        MATCH)
+    assert score["found"] >= onsets.size - 1
+
+
 def test_a_chain_that_followed_an_echo_of_the_train_is_chosen_again_without_it(tmp_path):
     # A development train (seed 20301443) with an echo at half the loudness 145 ms after
     # each impact: the chain took the first impact and then the echoes, and the louder

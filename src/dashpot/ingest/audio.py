@@ -63,8 +63,9 @@ runs them over the file.
    transients between them (:func:`_echoing_members`; each taken only if it passes), and
    judged again once bursts hiding impacts and missed impacts are resolved. A chain that
    passes is chosen once more without its members that echo louder transients it left out
-   (it followed an echo of the train), and that choice taken if it passes too. There is no
-   fixed dead time.
+   (it followed an echo of the train), and that choice taken if it passes too and at most
+   one in ten of its members is a secondary of its own impacts. There is no fixed dead
+   time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -132,6 +133,7 @@ _RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pa
 _JOIN_READS_SECONDS = 0.05
 _FILL_PASSES = 3  # passes of the search for impacts the trend predicts, at most
 _END_IMPACTS = 4  # the last impacts, whose change lets a further pass go on past them
+_SECONDARY_MEMBERS_SHARE = 0.1  # of a chain chosen without an echo that may be secondaries
 
 # --------------------------------------------------------------------------------------------
 # Public entry point
@@ -307,6 +309,8 @@ def _impact_table(path, stream, sample_rate, duration):
     # again without its members that are echoes of louder transients it left out: a chain
     # that took the first impacts and then their echo (a copy of the train's intervals that
     # outlasts it by the delay) passes the check, and the train passes without the echo.
+    # Taken only where at most one in ten of its members is itself a ring, burst or echo of
+    # its impacts: without the echo, a chain may take those instead.
     def choose(selectable):
         return selectable, _choose(path, stream, candidates, rough, strength, amplitude,
                                    strong, precise, selectable)
@@ -320,7 +324,9 @@ def _impact_table(path, stream, sample_rate, duration):
         echoing = _echoing_members(rough, amplitude, first_chain, causes_in_chain=False)
         if echoing.sum() >= max(3, first_chain.size / 4):
             alternative = choose(np.flatnonzero(~echoing))
-            if passes(alternative):
+            members = alternative[1][0]
+            if passes(alternative) and (_explained_secondaries(rough, amplitude, members)[
+                    members].sum() <= _SECONDARY_MEMBERS_SHARE * members.size):
                 choices.append(alternative)
     if not passes(choices[0]):
         explained = _explained_secondaries(rough, amplitude, first_chain)
