@@ -739,6 +739,26 @@ def test_echoes_of_the_train_after_it_ended_are_left_out():
     np.testing.assert_array_equal(keep, np.arange(times.size) < impacts.size)
 
 
+def test_a_copy_of_the_train_holding_two_echoes_timed_off_in_a_row_is_left_out():
+    # As above, two echoes in the middle of the copy timed 0.8 ms off their sources (an
+    # echo's onset taken on the ring it landed on): the run of echoes goes on past them, and
+    # they stay, being no longer where the echo repeats its sources.
+    rng = np.random.default_rng(20261129)
+    impacts, amplitudes, echoes, echo_amplitudes = _train_with_echo(0.15)
+    after = np.flatnonzero(echoes > impacts[-1])
+    timed_off = after[after.size // 2:after.size // 2 + 2]
+    moved = echoes.copy()
+    moved[timed_off] += 0.8e-3
+    times = np.concatenate([impacts, moved[after]])
+    loudness = np.concatenate([amplitudes, echo_amplitudes[after]])
+    rough, fitted = _as_transients(rng, np.concatenate([impacts, echoes]))
+    keep = _echoed_tail(times + rng.normal(0.0, 3e-6, times.size), np.full(times.size, 5e-6),
+                        loudness, rough, np.concatenate([amplitudes, echo_amplitudes]), fitted)
+    np.testing.assert_array_equal(keep, (np.arange(times.size) < impacts.size)
+                                  | np.isin(np.arange(times.size),
+                                            impacts.size + np.searchsorted(after, timed_off)))
+
+
 def test_impacts_among_the_echoes_of_the_train_stay():
     # A nearer wall, 40 ms: the echoes of the train's middle come among its last bounces,
     # which stay; only the echoes go.

@@ -1533,8 +1533,8 @@ def _echoed_tail(times, sigmas, amplitudes, sounds, loudness, fitted, shortest=4
     repeats the onset of the sound it copies), and where its amplitude is that sound's times
     the echo's factor to within a factor 1.5. The delay and the factor are those the most
     sounds in the last half share. The run of such echoes that reaches the last sounds (the
-    last two may be other sounds), going back past single sounds that are not echoes (an
-    echo of a source timed off, another sound among the echoes), is a copy if it holds at
+    last two may be other sounds), going back past up to two sounds in a row that are not
+    echoes (echoes timed off their sources, other sounds among them), is a copy if it holds at
     least `shortest` echoes; then every echo at that delay and factor in the last half is
     left out (where the delay is shorter than the train, the echoes come among its last
     bounces), and the sounds between them are judged with the train's end
@@ -1598,11 +1598,11 @@ def _echoed_tail(times, sigmas, amplitudes, sounds, loudness, fitted, shortest=4
         found = np.flatnonzero(echo)
         if found[-1] < positions.size - 1 - _ECHO_LOOSE_END:
             continue
-        # Back from there while the sounds are echoes, past single ones that are not (an echo
-        # timed off its source, another sound of the train's tail among the echoes).
+        # Back from there while the sounds are echoes, past up to two in a row that are not
+        # (echoes timed off their sources, other sounds of the train's tail among them).
         start = found[-1]
-        while start >= 2 and (echo[start - 1] or echo[start - 2]):
-            start -= 1 if echo[start - 1] else 2
+        while start >= 3 and echo[start - 3:start].any():
+            start -= 3 - int(np.flatnonzero(echo[start - 3:start])[-1])
         if echo[start:].sum() >= shortest:
             keep[positions[echo]] = False
     return keep
