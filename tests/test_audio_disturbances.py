@@ -980,6 +980,17 @@ def test_a_passing_chain_that_followed_an_echo_of_the_train_gives_way_to_the_tra
     assert score["false"] == 0
 
 
+@pytest.mark.parametrize("seed", [20401258, 20401270])
+def test_no_two_impacts_are_timed_within_the_merge_window(tmp_path, seed):
+    # Development trains where an impact's onset was moved back onto a first burst that was
+    # the echo the table also held (seed 20401258, its impact then missing), or onto another
+    # row's onset (20401270): two rows at one time, a zero interval.
+    samples, onsets, _ = disturbed_train(seed)
+    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
+    found = detect_impacts(path)["time"].to_numpy()
+    assert np.diff(found).min() >= 1e-3
+
+
 def test_a_chain_chosen_without_the_echo_that_takes_rings_instead_is_not_taken(tmp_path):
     # A development train (seed 20401271): the first chain took the echoes of the last
     # impacts; chosen without them, the chain took the rings and bursts of impacts 10-12 and

@@ -611,7 +611,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     2 ms before it to the onset and may be as loud as the burst (`loudest`: twice the usual
     level of that secondary against its impact, times the impact's amplitude, full scale):
     that sound, which the chain told from the impact, may still be going on there (rings and
-    echoes rise and decay over milliseconds).
+    echoes rise and decay over milliseconds). No onset is moved within the merge window (1 ms)
+    of another row's: a sound there is that row's.
 
     Otherwise the onset is checked against the edge of the impact's rise: the fit is done again
     with its window a sample before the sound's crossing of a fifth of its peak
@@ -706,7 +707,13 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
         return times, _stated_sigmas(times, sigmas, starts, inside, filtered - levels[:, None],
                                      noise_rms, secondaries, sample_rate), 0
     onset, sigma, _ = _onset_posterior(np.stack(windows), settings.pre, sample_rate)
+    timed = times.copy()
     for k, offset, refit, spread, check in zip(moved, offsets, onset, sigma, checks):
+        # A sound within the merge window of another row is that row's (an impact, or an
+        # echo or ring the table holds as one): an onset is never moved onto it.
+        others = np.delete(timed, k)
+        if np.any(np.abs(others - (offset + refit) / sample_rate) < _MERGE_SECONDS):
+            continue
         if check is not None:
             row, fitted, background = check
             edge = offset - starts[k] + refit  # the refitted onset, in the stretch
