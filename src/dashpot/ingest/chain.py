@@ -1041,7 +1041,7 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
     # From 3 ms on: closer sounds are the impact's own first arrivals, not a later burst.
     usable = np.isfinite(levels) & (delays >= _CAUSE_DELAY_SECONDS[0])
     for position in range(1, times.size):
-        recent = np.median(amplitudes[max(0, position - 3):position])
+        recent = median(amplitudes[max(0, position - 3):position].tolist())
         for delay, level in zip(delays[usable], levels[usable]):
             moment = times[position] - delay
             if moment <= times[position - 1] + _MERGE_SECONDS:
@@ -1252,7 +1252,7 @@ def _trim_growing_end(times, sigmas, scatter):
     for end in range(max(4, int(0.5 * times.size)), times.size):
         a, b, c = times[end - 2:end + 1]
         first, second = b - a, c - b
-        before = np.median(np.diff(times[end - 4:end]))
+        before = median(np.diff(times[end - 4:end]).tolist())
         impossible = second >= _MOST_BOUNCES * before
         if end < int(0.75 * times.size) and not impossible:
             continue
@@ -1271,7 +1271,7 @@ def _trim_growing_end(times, sigmas, scatter):
         # The train goes on past a grown interval where the intervals after it come back
         # under those before it (impacts timed off in a row); the sounds after a train
         # (rings and echoes of its impacts repeat its earlier intervals) do not.
-        if np.median(np.diff(times[end:])) < before:
+        if median(np.diff(times[end:]).tolist()) < before:
             continue
         return end
     return times.size
