@@ -132,6 +132,22 @@ def test_a_train_ends_on_the_last_sound_that_sets_off_the_secondaries():
                               probe, with_last_burst[-1] + delay) == with_last_burst.size
 
 
+def test_an_impact_whose_secondary_lands_on_the_next_impact_is_not_asked_for_it():
+    # The last interval is the burst's delay plus 0.5 ms: the burst of the impact before the
+    # last lands on the last impact, and in the file the probe finds nothing of its own
+    # there. The three impacts before show theirs; the last sound, the last impact's burst,
+    # sets off none and goes.
+    impacts = 1.0 + np.cumsum(0.05 * 0.9 ** np.arange(12))
+    delay = impacts[-1] - impacts[-2] - 0.5e-3
+    bursts = impacts + delay
+    with_last_burst = np.r_[impacts, bursts[-1]]
+    probe = fake_probe(np.delete(bursts, -2), 1.0)
+    keep = _drop_unechoed_end(with_last_burst, np.ones(with_last_burst.size),
+                              np.array([delay]), np.array([1.0]), probe,
+                              with_last_burst[-1] + 1.0)
+    assert keep == impacts.size
+
+
 def test_the_last_impact_keeps_its_place_where_its_secondary_shows_only_weakly():
     # Each impact's echo 40 ms later; the last impact is the faintest and its echo lands
     # among the echoes of the louder impacts before it: it rises over them only as much as a

@@ -1421,6 +1421,15 @@ def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
 
+def _lands_on_impact(impacts, moment):
+    """Whether one of `impacts` (s) starts at `moment` (s), from 0.5 ms before it to 1 ms
+    after: a probe for a secondary there finds that impact's onset, which shows nothing
+    either way."""
+    gap = np.asarray(impacts, dtype=float) - moment
+    return bool(np.any((gap > -_CAUSE_SEARCH_SECONDS)
+                       & (gap <= _CAUSE_SEARCH_SECONDS + _STA_SECONDS)))
+
+
 def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_by=(),
                           impacts=()):
     """Whether a sound at `moment` (s) sets off every secondary at least a quarter as loud
@@ -1432,17 +1441,10 @@ def _sets_off_secondaries(probe, moment, amplitude, delays, levels, end, shown_b
     secondary of one of them that one of `impacts` (s) starts on, or up to 1 ms after, is
     not looked for: the probe would find that impact's onset (the last intervals come down
     to a ring burst's delay), which shows nothing either way."""
-    impacts = np.asarray(impacts, dtype=float)
-
-    def masked(at, delay):
-        gap = impacts - (at + delay)
-        return bool(np.any((gap > -_CAUSE_SEARCH_SECONDS)
-                           & (gap <= _CAUSE_SEARCH_SECONDS + _STA_SECONDS)))
-
     testable = [(delay, level) for delay, level in zip(delays, levels)
                 if np.isfinite(level) and level >= _OWN_SECONDARY_LEVEL
                 and delay >= _CAUSE_DELAY_SECONDS[0] and moment + delay + _MASK_SECONDS < end
-                and all(masked(at, delay)
+                and all(_lands_on_impact(impacts, at + delay)
                         or _shows_secondary(probe, at, loud, delay, level, expected=True)
                         for at, loud in shown_by)]
     return bool(testable) and all(_shows_secondary(probe, moment, amplitude, delay, level,
@@ -1459,10 +1461,11 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     it like one more bounce, sets off none. Where the four impacts before the last each
     show a secondary within 0.5 ms of one delay (looked for in the error of a predictor of
     the sound, ``probe(moment, tolerance, predicted_sound=True)``, at least a quarter of
-    the usual level), the last impact is kept only if it shows one too, or if the recording
-    (`end`, s) stops before that secondary's time is over. Its own need only jump as much as
-    a weak trigger's: the last impact is the faintest, and its secondary lands among the
-    louder ones of the impacts before it. At most two are dropped.
+    the usual level; those whose secondary another impact starts on are not asked,
+    :func:`_lands_on_impact`), the last impact is kept only if it shows one too, or if the
+    recording (`end`, s) stops before that secondary's time is over. Its own need only jump
+    as much as a weak trigger's: the last impact is the faintest, and its secondary lands
+    among the louder ones of the impacts before it. At most two are dropped.
     """
     keep = times.size
     # From 3 ms on: closer sounds are the impact's own first arrivals, not a secondary.
@@ -1475,7 +1478,9 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
 
     for delay, level in zip(delays[usable], levels[usable]):
         while keep > max(5, times.size - 2) and times[keep - 1] + delay + _MASK_SECONDS < end:
-            if not all(shows(position, delay, level) for position in range(keep - 5, keep - 1)):
+            tested = [position for position in range(keep - 5, keep - 1)
+                      if not _lands_on_impact(times[:keep], times[position] + delay)]
+            if not tested or not all(shows(position, delay, level) for position in tested):
                 break
             if shows(keep - 1, delay, level, expected=True):
                 break
