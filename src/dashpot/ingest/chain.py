@@ -1606,8 +1606,8 @@ def _echoed_tail(times, sigmas, amplitudes, sounds, loudness, fitted, shortest=4
         # Back from there while the sounds are echoes, past up to two in a row that are not
         # (echoes timed off their sources, other sounds of the train's tail among them).
         start = found[-1]
-        while start >= 3 and echo[start - 3:start].any():
-            start -= 3 - int(np.flatnonzero(echo[start - 3:start])[-1])
+        while (behind := np.flatnonzero(echo[max(0, start - 3):start])).size:
+            start = max(0, start - 3) + int(behind[-1])
         if echo[start:].sum() >= shortest:
             keep[positions[echo]] = False
     return keep
