@@ -30,8 +30,8 @@ import pandas as pd
 from ._validation import check_nonnegative, check_positive
 from .physics.flight import drag_flight
 
-__all__ = ["bounce_table", "drag_correction", "launch_speed", "BOUNCE_COLUMNS", "DRAG_COLUMNS",
-           "DRAG_CORRECTION_COLUMNS"]
+__all__ = ["bounce_table", "interval_ratios", "drag_correction", "launch_speed",
+           "BOUNCE_COLUMNS", "DRAG_COLUMNS", "DRAG_CORRECTION_COLUMNS"]
 
 BOUNCE_COLUMNS = ("run", "bounce", "start_time", "interval", "interval_uncertainty",
                   "rebound_speed", "rebound_speed_uncertainty", "restitution",
@@ -249,16 +249,45 @@ def bounce_table(impacts, *, g, contact_duration=0.0, drag_constant=None):
     return table
 
 
-def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None, inferred=None):
-    """Bounce table rows of one run (see bounce_table); `inferred` marks the impacts whose
-    time the reader inferred."""
+def interval_ratios(times, sigma):
+    """Intervals, their ratios and the flags judging them, for one run (arrays only).
+
+    The core of :func:`bounce_table`, for callers that need no table (the plausibility check
+    of every candidate chain).
+
+    Parameters
+    ----------
+    times : ndarray
+        Increasing impact times of one run (s).
+    sigma : ndarray
+        Their 1σ (s); NaN = unknown.
+
+    Returns
+    -------
+    intervals : ndarray
+        T_n (s), one fewer than `times`.
+    ratio : ndarray
+        T_{n+1}/T_n, one fewer than `intervals`.
+    ratio_sigma : ndarray
+        1σ of each ratio from the three impact times it depends on (see :func:`bounce_table`,
+        Notes); NaN where a σ is unknown.
+    flags : ndarray of object
+        "ok", "missed", "spurious" or "irregular" for each interval.
+    """
     intervals = np.diff(times)
-    interval_sigma = np.hypot(sigma[:-1], sigma[1:])
     ratio = intervals[1:] / intervals[:-1]
     ratio_sigma = np.sqrt(sigma[2:] ** 2 + (ratio * sigma[:-2]) ** 2
                           + ((1 + ratio) * sigma[1:-1]) ** 2) / intervals[:-1]
     # An unknown σ leaves the timing term out of the flags' tolerance, not the flags out.
     flags = _flag_intervals(intervals, ratio, np.nan_to_num(ratio_sigma))
+    return intervals, ratio, ratio_sigma, flags
+
+
+def _run_bounces(times, sigma, g, contact_duration, run, drag_constant=None, inferred=None):
+    """Bounce table rows of one run (see bounce_table); `inferred` marks the impacts whose
+    time the reader inferred."""
+    intervals, ratio, ratio_sigma, flags = interval_ratios(times, sigma)
+    interval_sigma = np.hypot(sigma[:-1], sigma[1:])
     if inferred is not None and inferred.any():
         # An interval from or to an inferred impact is not measured: said, unless another
         # flag already judges it.

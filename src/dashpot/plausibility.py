@@ -109,7 +109,7 @@ def bounce_train_problem(times, sigma=None):
         '' for a plausible bounce train (or fewer than three impacts, which say nothing), else
         the reason in plain words, with the numbers (see the module notes for the tests).
     """
-    from .bounces import bounce_table
+    from .bounces import interval_ratios
 
     times = np.asarray(times, dtype=float)
     if times.size < 3 or not np.all(np.diff(times) > 0):
@@ -118,10 +118,11 @@ def bounce_train_problem(times, sigma=None):
     # silently pass every ratio.
     sigma = np.zeros(times.size) if sigma is None else np.nan_to_num(
         np.asarray(sigma, dtype=float), nan=0.0)
-    bounces = bounce_table(pd.DataFrame({"time": times, "time_uncertainty": sigma}), g=1.0)
-    ratio = bounces["restitution"].to_numpy(float)[:-1]
-    ratio_sigma = bounces["restitution_uncertainty"].to_numpy(float)[:-1]
-    glitch = np.isin(bounces["flag"].to_numpy(str), ["missed", "spurious"])
+    if not np.all(np.isfinite(times) & np.isfinite(sigma) & (sigma >= 0)):
+        raise ValueError("impact times and their uncertainties must be finite, the "
+                         "uncertainties ≥ 0")
+    _, ratio, ratio_sigma, flags = interval_ratios(times, sigma)
+    glitch = (flags == "missed") | (flags == "spurious")
     explained = glitch[:-1] | glitch[1:]  # the fit bridges a missed or drops a spurious impact
     growing = (ratio > 1.0 + 3.0 * ratio_sigma) & ~explained
     if growing.sum() > MAX_GROWING_FRACTION * ratio.size:

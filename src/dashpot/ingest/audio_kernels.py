@@ -11,8 +11,8 @@ results are the same to the last bit:
   (its Cython loop, section by section), written channel by channel into a (channels, frames)
   array as scipy does, whose transpose is returned: later reductions over it (the noise
   estimate's einsum) see the same memory layout and sum in the same order.
-  Being a recursion, it is bound by the latency of its arithmetic; the channels are stepped
-  together so that their chains overlap.
+  Being a recursion, it is bound by the latency of its arithmetic: the filter state stays in
+  registers and two channels are stepped together, so that their chains overlap.
 * :func:`envelope_triggers` does the whitening, the noise-normalised power, its running sum
   and the STA/LTA trigger of :func:`dashpot.ingest.envelope._process` chunk by chunk, and
   keeps the running sum only every 64 samples (:class:`Envelope` forms the power and STA
@@ -74,22 +74,41 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 
 @_jit
-def _highpass(sos, block, state, out):
-    """Second-order sections over the columns of `block` into `out` (channels, frames);
-    `state` (channels, sections, 2) is updated in place."""
+def _section(coefficients, block, state, out):
+    """One second-order section over the columns of `block` (frames, channels) into `out`
+    (channels, frames); `state` (channels, 2) is updated in place."""
     frames, channels = block.shape
-    sections = sos.shape[0]
-    # The channels' recursions are independent: stepped together, one sample of every channel
-    # at a time, so that the processor overlaps their latency-bound chains.
-    for n in range(frames):
-        for c in range(channels):
-            x_cur = block[n, c]
-            for s in range(sections):
-                x_new = sos[s, 0] * x_cur + state[c, s, 0]
-                state[c, s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + state[c, s, 1]
-                state[c, s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-                x_cur = x_new
-            out[c, n] = x_cur
+    b0, b1, b2 = coefficients[0], coefficients[1], coefficients[2]
+    a1, a2 = coefficients[4], coefficients[5]
+    # The state lives in local variables (registers), not in `state`: a store and reload per
+    # sample would lengthen the recursion's latency-bound chain. Two channels are stepped
+    # together, so that the processor overlaps their chains.
+    for first in range(0, channels - 1, 2):
+        second = first + 1
+        s0_first, s1_first = state[first, 0], state[first, 1]
+        s0_second, s1_second = state[second, 0], state[second, 1]
+        for n in range(frames):
+            x_first, x_second = block[n, first], block[n, second]
+            y_first = b0 * x_first + s0_first
+            y_second = b0 * x_second + s0_second
+            s0_first = b1 * x_first - a1 * y_first + s1_first
+            s0_second = b1 * x_second - a1 * y_second + s1_second
+            s1_first = b2 * x_first - a2 * y_first
+            s1_second = b2 * x_second - a2 * y_second
+            out[first, n] = y_first
+            out[second, n] = y_second
+        state[first, 0], state[first, 1] = s0_first, s1_first
+        state[second, 0], state[second, 1] = s0_second, s1_second
+    if channels % 2:
+        last = channels - 1
+        s0, s1 = state[last, 0], state[last, 1]
+        for n in range(frames):
+            x = block[n, last]
+            y = b0 * x + s0
+            s0 = b1 * x - a1 * y + s1
+            s1 = b2 * x - a2 * y
+            out[last, n] = y
+        state[last, 0], state[last, 1] = s0, s1
 
 
 def highpass(sos, block, zi):
@@ -116,8 +135,13 @@ def highpass(sos, block, zi):
     block = np.ascontiguousarray(block, dtype=float)
     # Outputs are allocated by numpy, which asks the kernel for huge pages for large arrays:
     # a fresh array of a few MB otherwise costs more in page faults than filtering it.
+    sos = np.ascontiguousarray(sos, dtype=float)
     out = np.empty((block.shape[1], block.shape[0]))
-    _highpass(np.ascontiguousarray(sos, dtype=float), block, state, out)
+    # Section after section over the whole block: each section's output depends only on its
+    # input, so this is sosfilt's sample-by-sample cascade to the last bit.
+    for section in range(sos.shape[0]):
+        _section(sos[section], block, state[:, section], out)
+        block = out.T
     return out.T, np.moveaxis(state, (1, 2), (0, 1))
 
 
