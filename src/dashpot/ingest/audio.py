@@ -659,9 +659,9 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
                                 dtype="float64", always_2d=True)[:, timing]
             offsets_in_piece = starts[inside[group]] - first
             raw[group] = piece[offsets_in_piece[:, None] + np.arange(length)[None, :]]
-    # All stretches filtered at once, each from the filter at rest on its first sample.
-    initial = signal.sosfilt_zi(stream.sos)[:, None, :] * raw[None, :, :1]
-    filtered, _ = signal.sosfilt(stream.sos, raw, axis=1, zi=initial)
+    # All stretches filtered at once (as the channels of one block), each from the filter at
+    # rest on its first sample.
+    filtered = stream.highpass_from_rest(raw.T).T
     onset = lead
     levels = filtered[:, onset - settings.pre - before:onset - before].mean(axis=1)
     magnitude = np.abs(filtered - levels[:, None])

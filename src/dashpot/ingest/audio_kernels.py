@@ -527,10 +527,20 @@ def _edge_fits(onsets, sample_index, prior_omega, rho, rows, innovation_var, pea
     solved = np.empty(order)
     for k in range(n_windows):
         ridge = 1.0 / (peak[k] * peak[k])
+        # Rows past the window's last fitted row add nothing.
+        stop = sample_index.size
+        while stop > 0 and not rows[k, stop - 1]:
+            stop -= 1
         for g in range(n_grid):
             gram[:, :] = 0.0
             projection[:] = 0.0
-            for w in range(sample_index.size):
+            # Rows up to the onset have a zero design (τ = 0) and after whitening add exact
+            # zeros: the sums start at the first row after it.
+            start = 0
+            while start < stop and sample_index[start] <= onsets[k, g]:
+                start += 1
+            previous[:] = 0.0
+            for w in range(start, stop):
                 scaled = prior_omega[k] * max(sample_index[w] - onsets[k, g], 0.0)
                 current[0] = scaled
                 for p in range(1, order):

@@ -1124,8 +1124,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     if offset + raw.shape[0] < centre + reach + settings.lookahead or offset > centre - reach \
             - settings.history - settings.background:
         return None  # too close to either end of the recording
-    filtered, _ = signal.sosfilt(stream.sos, raw, axis=0, zi=signal.sosfilt_zi(stream.sos)[
-        :, :, None] * raw[0][None, None, :])
+    filtered = stream.highpass_from_rest(raw)
     detector = np.zeros_like(filtered)
     detector[1:] = filtered[1:] - stream.rho * filtered[:-1]
     power = (detector * detector) @ (1.0 / (stream.channels * stream.noise**2))

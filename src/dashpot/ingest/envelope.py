@@ -190,6 +190,32 @@ class _Stream:
     last_onset: int | None = None  # absolute rough onset of the latest transient kept
     candidates: list = field(default_factory=list)
     dc_offset: float = 0.0
+    steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
+
+    def __post_init__(self):
+        self.steady_state = signal.sosfilt_zi(self.sos)
+
+    def highpass_from_rest(self, raw):
+        """`raw` (frames, channels) high-passed, each channel's filter started at rest on its
+        first sample, so that a DC offset does not ring through the first milliseconds like
+        an impact."""
+        return _sosfilt(self.sos, raw, self.steady_state[:, :, None] * raw[0][None, None, :])[0]
+
+    def highpass(self, block):
+        """The next `block` (frames, channels) of the file high-passed, the filter going on
+        from the block before (started at rest on the file's first sample)."""
+        if self.filter_state is None:
+            self.filter_state = self.steady_state[:, :, None] * block[0][None, None, :]
+        filtered, self.filter_state = _sosfilt(self.sos, block, self.filter_state)
+        return filtered
+
+
+def _sosfilt(sos, block, initial):
+    """``scipy.signal.sosfilt(sos, block, axis=0, zi=initial)``, compiled where COMPILED (to
+    the last bit)."""
+    if COMPILED:
+        return _kernels().highpass(sos, block, initial)
+    return signal.sosfilt(sos, block, axis=0, zi=initial)
 
 
 def _envelope_triggers(filtered, rho, weights, settings, lo, hi, weak):
@@ -244,18 +270,13 @@ def _process(stream, block, final):
     """Find the transients in the carried samples + `block` and append them to the stream."""
     settings = stream.settings
     if stream.filter_state is None:
-        # Start the high-pass in its steady state for the first sample, so that a DC offset
-        # does not ring through the first milliseconds like an impact.
-        stream.filter_state = signal.sosfilt_zi(stream.sos)[:, :, None] * block[0][None, None, :]
-        # (A matrix product: numpy's mean along the long axis of a (frames, channels) array
-        # is strided and ten times slower.)
-        stream.dc_offset = float(np.abs(np.ones(block.shape[0]) @ block).max() / block.shape[0])
-    if COMPILED:
-        filtered_block, stream.filter_state = _kernels().highpass(stream.sos, block,
-                                                                  stream.filter_state)
-    else:
-        filtered_block, stream.filter_state = signal.sosfilt(stream.sos, block, axis=0,
-                                                             zi=stream.filter_state)
+        # The DC offset, for the notes, from the first second (it is constant). A matrix
+        # product: numpy's mean along the long axis of a (frames, channels) array is strided
+        # and ten times slower.
+        opening = block[:settings.sample_rate]
+        stream.dc_offset = float(np.abs(np.ones(opening.shape[0]) @ opening).max()
+                                 / opening.shape[0])
+    filtered_block = stream.highpass(block)
     if stream.raw is None:
         raw, filtered = block, filtered_block
     else:
