@@ -219,6 +219,28 @@ def test_compiled_detector_gives_the_reference_impacts(tmp_path, monkeypatch, k,
     assert impacts >= 10  # a real comparison, not two identical refusals
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_16_bit_file_gives_what_its_samples_as_floats_give(tmp_path, monkeypatch, compiled):
+    # 16-bit samples are kept as int16 and scaled by 2^-15 inside the loops; a float file
+    # holding the same values (libsndfile's scaling of int16, exact) must give the same table,
+    # through many blocks (the carried samples) and with a DC offset (its note).
+    samples = _disturbed(SEED + 7, 22050)[:, None] * np.array([1.0, 0.6]) + 0.01
+    quantized = np.round(np.clip(samples, -1.0, 1.0 - 2.0**-15) * 2**15).astype(np.int16)
+    sixteen = tmp_path / "train16.wav"
+    sf.write(str(sixteen), quantized, 22050, subtype="PCM_16")
+    floats = tmp_path / "train_float.wav"
+    sf.write(str(floats), quantized / 2.0**15, 22050, subtype="FLOAT")
+    assert sf.info(str(sixteen)).subtype == "PCM_16"
+    tables = [_detect(path, compiled, monkeypatch, block_seconds=0.7)
+              for path in (sixteen, floats)]
+    assert not isinstance(tables[0], str) and len(tables[0]) >= 10
+    for column in ("time", "time_uncertainty", "amplitude"):
+        np.testing.assert_array_equal(tables[0][column].to_numpy(),
+                                      tables[1][column].to_numpy(), err_msg=column)
+    assert tables[0].attrs["notes"] == tables[1].attrs["notes"]
+    assert any("DC offset" in note for note in tables[0].attrs["notes"])
+
+
 @pytest.mark.parametrize("name", sorted(REAL))
 def test_compiled_detector_gives_the_reference_impacts_on_real_sound(monkeypatch, name):
     path = REAL[name]

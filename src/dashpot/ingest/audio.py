@@ -234,11 +234,16 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
         settings = _Settings.make(sample_rate, min_snr_db, min_jump_db)
         sos = signal.butter(_HIGHPASS_ORDER, highpass_hz, "highpass", fs=sample_rate,
                             output="sos")
-        stream = _Stream(settings=settings, channels=handle.channels, sos=sos)
+        # 16-bit samples are kept as read (a quarter of float64's memory, which costs as much
+        # to touch the first time as to filter); the kernels scale them by 2⁻¹⁵, exactly.
+        sixteen_bit = handle.subtype == "PCM_16"
+        stream = _Stream(settings=settings, channels=handle.channels, sos=sos,
+                         scale=2.0**-15 if sixteen_bit else 1.0)
         block_frames = max(int(round(block_seconds * sample_rate)), settings.carry)
         pending = None
         # One block of look-ahead, so that the last one is processed as final.
-        for block in _blocks(handle, path, block_frames):
+        for block in _blocks(handle, path, block_frames,
+                             dtype="int16" if sixteen_bit else "float64"):
             if pending is not None:
                 _process(stream, pending, final=False)
             pending = block

@@ -160,15 +160,16 @@ def _truncation(extra_info):
     return ""
 
 
-def _blocks(handle, path, block_frames):
-    """Yield consecutive float64 blocks of shape (frames, channels) until the end of file."""
+def _blocks(handle, path, block_frames, dtype="float64"):
+    """Yield consecutive blocks of shape (frames, channels) until the end of file: float64
+    in full scale, or the file's integers as `dtype` says (libsndfile's scaling)."""
     expected = handle.frames
     seen = 0
     # Integer samples cannot be NaN or infinite: only float files are checked.
     integer = handle.subtype.startswith("PCM_") or handle.subtype in ("ULAW", "ALAW")
     while True:
         try:
-            block = handle.read(block_frames, dtype="float64", always_2d=True)
+            block = handle.read(block_frames, dtype=dtype, always_2d=True)
         except (sf.LibsndfileError, RuntimeError) as error:
             raise InputError(path, f"truncated or corrupt file: decoding failed after "
                                    f"{seen / handle.samplerate:.3f} s ({error})") from None

@@ -74,9 +74,9 @@ _jit = numba.njit(cache=True, error_model="numpy")
 
 
 @_jit
-def _section(coefficients, block, state, out):
-    """One second-order section over the columns of `block` (frames, channels) into `out`
-    (channels, frames); `state` (channels, 2) is updated in place."""
+def _section(coefficients, block, scale, state, out):
+    """One second-order section over the columns of `block` (frames, channels) times `scale`
+    into `out` (channels, frames); `state` (channels, 2) is updated in place."""
     frames, channels = block.shape
     b0, b1, b2 = coefficients[0], coefficients[1], coefficients[2]
     a1, a2 = coefficients[4], coefficients[5]
@@ -88,7 +88,7 @@ def _section(coefficients, block, state, out):
         s0_first, s1_first = state[first, 0], state[first, 1]
         s0_second, s1_second = state[second, 0], state[second, 1]
         for n in range(frames):
-            x_first, x_second = block[n, first], block[n, second]
+            x_first, x_second = block[n, first] * scale, block[n, second] * scale
             y_first = b0 * x_first + s0_first
             y_second = b0 * x_second + s0_second
             s0_first = b1 * x_first - a1 * y_first + s1_first
@@ -103,7 +103,7 @@ def _section(coefficients, block, state, out):
         last = channels - 1
         s0, s1 = state[last, 0], state[last, 1]
         for n in range(frames):
-            x = block[n, last]
+            x = block[n, last] * scale
             y = b0 * x + s0
             s0 = b1 * x - a1 * y + s1
             s1 = b2 * x - a2 * y
@@ -111,17 +111,20 @@ def _section(coefficients, block, state, out):
         state[last, 0], state[last, 1] = s0, s1
 
 
-def highpass(sos, block, zi):
-    """``scipy.signal.sosfilt(sos, block, axis=0, zi=zi)``, to the last bit.
+def highpass(sos, block, zi, scale=1.0):
+    """``scipy.signal.sosfilt(sos, block * scale, axis=0, zi=zi)``, to the last bit.
 
     Parameters
     ----------
     sos : ndarray, shape (sections, 6)
         Second-order sections.
     block : ndarray, shape (frames, channels)
-        Samples (full scale).
+        Samples: float (full scale), or integers, converted sample by sample (a 16-bit
+        file's samples read as int16 take a quarter of the memory of float64).
     zi : ndarray, shape (sections, 2, channels)
         Filter state before the block (as ``sosfilt`` takes it with ``axis=0``).
+    scale : float, default 1
+        Full scale per unit of `block` (2⁻¹⁵ for int16: exact, as libsndfile's conversion).
 
     Returns
     -------
@@ -132,7 +135,7 @@ def highpass(sos, block, zi):
         Filter state after the block.
     """
     state = np.ascontiguousarray(np.moveaxis(np.asarray(zi, dtype=float), (0, 1), (1, 2)))
-    block = np.ascontiguousarray(block, dtype=float)
+    block = np.ascontiguousarray(block)
     # Outputs are allocated by numpy, which asks the kernel for huge pages for large arrays:
     # a fresh array of a few MB otherwise costs more in page faults than filtering it.
     sos = np.ascontiguousarray(sos, dtype=float)
@@ -140,8 +143,8 @@ def highpass(sos, block, zi):
     # Section after section over the whole block: each section's output depends only on its
     # input, so this is sosfilt's sample-by-sample cascade to the last bit.
     for section in range(sos.shape[0]):
-        _section(sos[section], block, state[:, section], out)
-        block = out.T
+        _section(sos[section], block, float(scale), state[:, section], out)
+        block, scale = out.T, 1.0
     return out.T, np.moveaxis(state, (1, 2), (0, 1))
 
 
@@ -311,14 +314,15 @@ def envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, mi
 
 
 @_jit
-def _transient_measures(raw, filtered, onsets, window_starts, level, amplitude_length,
-                        window_length, clip_factor, clip_run, amplitudes, flat, windows):
+def _transient_measures(raw, scale, filtered, onsets, window_starts, level,
+                        amplitude_length, window_length, clip_factor, clip_run, amplitudes, flat,
+                        windows):
     count, channels = window_starts.shape
     for k in range(count):
         largest, extreme = 0.0, 0.0
         for i in range(amplitude_length):
             for c in range(channels):
-                sample = raw[onsets[k] + i, c]
+                sample = raw[onsets[k] + i, c] * scale
                 deviation = abs(sample - level[k, c])
                 if deviation > largest:
                     largest = deviation
@@ -327,7 +331,7 @@ def _transient_measures(raw, filtered, onsets, window_starts, level, amplitude_l
         at_extreme = 0
         for i in range(amplitude_length):
             for c in range(channels):
-                if abs(raw[onsets[k] + i, c]) >= extreme * clip_factor:
+                if abs(raw[onsets[k] + i, c] * scale) >= extreme * clip_factor:
                     at_extreme += 1
         amplitudes[k] = largest
         flat[k] = at_extreme >= clip_run and extreme > 0
@@ -337,14 +341,14 @@ def _transient_measures(raw, filtered, onsets, window_starts, level, amplitude_l
 
 
 def transient_measures(raw, filtered, onsets, window_starts, level, amplitude_length,
-                       window_length, clip_factor, clip_run):
+                       window_length, clip_factor, clip_run, scale=1.0):
     """Amplitude, clipping flag and fit windows of each transient, as
     :func:`.envelope._keep_transients` forms them.
 
     Parameters
     ----------
     raw, filtered : ndarray, shape (frames, channels)
-        Samples (full scale) and high-passed samples.
+        Samples (float or integers, times `scale` in full scale) and high-passed samples.
     onsets : ndarray of int, shape (K,)
         Rough onsets (samples).
     window_starts : ndarray of int, shape (K, channels)
@@ -357,6 +361,8 @@ def transient_measures(raw, filtered, onsets, window_starts, level, amplitude_le
         A sample at or above this fraction of the largest magnitude counts towards a flat top.
     clip_run : int
         Samples at the extreme that make a flat (clipped) top.
+    scale : float, default 1
+        Full scale per unit of `raw`.
 
     Returns
     -------
@@ -372,7 +378,8 @@ def transient_measures(raw, filtered, onsets, window_starts, level, amplitude_le
     flat = np.empty(count, dtype=np.bool_)
     windows = np.empty((count, channels, int(window_length)))
     # Maxima and counts are exact: no order of operations to follow.
-    _transient_measures(raw, filtered, np.ascontiguousarray(onsets, dtype=np.int64),
+    _transient_measures(raw, float(scale), filtered,
+                        np.ascontiguousarray(onsets, dtype=np.int64),
                         np.ascontiguousarray(window_starts, dtype=np.int64),
                         np.ascontiguousarray(level, dtype=float), int(amplitude_length),
                         int(window_length), float(clip_factor), int(clip_run), amplitudes,

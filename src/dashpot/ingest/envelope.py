@@ -190,6 +190,7 @@ class _Stream:
     last_onset: int | None = None  # absolute rough onset of the latest transient kept
     candidates: list = field(default_factory=list)
     dc_offset: float = 0.0
+    scale: float = 1.0  # full scale per unit of the raw samples (2⁻¹⁵ for int16)
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
@@ -205,17 +206,18 @@ class _Stream:
         """The next `block` (frames, channels) of the file high-passed, the filter going on
         from the block before (started at rest on the file's first sample)."""
         if self.filter_state is None:
-            self.filter_state = self.steady_state[:, :, None] * block[0][None, None, :]
-        filtered, self.filter_state = _sosfilt(self.sos, block, self.filter_state)
+            self.filter_state = self.steady_state[:, :, None] * (block[0] * self.scale)[
+                None, None, :]
+        filtered, self.filter_state = _sosfilt(self.sos, block, self.filter_state, self.scale)
         return filtered
 
 
-def _sosfilt(sos, block, initial):
-    """``scipy.signal.sosfilt(sos, block, axis=0, zi=initial)``, compiled where COMPILED (to
-    the last bit)."""
+def _sosfilt(sos, block, initial, scale=1.0):
+    """``scipy.signal.sosfilt(sos, block * scale, axis=0, zi=initial)``, compiled where
+    COMPILED (to the last bit)."""
     if COMPILED:
-        return _kernels().highpass(sos, block, initial)
-    return signal.sosfilt(sos, block, axis=0, zi=initial)
+        return _kernels().highpass(sos, block, initial, scale)
+    return signal.sosfilt(sos, block * scale, axis=0, zi=initial)
 
 
 def _envelope_triggers(filtered, rho, weights, settings, lo, hi, weak):
@@ -275,7 +277,7 @@ def _process(stream, block, final):
         # and ten times slower.
         opening = block[:settings.sample_rate]
         stream.dc_offset = float(np.abs(np.ones(opening.shape[0]) @ opening).max()
-                                 / opening.shape[0])
+                                 * stream.scale / opening.shape[0])
     filtered_block = stream.highpass(block)
     if stream.raw is None:
         raw, filtered = block, filtered_block
@@ -380,16 +382,18 @@ def _keep_transients(stream, raw, filtered, strengths, onsets, channel_onsets, s
     channel = np.arange(stream.channels)
     # Peak deviation of the raw samples (all channels) within `amplitude` samples after each
     # onset from their mean level over the `pre` samples before it: DC offset excluded.
-    before = raw[(onsets[:, None] + np.arange(-settings.pre, 0))[:, :, None], channel]
+    before = raw[(onsets[:, None] + np.arange(-settings.pre, 0))[:, :, None],
+                 channel] * stream.scale
     # Each channel's high-passed waveform around its own rough onset, for the onset fit.
     window_starts = channel_onsets - settings.pre
     if COMPILED:
         # The mean level stays numpy's (its summation order), the rest is gathered compiled.
         amplitudes, flat, windows = _kernels().transient_measures(
             raw, filtered, onsets, window_starts, before.mean(axis=1), settings.amplitude,
-            settings.pre + settings.span, 1 - _CLIP_TOLERANCE, _CLIP_RUN)
+            settings.pre + settings.span, 1 - _CLIP_TOLERANCE, _CLIP_RUN, stream.scale)
     else:
-        after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None], channel]
+        after = raw[(onsets[:, None] + np.arange(settings.amplitude))[:, :, None],
+                    channel] * stream.scale
         amplitudes = np.abs(after - before.mean(axis=1, keepdims=True)).max(axis=(1, 2))
         # A flat top, several samples at the largest magnitude, is what clipping leaves; a
         # free transient does not produce it.
