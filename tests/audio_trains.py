@@ -48,14 +48,17 @@ def score_train(onsets, found, sigma, match=1e-3):
     Returns
     -------
     dict
-        ``found``: true impacts timed; ``false``: detections that are no impact, ``after``
-        of them past the last true onset; ``z``: |error| / 1σ of each impact timed.
+        ``found``: true impacts timed, ``timed`` which (one per detection: the first true
+        onset it is nearest to); ``false``: detections that are no impact, ``after`` of them
+        past the last true onset; ``z``: |error| / 1σ of each impact timed.
     """
     distance = np.abs(onsets[:, None] - found[None, :])
     nearest = distance.argmin(axis=1)
     hit = distance[np.arange(onsets.size), nearest] < match
     owned = np.zeros(found.size, dtype=bool)
     owned[nearest[hit]] = True
-    return dict(found=int(np.unique(nearest[hit]).size), false=int((~owned).sum()),
+    timed = np.zeros(onsets.size, dtype=bool)
+    timed[np.flatnonzero(hit)[np.unique(nearest[hit], return_index=True)[1]]] = True
+    return dict(found=int(timed.sum()), timed=timed, false=int((~owned).sum()),
                 after=int((~owned & (found > onsets[-1] + match)).sum()),
                 z=np.abs(found[nearest[hit]] - onsets[hit]) / sigma[nearest[hit]])
