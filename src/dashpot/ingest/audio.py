@@ -316,9 +316,9 @@ def _impact_table(path, stream, sample_rate, duration):
     # outlasts it by the delay) passes the check, and the train passes without the echo.
     # Taken only where at most one in ten of its members is itself a ring, burst or echo of
     # its impacts: without the echo, a chain may take those instead.
-    def choose(selectable):
+    def choose(selectable, weak_too=False):
         return selectable, _choose(path, stream, candidates, rough, strength, amplitude,
-                                   strong, precise, selectable)
+                                   strong | weak_too, precise, selectable)
 
     def passes(choice):
         return not choice[1][-1]
@@ -359,7 +359,17 @@ def _impact_table(path, stream, sample_rate, duration):
             # Taken only if it passes; else the last of the first two is judged again
             # below, once the impacts its bursts hide are found.
             choices.append(choice)
+            later = []
             break
+    if not passes(choices[-1]):
+        # Before the train is refused, each choice is made again with the weak transients
+        # too: an impact that lands on an echo or a ring jumps less over the sound before it
+        # than a strong trigger, and a chain of strong transients alone breaks at it.
+        for selectable in [choice[0] for choice in choices] + later:
+            choice = choose(selectable, weak_too=True)
+            if passes(choice):
+                choices.append(choice)
+                break
     selectable, (chain, skipped, times, sigmas, amplitudes, clipped_flags, timing,
                  problem) = choices[-1]
     set_aside = len(candidates) - selectable.size
