@@ -655,7 +655,9 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     before, after = (int(round(s * sample_rate)) for s in _BURST_REACH_SECONDS)
     lead = settings.pre + before + int(_RESETTLE_SECONDS * sample_rate)
     tail = after + settings.span + settings.pre
-    noise_rms = stream.noise[timing] / np.sqrt(max(1.0 - stream.rho[timing] ** 2, 1e-6))
+    # RMS of the timing channel's noise at each impact (the estimate of its block).
+    noise, rho = stream.noise_at(times)
+    noise_rms = noise[:, timing] / np.sqrt(np.maximum(1.0 - rho[:, timing] ** 2, 1e-6))
     starts = np.round(times * sample_rate).astype(np.int64) - lead
     length = lead + tail
     with _open(path) as handle:
@@ -680,7 +682,7 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     onset = lead
     levels = filtered[:, onset - settings.pre - before:onset - before].mean(axis=1)
     magnitude = np.abs(filtered - levels[:, None])
-    bursts = _first_burst(magnitude, onset, noise_rms, sample_rate)
+    bursts = _first_burst(magnitude, onset, noise_rms[inside], sample_rate)
     crossings, rise_levels = _rise_crossing(magnitude, onset, sample_rate)
     reach = _onset_reach(sample_rate)
     quiet = int(round(_BURST_BACKGROUND_SECONDS * sample_rate))
@@ -703,7 +705,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
                 continue  # no rise after the onset, or the fit timed its edge already
             # The sound in the millisecond before the earlier of the two onsets.
             end = int(min(rise, np.floor(fitted))) - 2
-            background = max(noise_rms, np.sqrt(np.mean(magnitude[row, end - quiet:end] ** 2)))
+            background = max(noise_rms[k],
+                             np.sqrt(np.mean(magnitude[row, end - quiet:end] ** 2)))
             if rise_levels[row] < _BURST_BACKGROUND * background:
                 if fitted < rise:
                     # Whether the fitted onset or the rise starts the impact cannot be told:
@@ -757,9 +760,9 @@ def _stated_sigmas(times, sigmas, starts, inside, centred, noise_rms, secondarie
     `times` and `sigmas` (s) are the onsets and their fits' 1σ; `centred` holds the
     high-passed stretches (level removed) read for the impacts `inside` (row i: impact
     ``inside[i]``, from sample ``starts[inside[i]]``; as in :func:`_retime_on_first_burst`),
-    `noise_rms` the RMS of the noise in its units; `secondaries` (s, sorted) are where the
-    rings, bursts and echoes of the impacts start. An impact whose stretch was not read keeps
-    its fit's 1σ.
+    `noise_rms` the RMS of the noise at each impact in its units; `secondaries` (s, sorted)
+    are where the rings, bursts and echoes of the impacts start. An impact whose stretch was
+    not read keeps its fit's 1σ.
     """
     sigmas = sigmas.copy()
     if inside.size == 0:
@@ -768,7 +771,7 @@ def _stated_sigmas(times, sigmas, starts, inside, centred, noise_rms, secondarie
     first = np.clip(np.floor(times[inside] * sample_rate - starts[inside]).astype(np.int64),
                     0, centred.shape[1] - span)
     sound = centred[np.arange(inside.size)[:, None], first[:, None] + np.arange(span)]
-    noise = np.full(inside.size, noise_rms)
+    noise = noise_rms[inside]
     rise, edge = _rise_samples(np.abs(sound), noise), _edge_samples(sound, noise)
     lead = np.full(inside.size, np.nan)
     latest = np.searchsorted(secondaries, times[inside] + _AMBIGUITY_REACH_SECONDS[1],

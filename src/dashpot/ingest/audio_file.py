@@ -162,7 +162,7 @@ def _truncation(extra_info):
 
 def _blocks(handle, path, block_frames, dtype="float64"):
     """Yield consecutive blocks of shape (frames, channels) until the end of file: float64
-    in full scale, or the file's integers as `dtype` says (libsndfile's scaling)."""
+    in full scale, or, with ``dtype="int16"``, a 16-bit file's samples as stored."""
     expected = handle.frames
     seen = 0
     # Integer samples cannot be NaN or infinite: only float files are checked.

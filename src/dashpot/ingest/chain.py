@@ -1125,9 +1125,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
             - settings.history - settings.background:
         return None  # too close to either end of the recording
     filtered = stream.highpass_from_rest(raw)
+    noise, rho = stream.noise_at(predicted)  # as the detection had it there
     detector = np.zeros_like(filtered)
-    detector[1:] = filtered[1:] - stream.rho * filtered[:-1]
-    power = (detector * detector) @ (1.0 / (stream.channels * stream.noise**2))
+    detector[1:] = filtered[1:] - rho * filtered[:-1]
+    power = (detector * detector) @ (1.0 / (stream.channels * noise**2))
     loudness = np.concatenate(([0.0], np.cumsum(power)))
     taps = None
     if predicted_sound and centre - reach - offset > 4 * _PREDICTOR_ORDER:
@@ -1135,7 +1136,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         # an impact starting inside a loud ring is an impulse there; its loudness is still
         # the whitened signal's.
         taps = _sound_predictor(filtered, centre - reach - offset)
-        detector, floor = _prediction_error(filtered, taps, stream.noise, stream.rho)
+        detector, floor = _prediction_error(filtered, taps, noise, rho)
         power = (detector * detector) @ (1.0 / (stream.channels * floor))
     cumulative = np.concatenate(([0.0], np.cumsum(power)))
     earliest = centre - reach

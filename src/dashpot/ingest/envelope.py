@@ -183,6 +183,9 @@ class _Stream:
     filter_state: np.ndarray | None = None
     noise: np.ndarray | None = None  # noise RMS of each whitened channel (full scale)
     rho: np.ndarray | None = None  # lag-1 correlation of each channel's noise
+    # (first sample, noise, rho) of each block's estimate: the later steps look up the one
+    # of the block a moment lies in (the noise may change over a long recording).
+    noise_blocks: list = field(default_factory=list)
     raw: np.ndarray | None = None  # carried samples (frames, channels)
     filtered: np.ndarray | None = None
     start: int = 0  # absolute index of the first carried sample
@@ -195,6 +198,16 @@ class _Stream:
 
     def __post_init__(self):
         self.steady_state = signal.sosfilt_zi(self.sos)
+
+    def noise_at(self, seconds):
+        """Noise RMS and lag-1 correlation of each channel (arrays of shape (..., channels))
+        that the detection used at the moments `seconds` (s): the estimate of the block each
+        lies in."""
+        firsts = np.array([first for first, _, _ in self.noise_blocks])
+        block = np.clip(np.searchsorted(firsts, np.asarray(seconds) * self.settings.sample_rate,
+                                        side="right") - 1, 0, None)
+        return (np.stack([noise for _, noise, _ in self.noise_blocks])[block],
+                np.stack([rho for _, _, rho in self.noise_blocks])[block])
 
     def highpass_from_rest(self, raw):
         """`raw` (frames, channels) high-passed, each channel's filter started at rest on its
@@ -307,6 +320,9 @@ def _process(stream, block, final):
     elif stream.noise is None:
         stream.rho = np.zeros(stream.channels)
         stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)), _NOISE_FLOOR)
+    if not stream.noise_blocks or stream.noise_blocks[-1][1] is not stream.noise:
+        # This estimate judges the triggers from where the last block's stopped on.
+        stream.noise_blocks.append((stream.done_until, stream.noise, stream.rho))
     # Detection runs on the noise whitened by its own lag-1 prediction, y[n] − ρ·y[n−1]:
     # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
     # frequencies it removes the slow swells of power that would otherwise look like onsets

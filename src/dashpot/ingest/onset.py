@@ -293,8 +293,8 @@ def _first_burst(magnitude, onset, noise_rms, sample_rate):
         Magnitude of the high-passed waveform (level removed) around each impact.
     onset : int
         Index in each row of the onset fitted so far.
-    noise_rms : float
-        RMS of the recording's noise, in the units of `magnitude`.
+    noise_rms : float or ndarray, shape (K,)
+        RMS of the recording's noise at each impact, in the units of `magnitude`.
     sample_rate : float
         Hz.
 
