@@ -151,7 +151,8 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
         number of channels.
     block_seconds : float, default 30
         The file is decoded and analysed in blocks of this length (s), so that memory stays
-        bounded however long the recording.
+        bounded however long the recording; a last block shorter than half of it is analysed
+        with the one before.
     highpass_hz : float, default 100
         Cut-off (Hz) of the 2nd-order causal Butterworth high-pass applied before detection
         and timing: removes DC offset, hum and rumble. Being causal it cannot move an onset
@@ -241,10 +242,15 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
                          scale=2.0**-15 if sixteen_bit else 1.0)
         block_frames = max(int(round(block_seconds * sample_rate)), settings.carry)
         pending = None
-        # One block of look-ahead, so that the last one is processed as final.
+        # One block of look-ahead, so that the last one is processed as final. A last block
+        # shorter than half a block is processed with the one before: a few seconds that the
+        # bounce train fills have too few quiet stretches for a noise estimate of their own.
         for block in _blocks(handle, path, block_frames,
                              dtype="int16" if sixteen_bit else "float64"):
             if pending is not None:
+                if block.shape[0] < block_frames // 2:
+                    pending = np.concatenate([pending, block])
+                    continue
                 _process(stream, pending, final=False)
             pending = block
         _process(stream, pending, final=True)
