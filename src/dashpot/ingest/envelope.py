@@ -210,9 +210,9 @@ class _Stream:
                 np.stack([rho for _, _, rho in self.noise_blocks])[block])
 
     def highpass_from_rest(self, raw):
-        """`raw` (frames, channels) high-passed, each channel's filter started at rest on its
-        first sample, so that a DC offset does not ring through the first milliseconds like
-        an impact."""
+        """`raw` (frames, channels; float, full scale) high-passed, each channel's filter
+        started at rest on its first sample, so that a DC offset does not ring through the
+        first milliseconds like an impact."""
         return _sosfilt(self.sos, raw, self.steady_state[:, :, None] * raw[0][None, None, :])[0]
 
     def highpass(self, block):
@@ -321,7 +321,8 @@ def _process(stream, block, final):
         stream.rho = np.zeros(stream.channels)
         stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)), _NOISE_FLOOR)
     if not stream.noise_blocks or stream.noise_blocks[-1][1] is not stream.noise:
-        # This estimate judges the triggers from where the last block's stopped on.
+        # A new estimate (a block too short keeps the previous one, the same array) holds
+        # from the first sample whose triggers this block judges.
         stream.noise_blocks.append((stream.done_until, stream.noise, stream.rho))
     # Detection runs on the noise whitened by its own lag-1 prediction, y[n] − ρ·y[n−1]:
     # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
