@@ -21,6 +21,7 @@ from dashpot.errors import InputError
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
+                                  _every_bounce,
                                   _echoed_tail, _echoing_members, _extend_chain,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
@@ -1210,3 +1211,43 @@ def test_a_probed_last_bounce_at_a_burst_delay_is_asked_only_for_secondaries_see
                              np.array([burst, 0.02]), probe, last + 1.0, np.array([1.0, 0.3]))
     assert [row[0] for row in added] == [last]
 
+
+
+def test_a_chain_of_every_other_bounce_gets_the_bounces_it_stepped_over():
+    # Bounces shrinking by 0.9, fading by 2 % per bounce: a chain of the even ones is a
+    # train of ratio 0.81 whose fit would give the square of the restitution.
+    bounces = np.cumsum(0.2 * 0.9 ** np.arange(24))
+    loudness = 0.5 * 0.98 ** np.arange(24)
+    # Each with a ring 20 ms later (0.3 as loud) and a burst 7 ms later (as loud), which
+    # sits midway in the intervals of 12-16 ms.
+    times = np.concatenate([bounces, bounces + 20e-3, bounces + 7e-3])
+    amplitude = np.concatenate([loudness, 0.3 * loudness, loudness])
+    order = np.argsort(times)
+    times, amplitude = times[order], amplitude[order]
+    index = np.flatnonzero(order < bounces.size)  # the bounces among the transients
+    even = index[::2]
+    filled = _every_bounce(times, amplitude, even)
+    # Only bounces are added, and most of those stepped over (one whose delay after a member
+    # happens to recur may be left for the later search for predicted impacts).
+    assert np.isin(filled, index).all()
+    assert filled.size - even.size >= 0.8 * (even.size - 1)
+    # The chain of every bounce stays as it is: the bursts midway in its last intervals come
+    # at a delay that recurs after every member.
+    np.testing.assert_array_equal(_every_bounce(times, amplitude, index), index)
+    # A chain of every other bounce over four intervals only is kept: bursts and echoes
+    # can sit midway in a few successive intervals.
+    np.testing.assert_array_equal(_every_bounce(times, amplitude, even[:5]), even[:5])
+
+
+@pytest.mark.parametrize("seed", [20461163, 20461221])
+def test_a_train_is_not_timed_on_every_other_bounce(tmp_path, seed):
+    # Trains of a fresh block (seeds 20461163 and 20461221, bursts about as loud as their
+    # impacts 7-8 ms after them) where the first chain took an echo and then bursts for
+    # impacts, and the chain chosen without their delays took every other bounce from the
+    # first on: 15 and 17 impacts lost, a train that passes every check of its intervals.
+    samples, onsets, _ = disturbed_train(seed)
+    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
+    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
+                        MATCH)
+    assert score["found"] >= onsets.size - 1
+    assert score["false"] <= 1

@@ -74,6 +74,12 @@ _FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a
 # of a fitted impact is that secondary's start (fitted onsets err by some 10-50 µs)
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
+_HALVING_RUN = 5  # successive intervals of a chain that hold a stepped-over bounce: it took
+# every other bounce
+_HALVING_LOUDNESS = 0.5  # a stepped-over bounce is at least this loud against the fainter of
+# the members around it (impact sounds fade by a few % per bounce)
+_HALVING_SLACK = 0.01  # of the interval (plus the rough onsets' jitter): where the bounce
+# stepped over lies, to a scatter of the ratios of a few %
 _COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
 
 
@@ -222,6 +228,7 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     if chain.size < 4:
         return chain, 0
     chain = _move_to_causes(times, amplitude, _shift_to_causes(times, chain))
+    chain = _every_bounce(times, amplitude, chain)
     trend = _trend(times[chain])
     chain = _redo_tail(times, power_ratio, amplitude, strong, chain, trend)
     chain = _polish_chain(times, chain, trend)
@@ -451,6 +458,53 @@ def _shift_to_causes(times, chain):
             return chain
         chain = np.sort(replaced)
     return chain
+
+
+def _every_bounce(times, amplitude, chain):
+    """Chain with the bounces it stepped over, where it took every other bounce.
+
+    Every other bounce of a train is a geometric train too, with the ratio ρ² of two
+    bounces in place of ρ, and so passes the bounce-train check; its fit would give ε² for
+    ε. Such a chain leaves out, inside each of its intervals I, a transient about as loud as
+    its members where the bounce stepped over lies: after the member before it by
+    I/(1 + √ρ), ρ being the ratio of this interval to the one before in the chain (the two
+    flights of ratio √ρ each; [5]_). A ring, burst or echo comes at a fixed delay, which
+    matches that place on two or three successive intervals of a shrinking train at most, and
+    those at a delay that recurs after the members are not counted.
+    Where five successive intervals of the chain hold such a transient, the chain stepped
+    over bounces, and every such transient in its intervals is added (an interval that holds
+    none spans one bounce, or more than two: the search for the impacts the trend predicts
+    goes on from there); else the chain is returned as it was. `times` (s, increasing) and
+    `amplitude` (full scale) are those of all the transients.
+    """
+    chain = np.asarray(chain)
+    if chain.size < 5:
+        return chain
+    impacts = times[chain]
+    intervals = np.diff(impacts)
+    ratio = np.concatenate(([intervals[1] / intervals[0]], intervals[1:] / intervals[:-1]))
+    expected = impacts[:-1] + intervals / (1.0 + np.sqrt(ratio))
+    tolerance = _HALVING_SLACK * intervals + _ONSET_JITTER
+    fainter = np.minimum(amplitude[chain[:-1]], amplitude[chain[1:]])
+    left_out = np.setdiff1d(np.arange(times.size), chain)
+    # Not at a delay at which secondaries recur after the members (a ring's burst 5-8 ms
+    # after each impact sits midway in intervals of 10-16 ms, which shrink slowly there).
+    delays = _secondary_delays(times, chain)
+    if delays.size:
+        lead = times[left_out][:, None, None] - impacts[None, :, None] - delays[None, None, :]
+        left_out = left_out[np.abs(lead).min(axis=(1, 2)) > _ONSET_JITTER]
+    if left_out.size == 0:
+        return chain
+    distance = np.abs(times[left_out][None, :] - expected[:, None])
+    loud = amplitude[left_out][None, :] >= _HALVING_LOUDNESS * fainter[:, None]
+    distance = np.where(loud & (distance <= tolerance[:, None]), distance, np.inf)
+    nearest = distance.argmin(axis=1)
+    found = np.isfinite(distance[np.arange(intervals.size), nearest])
+    # Longest run of successive intervals holding one.
+    run = np.diff(np.flatnonzero(np.diff(np.concatenate(([0], found.astype(int), [0])))))[::2]
+    if run.size == 0 or run.max() < _HALVING_RUN:
+        return chain
+    return np.sort(np.concatenate([chain, left_out[nearest[found]]]))
 
 
 def _drop_faint_between(amplitude, chain):
