@@ -42,7 +42,7 @@ ACCELERATION_TOLERANCE = 0.25  # relative: friction makes a cart's legs differ b
 _MIN_FLIGHTS = 3
 
 
-def ratio_trend(impact_times, *, floor=0.0, rounds=3):
+def ratio_trend(impact_times, *, floor=0.0, rounds=3, jitter=0.0, paired=False):
     """Trend of ln(next interval / interval) against ln(interval), fitted robustly.
 
     A straight line, or a parabola from nine ratios on (restitution may change faster at high
@@ -53,6 +53,15 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
     a few ratios of 0.2 or 4 (a ring's burst taken for an impact) bend a least-squares fit
     through all ratios so far that every later round keeps them.
 
+    Timing errors weigh most on the short intervals at the train's end: a time off by δ
+    moves the ln ratios it enters by about δ/T, twice that on the ratio between its two
+    intervals. Given the `jitter` of the times, each ratio is weighted in the fit by the
+    inverse of `floor`² plus that variance, and is left out only when more than 3 times
+    their root sum off the trend. Where `paired`, a ratio left out also takes out its
+    neighbours on the other side of the trend: a time off moves the ratio after its two
+    intervals to one side and the ratios before and after to the other, and a neighbour left
+    in bends the fit just as far as the ratio left out would have.
+
     Parameters
     ----------
     impact_times : array_like
@@ -60,6 +69,10 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
     floor : float, default 0
         Smallest scatter returned (in ln ratio).
     rounds : int, default 3
+    jitter : float, default 0
+        Timing error (s, 1σ) of each of `impact_times`.
+    paired : bool, default False
+        Leave out, with each ratio left out, its neighbours on the other side of the trend.
 
     Returns
     -------
@@ -72,6 +85,9 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
     intervals = np.diff(np.asarray(impact_times, dtype=float))
     log_ratio = np.log(intervals[1:] / intervals[:-1])
     log_interval = np.log(intervals[:-1])
+    # Variance of each ln ratio that timing errors of `jitter` on its three times give.
+    timing = jitter**2 * ((1 / intervals[1:] + 1 / intervals[:-1]) ** 2
+                          + 1 / intervals[1:] ** 2 + 1 / intervals[:-1] ** 2)
     # The first fit starts without the ratios far off their median (5 robust scatters): two
     # ratios of a missed impact or a ring taken for one (ln ratio of ±0.7 or more) would bend
     # a least-squares parabola through all of them, widening the scatter the next rounds
@@ -82,11 +98,17 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3):
         keep = np.ones(log_ratio.size, dtype=bool)
     for _ in range(rounds):
         degree = 2 if keep.sum() >= 9 else 1
-        coefficients = np.polyfit(log_interval[keep], log_ratio[keep], degree)
+        weights = 1 / np.sqrt(max(floor, 1e-3) ** 2 + timing[keep]) if jitter else None
+        coefficients = np.polyfit(log_interval[keep], log_ratio[keep], degree, w=weights)
         residual = log_ratio - np.polyval(coefficients, log_interval)
         scatter = max(1.4826 * np.median(np.abs(residual[keep] - np.median(residual[keep]))),
                       floor)
-        inside = np.abs(residual) <= 3.0 * scatter
+        inside = np.abs(residual) <= 3.0 * np.sqrt(scatter**2 + timing)
+        if paired:
+            off = ~inside
+            opposite = np.sign(residual[1:]) != np.sign(residual[:-1])
+            inside[1:] &= ~(off[:-1] & opposite)
+            inside[:-1] &= ~(off[1:] & opposite)
         if inside.sum() < 3 or (inside == keep).all():
             break
         keep = inside

@@ -596,7 +596,7 @@ def _fill_pass(times, sigmas, amplitudes, clipped_flags, delays, levels, probe, 
     a recording of `duration`, s), applied: times (s), 1σ (s), amplitudes, clip flags with
     the impacts it timed again, left out or added; the added rows and the retimed ones."""
     order = np.argsort(times)
-    coefficients, scatter = _robust_trend(times[order])
+    coefficients, scatter = _robust_trend(times[order], timed_off=True)
     filled, retimed = _fill_impacts(times[order], amplitudes[order], coefficients, scatter,
                                     delays, probe, duration, levels, stop=stop)
     times, sigmas, amplitudes = times.copy(), sigmas.copy(), amplitudes.copy()

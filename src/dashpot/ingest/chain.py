@@ -35,6 +35,9 @@ _GROWTH_ALLOWANCE = 0.05  # a ratio may exceed 1 by this (restitution scatter of
 # 3σ of the rough onsets' jitter on both intervals: up to 1.2 on the last, few-ms intervals,
 # 1.06 on intervals of 0.3 s (random clicks otherwise chain at ratios of up to 1.2)
 _RATIO_SCATTER_FLOOR = 0.02  # in log(ratio)
+_TREND_TIMING_SECONDS = 0.1e-3  # s: timing error of each onset the trend of the ratios allows
+# for (fitted onsets err by 10-50 µs, more where taken on a ring's burst; of 0, 0.05, 0.1,
+# 0.15 and 0.25 ms, 0.1 and 0.15 lost the fewest impacts on three development blocks)
 _ONSET_JITTER = 0.5e-3  # s: a faint transient's rough onset may move by this much (first
 # arrival or loud part), which matters on the last, short intervals
 _NOISE_WEIGHT = 1.0  # score of any transient included in the chain, plus its log SNR
@@ -1274,14 +1277,24 @@ def _one_per_impact(times, sigmas):
     return kept[np.argsort(times[kept])]
 
 
-def _robust_trend(impact_times, rounds=3):
+def _robust_trend(impact_times, rounds=3, timed_off=False):
     """:func:`_trend` of the impacts, leaving out ratios more than 3 scatters off the trend.
 
     A missed impact doubles an interval: the two ratios around it (about 1.9 and 0.5) would
     bend a parabola fitted through them exactly where the missed impacts are looked for
     (:func:`dashpot.plausibility.ratio_trend`, with the scatter floor of the selection).
+    Where `timed_off`, for the search for the impacts the trend predicts
+    (:func:`_fill_impacts`), the fit also allows for onsets timed off on the last, short
+    intervals (a ring's burst or the sound of the impact before taken for the onset, by a few
+    tenths of a ms): each ratio is weighted by its timing noise, and a ratio left out takes
+    its neighbours on the other side of the trend with it. Left in, those neighbours bent the
+    trend of such trains by several % where their last impacts are predicted, and the
+    predictions missed them.
     """
-    return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds)
+    if not timed_off:
+        return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds)
+    return ratio_trend(impact_times, floor=_RATIO_SCATTER_FLOOR, rounds=rounds,
+                       jitter=_TREND_TIMING_SECONDS, paired=True)
 
 
 def _trim_growing_end(times, sigmas, scatter):
