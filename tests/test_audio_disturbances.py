@@ -98,6 +98,15 @@ def disturbed_train(seed, rate=RATE):
     return samples, onsets, options
 
 
+def detected_score(folder, seed):
+    """:func:`audio_trains.score_train` of the detector on the disturbed train of `seed`,
+    written as a float WAV in `folder`, and that train's true onsets (s)."""
+    samples, onsets, _ = disturbed_train(seed)
+    path = write_audio(folder / f"train{seed}.wav", samples, RATE, subtype="FLOAT")
+    return score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
+                       MATCH), onsets
+
+
 @pytest.fixture(scope="module")
 def held_out(tmp_path_factory):
     folder = tmp_path_factory.mktemp("disturbed")
@@ -991,10 +1000,7 @@ def test_a_passing_chain_that_followed_an_echo_of_the_train_gives_way_to_the_tra
     # the second on, which continue its intervals and outlast the train, so it passed as a
     # bounce train with 10 of the 21 impacts. Chosen again without the members that echo a
     # louder sound it left out, it is the train.
-    samples, onsets, _ = disturbed_train(20381462)
-    path = write_audio(tmp_path / "echo.wav", samples, RATE, subtype="FLOAT")
-    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
-                        MATCH)
+    score, onsets = detected_score(tmp_path, 20381462)
     assert score["found"] == onsets.size
     assert score["false"] == 0
 
@@ -1046,10 +1052,7 @@ def test_a_train_whose_impacts_land_on_its_echo_is_not_refused(tmp_path, seed):
     # ring: those jump too little over the sound before them for a strong trigger, and the
     # chain of strong transients alone scattered like clicks. Before refusing, the choices
     # are made again with the weak transients too.
-    samples, onsets, _ = disturbed_train(seed)
-    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
-    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
-                        MATCH)
+    score, onsets = detected_score(tmp_path, seed)
     assert score["found"] >= onsets.size - 1
     assert score["false"] <= 1
 
@@ -1070,10 +1073,7 @@ def test_a_chain_chosen_without_the_echo_that_takes_rings_instead_is_not_taken(t
     # impacts; chosen without them, the chain took the rings and bursts of impacts 10-12 and
     # stopped at impact 13 of 22, and passed. Five of its 19 members are secondaries of its
     # own impacts: the first chain is kept, and its later checks find the train.
-    samples, onsets, _ = disturbed_train(20401271)
-    path = write_audio(tmp_path / "rings.wav", samples, RATE, subtype="FLOAT")
-    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
-                        MATCH)
+    score, onsets = detected_score(tmp_path, 20401271)
     assert score["found"] >= onsets.size - 1
 
 
@@ -1250,10 +1250,7 @@ def test_a_train_is_not_timed_on_every_other_bounce(tmp_path, seed):
     # impacts 7-8 ms after them) where the first chain took an echo and then bursts for
     # impacts, and the chain chosen without their delays took every other bounce from the
     # first on: 15 and 17 impacts lost, a train that passes every check of its intervals.
-    samples, onsets, _ = disturbed_train(seed)
-    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
-    score = score_train(onsets, detect_impacts(path)["time"].to_numpy(), np.ones(onsets.size),
-                        MATCH)
+    score, onsets = detected_score(tmp_path, seed)
     assert score["found"] >= onsets.size - 1
     assert score["false"] <= 1
 
