@@ -21,6 +21,8 @@ References
 ----------
 .. [1] The recordings in ``../shared/data`` (README there): restitution scatter of about
    0.2-0.3 % for a ping-pong ball and 0.7 % for a bouncy ball.
+.. [2] J. R. Taylor, *An Introduction to Error Analysis*, 2nd ed., University Science Books
+   (1997), ch. 3 (propagation of independent errors to first order).
 """
 
 from __future__ import annotations
@@ -54,13 +56,14 @@ def ratio_trend(impact_times, *, floor=0.0, rounds=3, jitter=0.0, paired=False):
     through all ratios so far that every later round keeps them.
 
     Timing errors weigh most on the short intervals at the train's end: a time off by δ
-    moves the ln ratios it enters by about δ/T, twice that on the ratio between its two
-    intervals. Given the `jitter` of the times, each ratio is weighted in the fit by the
-    inverse of `floor`² plus that variance, and is left out only when more than 3 times
-    their root sum off the trend. Where `paired`, a ratio left out also takes out its
-    neighbours on the other side of the trend: a time off moves the ratio after its two
-    intervals to one side and the ratios before and after to the other, and a neighbour left
-    in bends the fit just as far as the ratio left out would have.
+    moves the ln ratios it enters by about δ/T, twice that on the ratio of its own two
+    intervals. Given the `jitter` σ of the times, the variance of ln(T₂/T₁) is
+    σ²[(1/T₁ + 1/T₂)² + 1/T₁² + 1/T₂²] to first order [2]_; each ratio is weighted in the fit
+    by the inverse of `floor`² plus that variance, and is left out only when more than 3
+    times their root sum off the trend. Where `paired`, a ratio left out also takes out its
+    neighbours on the other side of the trend: a time off moves the ratio of its own two
+    intervals to one side and the ratios before and after it to the other, and a neighbour
+    left in bends the fit as far as the ratio left out would have.
 
     Parameters
     ----------
