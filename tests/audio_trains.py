@@ -16,11 +16,21 @@ from dashpot.ingest.chain import _robust_trend
 def hybrid_train(rng, n_max=400):
     """Impact times (s, the first at 0) and impact speeds (m/s) of one train; three draws from
     `rng`, in this order: β (1/s), ω0 (rad/s), v0 (m/s)."""
-    sequence = dashpot.bounce_sequence("hybrid", beta=rng.uniform(40, 150),
-                                       omega0=rng.uniform(2000, 4000), g=9.81,
-                                       v0=rng.uniform(0.5, 0.9), n_max=n_max)
-    keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
-    return sequence.impact_times[keep], sequence.impact_speeds[keep]
+    return hybrid_drops(rng, 1, n_max)[2][0]
+
+
+def hybrid_drops(rng, count, n_max=400):
+    """β (1/s), ω0 (rad/s) and the (impact times, s, the first at 0; impact speeds, m/s) of
+    `count` drops of one ball; draws from `rng`, in this order: β, ω0, then v0 (m/s) of each
+    drop."""
+    beta, omega0 = rng.uniform(40, 150), rng.uniform(2000, 4000)
+    drops = []
+    for v0 in rng.uniform(0.5, 0.9, size=count):
+        sequence = dashpot.bounce_sequence("hybrid", beta=beta, omega0=omega0, g=9.81, v0=v0,
+                                           n_max=n_max)
+        keep = np.cumprod(np.concatenate([[True], sequence.intervals >= 6e-3])).astype(bool)
+        drops.append((sequence.impact_times[keep], sequence.impact_speeds[keep]))
+    return beta, omega0, drops
 
 
 def onset_near(sounds, predicted, tolerance, amplitude=1.0):

@@ -84,6 +84,13 @@ def disturbed_train(seed, rate=RATE):
     at `rate` (Hz)."""
     rng = np.random.default_rng(seed)
     times, speeds = hybrid_train(rng)
+    return disturbed_sound(rng, seed, times, speeds, rate)
+
+
+def disturbed_sound(rng, seed, times, speeds, rate=RATE):
+    """(samples, true onsets, options) of the impacts at `times` (s) with `speeds` (m/s), with
+    the disturbances of issue 14 drawn from `rng`, the weakest impact 20-45 dB over the
+    noise."""
     weakest_db = rng.uniform(20.0, 45.0)
     options = dict(apex_click_db=-40.0, rest_click_period=rng.uniform(0.08, 0.1),
                    rest_click_duration=0.6, echo_delay=rng.uniform(5e-3, 0.2),

@@ -61,6 +61,17 @@ def test_the_new_sound_is_the_signal_less_the_rings_continuation():
     np.testing.assert_allclose(new, later[second - 20:second + 130], atol=1e-4)
 
 
+def test_an_unstable_predictor_continues_the_ring_as_its_decaying_mirror():
+    """A predictor with the poles of a mode at 1/r outside the unit circle (least squares can
+    give one) continues a sound as the mode decaying at r, never growing: the mirror poles
+    r e^{±iω} predict the damped sinusoid r^n cos(ωn) exactly, so nothing new starts."""
+    radius, omega, n, start = 0.97, 2 * np.pi * 2000.0 / RATE, 300, 200
+    damped = radius ** np.arange(n) * np.cos(omega * np.arange(n))
+    growing = np.poly([np.exp(1j * omega) / radius, np.exp(-1j * omega) / radius]).real
+    new = _new_sound(damped[:, None], growing[None, :], start, 66)[:, 0]
+    assert np.abs(new).max() < 1e-9 * np.abs(damped[start:]).max()
+
+
 def test_the_error_floor_is_the_variance_of_the_error_on_the_noise():
     # AR(1) noise of innovation RMS σ and lag-1 correlation ρ through the error filter:
     # the closed form against the variance of a long simulated stretch.

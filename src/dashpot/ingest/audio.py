@@ -4,7 +4,7 @@
 :mod:`dashpot.ingest`; :func:`read_audio` reads a whole (short) recording into memory. Both
 raise :class:`dashpot.errors.InputError` on files that cannot be used.
 
-Method, in four steps, each explained where it is implemented: reading in
+Method, in five steps, each explained where it is implemented: reading in
 :mod:`.audio_file`, steps 1-2 (the power envelope and its trigger) in :mod:`.envelope`, step 3
 (the chain of impacts) in :mod:`.chain`, step 4 (the onset fit) in :mod:`.onset`; this module
 runs them over the file.
@@ -83,6 +83,10 @@ runs them over the file.
    fit's at half its width on a sharp edge (rising within a sample), where its posterior
    reaches back over slower starts the edge did not take, and covers the onset's ambiguity
    where a ring, burst or echo of an earlier impact starts near it (:func:`_stated_sigmas`).
+5. Drops: steps 3-4 run on the whole recording, and again on the stretches before and after
+   the train found, for other drops of the same ball (:func:`_impact_table`); each is a run.
+   A chain refused as no bounce train is also chosen again without the periodic clicks it
+   followed (a ball at rest, a clock; :func:`dashpot.ingest.chain._periodic_members`).
 
 References
 ----------
@@ -104,6 +108,8 @@ References
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pandas as pd
 from scipy import signal
@@ -112,9 +118,9 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
-from .chain import (_SECONDARY_MARGIN, _echoed_tail, _echoing_members, _explained_secondaries,
-                    _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
-                    _one_per_impact, _probe, _rest_time, _robust_trend, _secondary_delays,
+from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
+                    _echoing_members, _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
+                    _one_per_impact, _periodic_members, _probe, _rest_time, _robust_trend, _secondary_delays,
                     _secondary_levels, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
@@ -134,6 +140,17 @@ _JOIN_READS_SECONDS = 0.05
 _FILL_PASSES = 3  # passes of the search for impacts the trend predicts, at most
 _END_IMPACTS = 4  # the last impacts, whose change lets a further pass go on past them
 _SECONDARY_MEMBERS_SHARE = 0.1  # of a chain chosen without an echo that may be secondaries
+# Several drops in one recording (_other_drop): another train holds this many impacts at least,
+_MIN_RUN_IMPACTS = 6
+_RUN_COUNT_FACTOR = 3.0  # ... and as many as the first train found within this factor;
+_RUN_RATIO_SPREAD = 0.1  # its median interval ratio is the first's within this, in log;
+_RUN_SHRINK = 0.5  # its last interval is less than this share of its first;
+_RUN_LOUDNESS = 10.0  # its loudest impact is within this factor of the first train's;
+_MAX_REST_RATIO = 0.99  # flight ratio after the last impact of a train, for its rest time
+_ECHO_TOLERANCE_SECONDS = 0.3e-3  # an echo's impacts repeat its source's at one delay
+# and lies this long (s) past the last impact of the one before: its rings and echoes (2 ×
+# the longest secondary delay, as chain._echoing_members looks for them).
+_AFTER_TRAIN_SECONDS = 2 * _SECONDARY_SECONDS
 
 # --------------------------------------------------------------------------------------------
 # Public entry point
@@ -186,10 +203,12 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
           excluded; a lower bound where the recording clipped);
         * ``impact_speed``, ``rebound_speed``, ``speed_uncertainty``: NaN (sound does not
           measure speed);
-        * ``run``: 0.
+        * ``run``: the drop of the ball the impact belongs to, 0, 1, ... in time order (0
+          throughout for a recording of one drop; see Notes).
 
         ``attrs``: ``source`` (the file), ``sensor`` = "audio", ``notes`` (list of str: the
-        timing channel, transients left out and why, clipped impacts).
+        timing channel, transients left out and why, clipped impacts; with several drops,
+        each note names its run).
 
     Raises
     ------
@@ -212,6 +231,13 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     interval ratios stay within [0.45, 1.2] and follow a smooth trend (see
     :func:`_select_bounces`). Ringing, echoes and rattles, which come at a fixed delay after
     their impact, and noise are left out and counted in the notes.
+
+    Several drops: a recording may hold a session of drops, the ball bouncing to rest, picked
+    up and dropped again. Each is a run: the train of the best chain is found, then other
+    drops before and after it, each a train of the same ball that comes to rest before the
+    next is released (see :func:`_impact_table`); a chain that took the loud first impacts
+    of earlier drops before a train is cut where an interval is longer than any number of
+    missed flights can make it (:func:`dashpot.ingest.chain._drop_start`).
 
     Speed: the work per sample is a few vectorized passes (high-pass, running sums); the fits
     run on the selected impacts only, and the probes of predicted impacts read a few tens of
@@ -295,7 +321,15 @@ def _fitted_onsets(stream):
 
 
 def _impact_table(path, stream, sample_rate, duration):
-    """Select the impacts among the stored transients, time them, and build the table."""
+    """Select the impacts among the stored transients, time them, and build the table: one
+    run per drop of the ball that the recording holds, in time order.
+
+    The train of the best chain over the whole recording is found first
+    (:func:`_train_table`). Other drops are looked for in the stretches before and after it
+    (:func:`_other_drop`); where there are any, each train is found again on its own stretch
+    of the recording (from the release of its ball to the release of the next one), so that
+    no train's result depends on the others'.
+    """
     candidates = stream.candidates
     if not candidates:
         raise InputError(path, f"no impacts found in {duration:.3f} s: silence or noise only "
@@ -303,6 +337,191 @@ def _impact_table(path, stream, sample_rate, duration):
                                f" dB over the level before it and "
                                f"{10 * np.log10(stream.settings.min_power):.0f} dB over the "
                                f"noise floor)")
+    rough = np.array([c["onset"] for c in candidates]) / sample_rate
+    first = _drop_in(path, stream, rough, sample_rate, 0.0, duration)
+    trains = [first]
+    stretches = _stretches_around(first, rough, 0.0, duration)
+    while stretches:
+        start, end = stretches.pop()
+        other = _other_drop(path, stream, rough, sample_rate, start, end, trains)
+        if other is not None:
+            trains.append(other)
+            stretches += _stretches_around(other, rough, start, end)
+    if len(trains) == 1:
+        return first
+    trains.sort(key=lambda train: train["time"].iat[0])
+    bounds = [0.0] + [_release(train["time"].to_numpy()) for train in trains[1:]] + [duration]
+    again = []
+    for train, start, end in zip(trains, bounds[:-1], bounds[1:]):
+        try:
+            again.append(_drop_in(path, stream, rough, sample_rate, start, end))
+        except InputError:
+            again.append(train)  # the whole recording's choice stands
+    return _joined_runs(again)
+
+
+def _release(times):
+    """When the ball of the train of impacts at `times` (s) was released (s): at least half its
+    first interval (its fall from rest; the rebound rises less) before its first impact."""
+    return times[0] - 0.5 * (times[1] - times[0])
+
+
+def _drop_in(path, stream, rough, sample_rate, start, end):
+    """The impact table of the last drop's train in the stretch [`start`, `end`) (s) of the
+    recording, whose transients have the rough onsets `rough` (s).
+
+    The train of the best chain there (:func:`_train_table`; raises InputError where there
+    is none). Where its impacts end in periodic clicks (a ball at rest, a clock:
+    :func:`dashpot.ingest.chain._periodic_members`), the train is found again without them;
+    where they hold the first impacts of earlier drops
+    (:func:`dashpot.ingest.chain._drop_start`), again from the release of the last drop on
+    (the earlier ones are looked for apart). Where either finds no train, the one before
+    stands.
+    """
+    train = _train_table(path, _within(stream, rough, start, end), sample_rate, end)
+    times = train["time"].to_numpy()
+    periodic = _periodic_members(times, np.arange(times.size))
+    if periodic.any():
+        kept = (rough >= start) & (rough < end)
+        kept[np.abs(rough[:, None] - times[periodic][None, :]).argmin(axis=0)] = False
+        try:
+            train = _train_table(path, _subset(stream, kept), sample_rate, end)
+        except InputError:
+            pass
+    cut = _drop_start(train["time"].to_numpy(), train["amplitude"].to_numpy())
+    while cut:
+        release = _release(train["time"].to_numpy()[cut:])
+        try:
+            train = _train_table(path, _within(stream, rough, release, end), sample_rate, end)
+        except InputError:
+            break
+        cut = _drop_start(train["time"].to_numpy(), train["amplitude"].to_numpy())
+    return train
+
+
+def _stretches_around(train, rough, start, end):
+    """The stretches (s) of [`start`, `end`) before and after `train` (an impact table) in
+    which another drop may lie: before the release of its ball, and from the time its rings
+    and echoes last past its last impact; only those holding enough transients for a
+    train."""
+    times = train["time"].to_numpy()
+    stretches = [(start, _release(times)), (times[-1] + _AFTER_TRAIN_SECONDS, end)]
+    return [(lo, hi) for lo, hi in stretches
+            if np.count_nonzero((rough >= lo) & (rough < hi)) >= _MIN_RUN_IMPACTS]
+
+
+def _within(stream, rough, start, end):
+    """The stream with only its transients whose rough onsets `rough` (s) lie in [`start`,
+    `end`)."""
+    return _subset(stream, (rough >= start) & (rough < end))
+
+
+def _subset(stream, kept):
+    """The stream with only the transients `kept` (bool per transient)."""
+    part = copy.copy(stream)
+    part.candidates = [candidate for candidate, keep in zip(stream.candidates, kept) if keep]
+    return part
+
+
+def _other_drop(path, stream, rough, sample_rate, start, end, trains):
+    """The impact table of a drop of the ball in [`start`, `end`) (s), or None.
+
+    A train found there (:func:`_train_table`) is another drop only if it is one beyond
+    doubt, since a recording holds a single drop as a rule and the sounds around one (the
+    ball rolling or at rest, echoes, speech, handling) must not pass for another. It is a
+    drop of the same ball as the `trains` found (impact tables, the first that of the best
+    chain over the whole recording):
+
+    * it comes to rest before the ball of the next is released, or is released after the
+      one before came to rest (:func:`_rest`, :func:`_release`), and is no echo of one
+      (:func:`_echo_of`);
+    * it has as many impacts as the first within a factor :data:`_RUN_COUNT_FACTOR` (the
+      count grows only with the logarithm of the drop height), and at least
+      :data:`_MIN_RUN_IMPACTS`;
+    * the median ratio of its successive intervals (the restitution) is the first's within
+      :data:`_RUN_RATIO_SPREAD` in log;
+    * its intervals shrink to less than :data:`_RUN_SHRINK` of the first (a ball bouncing to
+      rest; periodic clicks do not shrink);
+    * its loudest impact is within a factor :data:`_RUN_LOUDNESS` of the first's (the sound
+      grows with the impact speed: a tenth of it is a drop from a hundredth of the height; a
+      chain can take the steady clicks of a ball at rest at multiples of their period).
+    """
+    try:
+        train = _drop_in(path, stream, rough, sample_rate, start, end)
+    except InputError:
+        return None
+    times, known = train["time"].to_numpy(), trains[0]["time"].to_numpy()
+    if times.size < max(_MIN_RUN_IMPACTS, known.size / _RUN_COUNT_FACTOR):
+        return None
+    intervals = np.diff(times)
+    if intervals[-1] >= _RUN_SHRINK * intervals[0]:
+        return None
+    if abs(np.log(_median_ratio(times) / _median_ratio(known))) > _RUN_RATIO_SPREAD:
+        return None
+    if train["amplitude"].max() * _RUN_LOUDNESS < trains[0]["amplitude"].max():
+        return None
+    for other in trains:
+        # One ball: each drop has come to rest before the next is released.
+        before, after = sorted((times, other["time"].to_numpy()), key=lambda t: t[0])
+        if _rest(before) > _release(after):
+            return None
+        if _echo_of(train, other):
+            return None
+    return train
+
+
+def _echo_of(train, source):
+    """Whether at least half the impacts of `train` (an impact table) come one common delay
+    (to :data:`_ECHO_TOLERANCE_SECONDS`) after a louder impact of `source`: an echo copies
+    the train (from a far wall, at any delay)."""
+    delays = train["time"].to_numpy()[:, None] - source["time"].to_numpy()[None, :]
+    louder = source["amplitude"].to_numpy()[None, :] >= train["amplitude"].to_numpy()[:, None]
+    member, column = np.nonzero(louder & (delays > 0))
+    if member.size == 0:
+        return False
+    # Each impact counts once per delay bin, and in the bins on either side (a delay near a
+    # bin's edge).
+    bins = np.round(delays[member, column] / _ECHO_TOLERANCE_SECONDS).astype(np.int64)
+    pairs = np.unique(np.stack([np.tile(member, 3), np.concatenate([bins - 1, bins, bins + 1])]),
+                      axis=1)
+    return 2 * int(np.unique(pairs[1], return_counts=True)[1].max()) >= train.shape[0]
+
+
+def _rest(times):
+    """When the ball of the train of impacts at `times` (s) comes to rest (s): its flights
+    after the last impact shrink by the median ratio r of its last five intervals (at most
+    :data:`_MAX_REST_RATIO`) and sum to T·r/(1 − r) after the last flight T (a geometric
+    series [5]_)."""
+    ratio = min(_median_ratio(times[-6:]), _MAX_REST_RATIO)
+    return times[-1] + (times[-1] - times[-2]) * ratio / (1.0 - ratio)
+
+
+def _median_ratio(times):
+    """Median ratio of successive intervals between the impacts at `times` (s)."""
+    intervals = np.diff(times)
+    return float(np.median(intervals[1:] / intervals[:-1]))
+
+
+def _joined_runs(trains):
+    """One impact table of the `trains` (impact tables in time order), run k the k-th; notes
+    of each run named as its."""
+    table = pd.concat([train.assign(run=run) for run, train in enumerate(trains)],
+                      ignore_index=True)
+    starts = ", ".join(f"{train['time'].iat[0]:.3f}" for train in trains)
+    notes = [trains[0].attrs["notes"][0],
+             f"{len(trains)} drops of the ball in the recording, each its own run (0 to "
+             f"{len(trains) - 1}, first impacts at {starts} s); the notes below name the run "
+             f"they are about"]
+    for run, train in enumerate(trains):
+        notes += [f"run {run}: {note}" for note in train.attrs["notes"][1:]]
+    table.attrs.update(trains[0].attrs, notes=notes)
+    return table
+
+
+def _train_table(path, stream, sample_rate, duration):
+    """Select the impacts of one train among the stored transients (of a recording, or its
+    stretch, ending at `duration`, s), time them, and build the table."""
+    candidates = stream.candidates
     rough = np.array([c["onset"] for c in candidates]) / sample_rate
     strength = np.array([c["strength"] for c in candidates])
     amplitude = np.array([c["amplitude"] for c in candidates])
@@ -343,6 +562,13 @@ def _impact_table(path, stream, sample_rate, duration):
         explained = _explained_secondaries(rough, amplitude, first_chain)
         if explained.any():
             choices.append(choose(np.flatnonzero(~explained)))
+        # Without the periodic clicks it followed (a ball at rest, a clock), where that
+        # choice passes.
+        periodic = _periodic_members(rough, first_chain)
+        if periodic.any() and not passes(choices[-1]):
+            alternative = choose(np.flatnonzero(~periodic))
+            if passes(alternative):
+                choices.append(alternative)
     later = []
     if not passes(choices[-1]):
         if len(choices) == 2:

@@ -64,6 +64,11 @@ _CAUSE_SPAN = 1.5  # the members sharing a cause's delay span intervals this dif
 _MOVE_TOLERANCE = 2 * _ONSET_JITTER  # s: a member and its cause, both rough onsets, each
 # pulled early by up to the jitter (a ring or echo before them)
 _MOST_BOUNCES = 3.0  # an interval spans at most this many of the one before (missed impacts)
+_PERIODIC_RUN = 5  # successive intervals of periodic clicks, at least, as even as
+_PERIODIC_SPREAD = 0.03  # this (of their median)
+_DROP_GAP = 1.5  # an interval this much longer than the most bounces it can span is no flight
+_MAX_DROP_RATIO = 0.99  # the ratio of successive flights (< 1: a train shrinks)
+_DROP_RISE = 2.0  # ... or longer than the most, the impact after it this much louder
 _ECHO_ROUGH_SECONDS = 1e-3  # s: a rough onset lies this close to the fitted one
 _ECHO_SLACK_SECONDS = 2e-5  # s: an echo's fitted onset repeats its source's this closely
 _ECHO_MATCH_SECONDS = 3e-5  # s: the loosest match of an echo to its source
@@ -827,6 +832,8 @@ def _trim_start(chain, amplitude):
     the first impact is among the loudest; faint transients that happen to fit the geometric
     trend before it (handling noise, footsteps) are not bounces.
     """
+    if chain.size == 0:  # no strong transient to chain
+        return chain
     loud = amplitude[chain] >= amplitude[chain].max() / _LEADING_LOUDNESS
     return chain[int(np.argmax(loud)):]
 
@@ -899,6 +906,30 @@ def _recurring_delays(delays, counts, threshold):
     peaks = (pooled >= dense[:-2]) & (pooled > dense[2:]) & (pooled >= threshold)
     return np.array([float(np.median(delays[np.abs(delays - value + 0.5e-3) <= 1e-3]))
                      for value in np.flatnonzero(peaks) / 1e3])
+
+
+def _periodic_members(times, chain):
+    """Which transients of `chain` (indices into the transients at `times`, s) are periodic
+    clicks: those in a run of :data:`_PERIODIC_RUN` successive intervals within
+    :data:`_PERIODIC_SPREAD` of their median.
+
+    A ball at rest may click on for seconds at a steady period (a rolling ball, a clock): the
+    best chain can follow such clicks (their ratios are 1, as smooth a trend as any) rather
+    than the train. A ball's intervals shrink at every bounce, by several % (a restitution
+    of 0.97 spans 14 % over five intervals): no run of them is this even.
+    """
+    periodic = np.zeros(times.size, dtype=bool)
+    members = chain[np.argsort(times[chain])]
+    intervals = np.diff(times[members])
+    if intervals.size < _PERIODIC_RUN:
+        return periodic
+    runs = np.lib.stride_tricks.sliding_window_view(intervals, _PERIODIC_RUN)
+    even = np.all(np.abs(runs / np.median(runs, axis=1, keepdims=True) - 1.0)
+                  <= _PERIODIC_SPREAD, axis=1)
+    # Interval k joins members k and k + 1; a run starting at k spans members k to k + run.
+    for start in np.flatnonzero(even):
+        periodic[members[start:start + _PERIODIC_RUN + 1]] = True
+    return periodic
 
 
 def _explained_secondaries(times, amplitude, chain):
@@ -1045,12 +1076,24 @@ def _prediction_error(filtered, taps, noise, rho):
 
 def _new_sound(filtered, taps, start, length):
     """The sound from `start` on less the predictor's free continuation of the sound before
-    it: what started there (length, channels)."""
+    it: what started there (length, channels).
+
+    The least-squares predictor may have poles outside the unit circle, and its free
+    continuation then grows without bound (by 10⁹ within 3 ms on a development train): each
+    such pole is reflected to 1/z̄ inside it, which keeps the frequency of its mode and the
+    shape of the spectrum [7]_, and a ring decays as it should.
+    """
     order = taps.shape[1] - 1
     out = np.empty((length, filtered.shape[1]))
     for channel in range(filtered.shape[1]):
-        state = signal.lfiltic([1.0], taps[channel], filtered[start - order:start, channel][::-1])
-        free = signal.lfilter([1.0], taps[channel], np.zeros(length), zi=state)[0]
+        poles = np.roots(taps[channel])
+        outside = np.abs(poles) > 1.0
+        denominator = taps[channel]
+        if outside.any():
+            poles[outside] = 1.0 / np.conj(poles[outside])
+            denominator = np.poly(poles).real
+        state = signal.lfiltic([1.0], denominator, filtered[start - order:start, channel][::-1])
+        free = signal.lfilter([1.0], denominator, np.zeros(length), zi=state)[0]
         out[:, channel] = filtered[start:start + length, channel] - free
     return out
 
@@ -1342,6 +1385,41 @@ def _trim_growing_end(times, sigmas, scatter):
             continue
         return end
     return times.size
+
+
+def _drop_start(times, amplitudes):
+    """Index of the impact at which the ball's last drop among `times` (s, increasing; their
+    `amplitudes`, full scale) starts: 0 where they are all one drop's.
+
+    A chain of impacts over a recording of several drops can take the loud first impacts of
+    the earlier drops, a few seconds apart, before the last drop's train: their intervals
+    shrink and grow within the bounds of missed impacts. The train is walked back from its
+    end, each interval a flight of the ball or up to :data:`_MOST_BOUNCES` of them (missed
+    impacts), each earlier flight longer by 1/r, r the median ratio of the intervals after
+    it (a geometric train [5]_). An interval longer than :data:`_DROP_GAP` times the most it
+    can span (the restitution may be lower at the higher speeds of the earlier flights) is
+    no flight of this ball: it holds the ball's rest, pick-up and fall. So is one longer
+    than the most it can span where the impact after it is more than :data:`_DROP_RISE`
+    times as loud as the one before: within a train the impact speed, and with it the
+    sound, only falls (an impact on a secondary of the one before sums the two).
+    """
+    intervals = np.diff(times)
+    ratios = np.clip(intervals[1:] / intervals[:-1], *_RATIO_BOUNDS)
+    rises = amplitudes[1:] > _DROP_RISE * amplitudes[:-1]
+    # The first flight of the interval after the impact reached. Transients taken for impacts
+    # at the end make intervals short, so it starts from the upper quartile of the last eight,
+    # and going back it never shrinks.
+    flight = float(np.percentile(intervals[-8:], 75))
+    # Sequential: each interval's flights are measured from the one after it.
+    for index in range(intervals.size - 2, -1, -1):
+        ratio = min(float(np.median(ratios[index:])), _MAX_DROP_RATIO)
+        flights = flight / ratio ** np.arange(1, _MOST_BOUNCES + 1)
+        spans = np.cumsum(flights)
+        if intervals[index] > (1.0 if rises[index] else _DROP_GAP) * spans[-1]:
+            return index + 1
+        bounces = int(np.argmin(np.abs(spans - intervals[index])))
+        flight = max(intervals[index] * flights[bounces] / spans[bounces], flight)
+    return 0
 
 
 def _rest_time(times, coefficients, scatter, bounces=10):
