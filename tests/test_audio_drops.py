@@ -19,7 +19,7 @@ import soundfile as sf
 from audio_trains import hybrid_drops, hybrid_train, score_train
 from dashpot.cli import main
 from dashpot.ingest.audio import detect_impacts
-from dashpot.ingest.chain import _drop_start
+from dashpot.ingest.chain import _drop_start, _periodic_members
 from dashpot.store import read_fit
 from dashpot.synth.audio import impact_sound, write_audio
 from test_audio_disturbances import MATCH, RATE, disturbed_sound
@@ -202,3 +202,18 @@ def test_drop_start_finds_the_last_drop_behind_the_loud_impacts_of_earlier_ones(
     loudness = np.concatenate([[1.0, 0.6, 1.0, 0.6, 0.4], 0.97 ** np.arange(times.size - 5)])
     assert _drop_start(times, loudness) == earlier.size
     assert _drop_start(train, 0.97 ** np.arange(train.size)) == 0
+
+
+def test_periodic_members_are_the_clicks_after_a_train_not_its_bounces():
+    """A geometric train (ratio 0.97, the evenest of the test trains) followed by clicks every
+    90 ms with 0.3 ms of jitter, the first one period after the last impact: the clicks,
+    and only they, are periodic."""
+    rng = np.random.default_rng(20_497_301)
+    train = np.concatenate([[0.0], np.cumsum(0.12 * 0.97 ** np.arange(60))])
+    train = train[np.concatenate([[True], np.diff(train) >= 6e-3])]
+    clicks = train[-1] + 0.09 * np.arange(1, 12) + 0.3e-3 * rng.standard_normal(11)
+    times = np.concatenate([train, clicks])
+    periodic = _periodic_members(times, np.arange(times.size))
+    assert not periodic[:train.size].any()
+    assert periodic[train.size:].all()
+    assert not _periodic_members(train, np.arange(train.size)).any()

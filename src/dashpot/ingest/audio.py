@@ -119,8 +119,9 @@ from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _check_block_seconds, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
-                    _echoing_members, _explained_secondaries, _fill_impacts, _fixed_delays, _hidden_causes, _louder_between,
-                    _one_per_impact, _periodic_members, _probe, _rest_time, _robust_trend, _secondary_delays,
+                    _echoing_members, _explained_secondaries, _fill_impacts, _first_pass,
+                    _fixed_delays, _hidden_causes, _louder_between, _one_per_impact,
+                    _periodic_members, _probe, _rest_time, _robust_trend, _secondary_delays,
                     _secondary_levels, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
@@ -146,6 +147,7 @@ _RUN_COUNT_FACTOR = 3.0  # ... and as many as the first train found within this 
 _RUN_RATIO_SPREAD = 0.1  # its median interval ratio is the first's within this, in log;
 _RUN_SHRINK = 0.5  # its last interval is less than this share of its first;
 _RUN_LOUDNESS = 10.0  # its loudest impact is within this factor of the first train's;
+_FIRST_PASS_SHARE = 0.5  # of its impacts, at least, the chain's first pass finds
 _MAX_REST_RATIO = 0.99  # flight ratio after the last impact of a train, for its rest time
 _ECHO_TOLERANCE_SECONDS = 0.3e-3  # an echo's impacts repeat its source's at one delay
 # and lies this long (s) past the last impact of the one before: its rings and echoes (2 ×
@@ -324,8 +326,8 @@ def _impact_table(path, stream, sample_rate, duration):
     """Select the impacts among the stored transients, time them, and build the table: one
     run per drop of the ball that the recording holds, in time order.
 
-    The train of the best chain over the whole recording is found first
-    (:func:`_train_table`). Other drops are looked for in the stretches before and after it
+    The train of the best chain over the whole recording is found first (:func:`_drop_in`).
+    Other drops are looked for in the stretches before and after it
     (:func:`_other_drop`); where there are any, each train is found again on its own stretch
     of the recording (from the release of its ball to the release of the next one), so that
     no train's result depends on the others'.
@@ -340,13 +342,14 @@ def _impact_table(path, stream, sample_rate, duration):
     rough = np.array([c["onset"] for c in candidates]) / sample_rate
     first = _drop_in(path, stream, rough, sample_rate, 0.0, duration)
     trains = [first]
-    stretches = _stretches_around(first, rough, 0.0, duration)
+    amplitude = np.array([c["amplitude"] for c in candidates])
+    stretches = _stretches_around(first, rough, amplitude, first, 0.0, duration)
     while stretches:
         start, end = stretches.pop()
-        other = _other_drop(path, stream, rough, sample_rate, start, end, trains)
+        other = _other_drop(path, stream, rough, amplitude, sample_rate, start, end, trains)
         if other is not None:
             trains.append(other)
-            stretches += _stretches_around(other, rough, start, end)
+            stretches += _stretches_around(other, rough, amplitude, first, start, end)
     if len(trains) == 1:
         return first
     trains.sort(key=lambda train: train["time"].iat[0])
@@ -399,15 +402,20 @@ def _drop_in(path, stream, rough, sample_rate, start, end):
     return train
 
 
-def _stretches_around(train, rough, start, end):
+def _stretches_around(train, rough, amplitude, first, start, end):
     """The stretches (s) of [`start`, `end`) before and after `train` (an impact table) in
     which another drop may lie: before the release of its ball, and from the time its rings
-    and echoes last past its last impact; only those holding enough transients for a
-    train."""
+    and echoes last past its last impact. Only those are kept whose transients (rough onsets
+    `rough`, s, and `amplitude`, full scale) could make a drop of the ball of the `first`
+    train found (:func:`_other_drop`): as many transients as that drop needs impacts, and
+    one as loud as its loudest impact must be."""
     times = train["time"].to_numpy()
     stretches = [(start, _release(times)), (times[-1] + _AFTER_TRAIN_SECONDS, end)]
+    needed = max(_MIN_RUN_IMPACTS, len(first) / _RUN_COUNT_FACTOR)
+    loud = amplitude * _RUN_LOUDNESS >= first["amplitude"].max()
     return [(lo, hi) for lo, hi in stretches
-            if np.count_nonzero((rough >= lo) & (rough < hi)) >= _MIN_RUN_IMPACTS]
+            if np.count_nonzero((rough >= lo) & (rough < hi)) >= needed
+            and np.any(loud & (rough >= lo) & (rough < hi))]
 
 
 def _within(stream, rough, start, end):
@@ -423,7 +431,7 @@ def _subset(stream, kept):
     return part
 
 
-def _other_drop(path, stream, rough, sample_rate, start, end, trains):
+def _other_drop(path, stream, rough, amplitude, sample_rate, start, end, trains):
     """The impact table of a drop of the ball in [`start`, `end`) (s), or None.
 
     A train found there (:func:`_train_table`) is another drop only if it is one beyond
@@ -446,12 +454,23 @@ def _other_drop(path, stream, rough, sample_rate, start, end, trains):
       grows with the impact speed: a tenth of it is a drop from a hundredth of the height; a
       chain can take the steady clicks of a ball at rest at multiples of their period).
     """
+    # A train needs as many impacts in the first pass of the chain as it finds, but for
+    # those the later passes add (:data:`_FIRST_PASS_SHARE`): where the first pass is
+    # shorter, the full search (the fits, the probes of the file) is not made.
+    needed = max(_MIN_RUN_IMPACTS, len(trains[0]) / _RUN_COUNT_FACTOR)
+    inside = (rough >= start) & (rough < end)
+    candidates = [c for c, kept in zip(stream.candidates, inside) if kept]
+    strength = np.array([c["strength"] for c in candidates]) / stream.settings.min_power
+    chain, _ = _first_pass(rough[inside], strength, amplitude[inside],
+                           np.array([c["strong"] for c in candidates], dtype=bool))
+    if chain.size < _FIRST_PASS_SHARE * needed:
+        return None
     try:
         train = _drop_in(path, stream, rough, sample_rate, start, end)
     except InputError:
         return None
     times, known = train["time"].to_numpy(), trains[0]["time"].to_numpy()
-    if times.size < max(_MIN_RUN_IMPACTS, known.size / _RUN_COUNT_FACTOR):
+    if times.size < needed:
         return None
     intervals = np.diff(times)
     if intervals[-1] >= _RUN_SHRINK * intervals[0]:

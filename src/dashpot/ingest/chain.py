@@ -198,6 +198,17 @@ def _chain_weights(times, power_ratio, amplitude):
     return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
 
 
+def _first_pass(times, power_ratio, amplitude, strong):
+    """The first pass of :func:`_select_bounces`: the best chain of the strong transients
+    under the ratio bounds alone (indices into the transients at `times`, s), without the
+    faint members before its first impact, and the strong transients' scores
+    (:func:`_chain_weights`)."""
+    candidates = np.flatnonzero(strong)
+    weights = _chain_weights(times[candidates], power_ratio[candidates], amplitude[candidates])
+    return candidates[_trim_start(_best_chain(times[candidates], weights),
+                                  amplitude[candidates])], weights
+
+
 def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     """Chain of impacts among the transients at `times` (s), and notes on missing ones.
 
@@ -222,10 +233,7 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     """
     candidates = np.flatnonzero(strong)
     weights = np.zeros(times.size)
-    weights[candidates] = _chain_weights(times[candidates], power_ratio[candidates],
-                                         amplitude[candidates])
-    chain = candidates[_trim_start(_best_chain(times[candidates], weights[candidates]),
-                                   amplitude[candidates])]
+    chain, weights[candidates] = _first_pass(times, power_ratio, amplitude, strong)
     if chain.size < 4:
         return chain, 0
     chain = _shift_to_causes(times, chain)
@@ -916,7 +924,9 @@ def _periodic_members(times, chain):
     A ball at rest may click on for seconds at a steady period (a rolling ball, a clock): the
     best chain can follow such clicks (their ratios are 1, as smooth a trend as any) rather
     than the train. A ball's intervals shrink at every bounce, by several % (a restitution
-    of 0.97 spans 14 % over five intervals): no run of them is this even.
+    of 0.97 spans 14 % over five intervals): no run of them is this even. A run's first
+    member is not counted (the clicks may begin one period after the last impact) unless an
+    earlier run holds it.
     """
     periodic = np.zeros(times.size, dtype=bool)
     members = chain[np.argsort(times[chain])]
@@ -926,9 +936,10 @@ def _periodic_members(times, chain):
     runs = np.lib.stride_tricks.sliding_window_view(intervals, _PERIODIC_RUN)
     even = np.all(np.abs(runs / np.median(runs, axis=1, keepdims=True) - 1.0)
                   <= _PERIODIC_SPREAD, axis=1)
-    # Interval k joins members k and k + 1; a run starting at k spans members k to k + run.
+    # Interval k joins members k and k + 1; a run starting at k spans members k to k + run,
+    # and its first member may be the impact the clicks began one period after.
     for start in np.flatnonzero(even):
-        periodic[members[start:start + _PERIODIC_RUN + 1]] = True
+        periodic[members[start + 1:start + _PERIODIC_RUN + 1]] = True
     return periodic
 
 
@@ -1404,21 +1415,31 @@ def _drop_start(times, amplitudes):
     sound, only falls (an impact on a secondary of the one before sums the two).
     """
     intervals = np.diff(times)
+    if intervals.size < 2:
+        return 0
     ratios = np.clip(intervals[1:] / intervals[:-1], *_RATIO_BOUNDS)
-    rises = amplitudes[1:] > _DROP_RISE * amplitudes[:-1]
+    # The median of the ratios from each on to the end, at once.
+    upper = np.triu(np.ones((ratios.size, ratios.size), dtype=bool))
+    medians = np.minimum(np.nanmedian(np.where(upper, ratios[None, :], np.nan), axis=1),
+                         _MAX_DROP_RATIO).tolist()
+    limits = np.where(amplitudes[1:] > _DROP_RISE * amplitudes[:-1], 1.0, _DROP_GAP).tolist()
     # The first flight of the interval after the impact reached. Transients taken for impacts
     # at the end make intervals short, so it starts from the upper quartile of the last eight,
     # and going back it never shrinks.
     flight = float(np.percentile(intervals[-8:], 75))
-    # Sequential: each interval's flights are measured from the one after it.
-    for index in range(intervals.size - 2, -1, -1):
-        ratio = min(float(np.median(ratios[index:])), _MAX_DROP_RATIO)
-        flights = flight / ratio ** np.arange(1, _MOST_BOUNCES + 1)
-        spans = np.cumsum(flights)
-        if intervals[index] > (1.0 if rises[index] else _DROP_GAP) * spans[-1]:
+    spans = [0.0] * int(_MOST_BOUNCES)
+    # Sequential, in scalars: each interval's flights are measured from the one after it.
+    for index, interval in zip(range(intervals.size - 2, -1, -1), intervals[-2::-1].tolist()):
+        earliest, total = flight, 0.0
+        for bounce in range(len(spans)):
+            earliest /= medians[index]
+            total += earliest
+            spans[bounce] = total
+        if interval > limits[index] * total:
             return index + 1
-        bounces = int(np.argmin(np.abs(spans - intervals[index])))
-        flight = max(intervals[index] * flights[bounces] / spans[bounces], flight)
+        bounces = min(range(len(spans)), key=lambda k: abs(spans[k] - interval))
+        first = flight / medians[index] ** (bounces + 1)  # the earliest of its flights
+        flight = max(interval * first / spans[bounces], flight)
     return 0
 
 
