@@ -459,9 +459,9 @@ def _other_drop(path, stream, rough, amplitude, sample_rate, start, end, trains)
     # shorter, the full search (the fits, the probes of the file) is not made.
     needed = max(_MIN_RUN_IMPACTS, len(trains[0]) / _RUN_COUNT_FACTOR)
     inside = (rough >= start) & (rough < end)
-    candidates = [c for c, kept in zip(stream.candidates, inside) if kept]
-    strength = np.array([c["strength"] for c in candidates]) / stream.settings.min_power
-    chain, _ = _first_pass(rough[inside], strength, amplitude[inside],
+    candidates = _within(stream, rough, start, end).candidates
+    chain, _ = _first_pass(rough[inside], np.array([c["strength"] for c in candidates])
+                           / stream.settings.min_power, amplitude[inside],
                            np.array([c["strong"] for c in candidates], dtype=bool))
     if chain.size < _FIRST_PASS_SHARE * needed:
         return None
