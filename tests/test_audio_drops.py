@@ -8,8 +8,9 @@ one fit per run and a joint fit sharing the contact parameters. The sounds aroun
 
 Synthetic recordings: 2-3 drops of one ball (one β and ω0, a drop speed each) with the
 disturbances of ``test_audio_disturbances`` (apex clicks, rest clicks, ring, echo, ring
-bursts), 0.8-4 s from the last impact of one drop to the first of the next. The seeds were
-drawn once, and never used while developing.
+bursts), 0.8-4 s from the last impact of one drop to the first of the next, and a session
+of six drops longer than a block of the stream. The seeds were drawn once, and never used
+while developing.
 """
 
 import numpy as np
@@ -27,6 +28,7 @@ from test_ingest_audio import BOUNCY
 
 RECORDING_SEEDS = range(20_497_001, 20_497_013)
 FIT_SEED = 20_497_101
+LONG_SEED = 20_497_401
 
 
 def drops_recording(seed):
@@ -217,3 +219,25 @@ def test_periodic_members_are_the_clicks_after_a_train_not_its_bounces():
     assert not periodic[:train.size].any()
     assert periodic[train.size:].all()
     assert not _periodic_members(train, np.arange(train.size)).any()
+
+
+def test_a_session_longer_than_a_block_gives_every_drop(tmp_path):
+    """Six drops 5-12 s apart (about a minute, streamed in 30 s blocks): six runs, each
+    starting at its drop's first impact."""
+    rng = np.random.default_rng(LONG_SEED)
+    _, _, drops = hybrid_drops(rng, 6)
+    gaps = rng.uniform(5.0, 12.0, size=5)
+    firsts = np.concatenate([[0.0], np.cumsum([t[-1] for t, _ in drops[:-1]] + gaps)])
+    times = np.concatenate([t + first for (t, _), first in zip(drops, firsts)])
+    samples, onsets, _ = disturbed_sound(rng, LONG_SEED, times,
+                                         np.concatenate([v for _, v in drops]))
+    assert samples.shape[0] > 1.5 * 30.0 * RATE  # more than one block (the default 30 s)
+    table = detect_impacts(write_audio(tmp_path / "session.wav", samples, RATE,
+                                       subtype="FLOAT"))
+    bounds = np.cumsum([0] + [t.size for t, _ in drops])
+    assert table["run"].nunique() == 6
+    for (_, run), first, last in zip(table.groupby("run"), bounds[:-1], bounds[1:]):
+        truth = onsets[first:last]
+        assert abs(run["time"].iat[0] - truth[0]) < MATCH
+        score = score_train(truth, run["time"].to_numpy(), np.ones(len(run)), MATCH)
+        assert score["found"] >= 0.95 * truth.size
