@@ -31,12 +31,14 @@ FIT_SEED = 20_497_101
 LONG_SEED = 20_497_401
 
 
-def drops_recording(seed):
-    """(samples, true onsets of each drop, β (1/s), ω0 (rad/s)) of a recording of 2-3 drops."""
+def drops_recording(seed, count=None, gaps=(0.8, 4.0)):
+    """(samples, true onsets of each drop, β (1/s), ω0 (rad/s)) of a recording of `count`
+    drops (2-3, drawn, by default), from `gaps` (s) apart from one's last impact to the
+    next one's first."""
     rng = np.random.default_rng(seed)
-    count = int(rng.integers(2, 4))
+    count = int(rng.integers(2, 4)) if count is None else count
     beta, omega0, drops = hybrid_drops(rng, count)
-    gaps = rng.uniform(0.8, 4.0, size=count - 1)
+    gaps = rng.uniform(*gaps, size=count - 1)
     firsts = np.concatenate([[0.0], np.cumsum([t[-1] for t, _ in drops[:-1]] + gaps)])
     times = np.concatenate([t + first for (t, _), first in zip(drops, firsts)])
     samples, onsets, _ = disturbed_sound(rng, seed, times,
@@ -224,20 +226,12 @@ def test_periodic_members_are_the_clicks_after_a_train_not_its_bounces():
 def test_a_session_longer_than_a_block_gives_every_drop(tmp_path):
     """Six drops 5-12 s apart (about a minute, streamed in 30 s blocks): six runs, each
     starting at its drop's first impact."""
-    rng = np.random.default_rng(LONG_SEED)
-    _, _, drops = hybrid_drops(rng, 6)
-    gaps = rng.uniform(5.0, 12.0, size=5)
-    firsts = np.concatenate([[0.0], np.cumsum([t[-1] for t, _ in drops[:-1]] + gaps)])
-    times = np.concatenate([t + first for (t, _), first in zip(drops, firsts)])
-    samples, onsets, _ = disturbed_sound(rng, LONG_SEED, times,
-                                         np.concatenate([v for _, v in drops]))
+    samples, truth, _, _ = drops_recording(LONG_SEED, count=6, gaps=(5.0, 12.0))
     assert samples.shape[0] > 1.5 * 30.0 * RATE  # more than one block (the default 30 s)
     table = detect_impacts(write_audio(tmp_path / "session.wav", samples, RATE,
                                        subtype="FLOAT"))
-    bounds = np.cumsum([0] + [t.size for t, _ in drops])
     assert table["run"].nunique() == 6
-    for (_, run), first, last in zip(table.groupby("run"), bounds[:-1], bounds[1:]):
-        truth = onsets[first:last]
-        assert abs(run["time"].iat[0] - truth[0]) < MATCH
-        score = score_train(truth, run["time"].to_numpy(), np.ones(len(run)), MATCH)
-        assert score["found"] >= 0.95 * truth.size
+    for (_, run), onsets in zip(table.groupby("run"), truth):
+        assert abs(run["time"].iat[0] - onsets[0]) < MATCH
+        score = score_train(onsets, run["time"].to_numpy(), np.ones(len(run)), MATCH)
+        assert score["found"] >= 0.95 * onsets.size
