@@ -20,6 +20,7 @@ from scipy import signal
 
 import dashpot
 from dashpot.errors import InputError
+from dashpot.ingest import audio
 from dashpot.ingest import chain as chaining
 from dashpot.ingest import envelope
 from dashpot.ingest.audio import detect_impacts
@@ -158,18 +159,20 @@ def test_chain_scores_equal_the_reference(trend, budget, ties):
 # ----------------------------------------------------------------------- the whole detector
 
 
-def _detect(path, compiled, monkeypatch, **options):
-    """Impact table (or the one-line error) of one detector path."""
+def _detect(path, compiled, monkeypatch, block_seconds=30.0):
+    """Impact table (or the one-line error) of one detector path, the file analysed in blocks
+    of `block_seconds` (s)."""
     monkeypatch.setattr(envelope, "COMPILED", compiled)
+    monkeypatch.setattr(audio, "_BLOCK_SECONDS", block_seconds)
     try:
-        return detect_impacts(path, **options)
+        return detect_impacts(path)
     except InputError as error:
         return str(error)
 
 
-def _assert_same_impacts(path, monkeypatch, **options):
-    reference = _detect(path, False, monkeypatch, **options)
-    compiled = _detect(path, True, monkeypatch, **options)
+def _assert_same_impacts(path, monkeypatch, block_seconds=30.0):
+    reference = _detect(path, False, monkeypatch, block_seconds)
+    compiled = _detect(path, True, monkeypatch, block_seconds)
     if isinstance(reference, str):
         assert compiled == reference
         return 0
@@ -215,7 +218,7 @@ def test_compiled_detector_gives_the_reference_impacts(tmp_path, monkeypatch, k,
     path = write_audio(tmp_path / f"train{k}.wav", samples, rate, channels=channels,
                        subtype="FLOAT")
     assert sf.info(str(path)).channels == channels
-    impacts = _assert_same_impacts(path, monkeypatch, block_seconds=block_seconds)
+    impacts = _assert_same_impacts(path, monkeypatch, block_seconds)
     assert impacts >= 10  # a real comparison, not two identical refusals
 
 
@@ -231,7 +234,7 @@ def test_a_16_bit_file_gives_what_its_samples_as_floats_give(tmp_path, monkeypat
     floats = tmp_path / "train_float.wav"
     sf.write(str(floats), quantized / 2.0**15, 22050, subtype="FLOAT")
     assert sf.info(str(sixteen)).subtype == "PCM_16"
-    tables = [_detect(path, compiled, monkeypatch, block_seconds=0.7)
+    tables = [_detect(path, compiled, monkeypatch, 0.7)
               for path in (sixteen, floats)]
     assert not isinstance(tables[0], str) and len(tables[0]) >= 10
     for column in ("time", "time_uncertainty", "amplitude"):

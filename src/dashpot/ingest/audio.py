@@ -1,6 +1,6 @@
 """Impacts of a bouncing ball from a sound recording (WAV, FLAC, OGG, MP3, AIFF, CAF, ...).
 
-:func:`detect_impacts` streams the file in blocks and returns the impact table of
+:func:`detect_impacts` streams the file in blocks of 30 s and returns the impact table of
 :mod:`dashpot.ingest`; :func:`read_audio` reads a whole (short) recording into memory. Both
 raise :class:`dashpot.errors.InputError` on files that cannot be used.
 
@@ -109,6 +109,7 @@ References
 from __future__ import annotations
 
 import copy
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -117,7 +118,7 @@ from scipy import signal
 from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
-from .audio_file import _blocks, _check_block_seconds, _open, read_audio
+from .audio_file import _blocks, _open, read_audio
 from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
                     _echoing_members, _explained_secondaries, _fill_impacts, _first_pass,
                     _fixed_delays, _hidden_causes, _louder_between, _one_per_impact,
@@ -138,6 +139,9 @@ __all__ = ["read_audio", "detect_impacts"]
 _SECONDARY_REACH_SECONDS = 2e-3
 _RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pass to settle
 _JOIN_READS_SECONDS = 0.05
+# The file is analysed in blocks of this length (s): the noise each is judged against is its
+# own, so the blocks are fixed on the file's timeline and no option moves them.
+_BLOCK_SECONDS = 30.0
 _FILL_PASSES = 3  # passes of the search for impacts the trend predicts, at most
 _END_IMPACTS = 4  # the last impacts, whose change lets a further pass go on past them
 _SECONDARY_MEMBERS_SHARE = 0.1  # of a chain chosen without an echo that may be secondaries
@@ -158,8 +162,8 @@ _AFTER_TRAIN_SECONDS = 2 * _SECONDARY_SECONDS
 # Public entry point
 
 
-def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12.0,
-                   min_jump_db=9.0):
+def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
+                   block_seconds=None):
     """Impact table of a recording of a ball bouncing to rest.
 
     Parameters
@@ -168,10 +172,6 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
         A recording libsndfile decodes (WAV, FLAC, OGG, MP3, AIFF, CAF, ...); sample rate at
         least :data:`MIN_SAMPLE_RATE` (8 kHz); 8/16/24/32-bit integer or float samples; any
         number of channels.
-    block_seconds : float, default 30
-        The file is decoded and analysed in blocks of this length (s), so that memory stays
-        bounded however long the recording; a last block shorter than half of it is analysed
-        with the one before.
     highpass_hz : float, default 100
         Cut-off (Hz) of the 2nd-order causal Butterworth high-pass applied before detection
         and timing: removes DC offset, hum and rumble. Being causal it cannot move an onset
@@ -181,6 +181,10 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
         (dB, noise-normalised power averaged over channels).
     min_jump_db : float, default 9
         ... and its power must jump by at least this much over the 2 ms before it (dB).
+    block_seconds : None
+        Deprecated, without effect (a FutureWarning says so): it set the length of the
+        blocks the file was analysed in, and results depended on it. The blocks are now
+        30 s of the file's timeline whatever is given (see Notes).
 
     Returns
     -------
@@ -241,11 +245,21 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
     of earlier drops before a train is cut where an interval is longer than any number of
     missed flights can make it (:func:`dashpot.ingest.chain._drop_start`).
 
+    Blocks: the file is decoded and analysed in blocks of 30 s, so that memory stays bounded
+    however long the recording (a last block shorter than 15 s is analysed with the one
+    before). Each block's transients are judged against its own noise (level and colour),
+    which may change over a long recording; the blocks are fixed on the file's timeline, so
+    that the same file always gives the same impacts.
+
     Speed: the work per sample is a few vectorized passes (high-pass, running sums); the fits
     run on the selected impacts only, and the probes of predicted impacts read a few tens of
     ms of the file each.
     """
-    _check_block_seconds(block_seconds)
+    if block_seconds is not None:
+        warnings.warn("detect_impacts: block_seconds is deprecated and has no effect; the "
+                      f"file is analysed in blocks of {_BLOCK_SECONDS:g} s of its timeline, "
+                      "so that its impacts do not depend on an option", FutureWarning,
+                      stacklevel=2)
     for name, value in (("highpass_hz", highpass_hz), ("min_snr_db", min_snr_db),
                         ("min_jump_db", min_jump_db)):
         if not np.isfinite(value) or value <= 0:
@@ -268,7 +282,7 @@ def detect_impacts(path, *, block_seconds=30.0, highpass_hz=100.0, min_snr_db=12
         sixteen_bit = handle.subtype == "PCM_16"
         stream = _Stream(settings=settings, channels=handle.channels, sos=sos,
                          scale=2.0**-15 if sixteen_bit else 1.0)
-        block_frames = max(int(round(block_seconds * sample_rate)), settings.carry)
+        block_frames = max(int(round(_BLOCK_SECONDS * sample_rate)), settings.carry)
         pending = None
         # One block of look-ahead, so that the last one is processed as final. A last block
         # shorter than half a block is processed with the one before: a few seconds that the
