@@ -201,6 +201,39 @@ def test_detection_figure_with_few_or_no_impacts():
         plots.detection_figure(time_s, envelope, impacts, samples=envelope)
 
 
+def test_detection_figure_marks_the_runs_of_a_recording_of_several_drops():
+    rate = 2000.0
+    time_s = np.arange(int(9.0 * rate)) / rate
+    envelope = np.full(time_s.size, 0.01)
+    drops = [0.3 + np.cumsum(0.4 * 0.8 ** np.arange(n)) for n in (14, 11)]
+    drops[1] = drops[1] + 5.0
+    impacts = np.concatenate(drops)
+    runs = np.repeat([0, 1], [drops[0].size, drops[1].size])
+    shuffled = np.random.default_rng(20501001).permutation(impacts.size)  # any row order
+    fig = plots.detection_figure(time_s, envelope, impacts[shuffled], runs=runs[shuffled],
+                                 tail_count=8)
+    _render(fig)
+    overview, close = fig.axes
+    assert overview.get_title().endswith("25 detected impacts in 2 runs")
+    between = [line for line in overview.collections if line.get_label() == "between runs (drops)"]
+    assert len(between) == 1
+    (segment,) = between[0].get_segments()
+    assert drops[0][-1] < segment[0][0] < drops[1][0]
+    labels = [text.get_text() for text in overview.texts]
+    assert labels == ["run 0", "run 1"]
+    # The close-up holds the last 8 impacts of run 1, numbered 4 to 11 within it.
+    lo, hi = close.get_xlim()
+    assert lo < drops[1][-8] and hi > drops[1][-1] and lo > drops[1][-9]
+    assert [text.get_text() for text in close.texts] == [str(n) for n in range(4, 12)]
+    assert close.get_title() == "Close-up: last 8 of 11 impacts of run 1"
+    # A last run shorter than the close-up: only its own impacts.
+    fig = plots.detection_figure(time_s, envelope, impacts[:17], runs=runs[:17])
+    lo, hi = fig.axes[1].get_xlim()
+    assert drops[0][-1] < lo < drops[1][0] and hi > drops[1][2]
+    with pytest.raises(ValueError, match="run of each impact"):
+        plots.detection_figure(time_s, envelope, impacts, runs=runs[:-1])
+
+
 def test_intervals_figure_with_failed_model_and_nan_predictions():
     n, observed, sigma, predictions = _scene()
     predictions["IIa"] = 0.5 * 0.91 ** n  # given, but the fit failed: must not be drawn

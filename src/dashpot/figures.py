@@ -320,7 +320,7 @@ def noise_effect_steps(noise_selection):
     return steps
 
 
-def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000):
+def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000, runs=None):
     """What the detection figure draws of a recording, read in blocks (bounded memory).
 
     Parameters
@@ -334,6 +334,8 @@ def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000
     columns : int, default 2000
         Pixel columns of the close-up: its raw samples are reduced to the smallest and largest
         of each (:func:`dashpot.envelope.channel_extremes`).
+    runs : array_like, optional
+        The run of each impact: the close-up shows the last run's.
 
     Returns
     -------
@@ -346,7 +348,7 @@ def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000
 
     time, envelope, loudest, _ = recording_envelope(recording)
     start, stop = plots.detection_closeup(impact_times, time[0], time[-1],
-                                          tail_count=tail_count)
+                                          tail_count=tail_count, runs=runs)
     # A sample or two beyond the span, so that the curve reaches both edges of the close-up.
     margin = 2e-3
     sample_time, samples = channel_extremes(recording, loudest, start - margin, stop + margin,
@@ -355,11 +357,14 @@ def detection_figure_data(recording, impact_times, *, tail_count=8, columns=2000
 
 
 def detection_figure(record, recording):
-    """Envelope of an audio recording with the impacts stored in its scene file."""
+    """Envelope of an audio recording with the impacts stored in its scene file (each drop of
+    the ball a run)."""
     impacts = record["impacts"]["time"].to_numpy(float)
-    data = detection_figure_data(recording, impacts)
+    runs = record["impacts"]["run"].to_numpy() if "run" in record["impacts"] else None
+    data = detection_figure_data(recording, impacts, runs=runs)
     return plots.detection_figure(data["time"], data["envelope"], impacts,
-                                  sample_time=data["sample_time"], samples=data["samples"])
+                                  sample_time=data["sample_time"], samples=data["samples"],
+                                  runs=runs)
 
 
 def save_scene_figures(record, folder, *, recording=None):

@@ -467,8 +467,22 @@ def _as_series(name, value):
     return array
 
 
-def detection_closeup(impact_times, start_time, end_time, *, tail_count=8):
-    """Span (s) of the close-up of :func:`detection_figure`: the last `tail_count` impacts.
+def _last_run(impact_times, runs=None):
+    """The impact times (s) of the last run (the run of the latest impact), in time order; all
+    of them where `runs` (the run of each impact) is not given."""
+    impacts = np.asarray(impact_times, dtype=float).ravel()
+    if runs is not None and impacts.size:
+        runs = np.asarray(runs).ravel()
+        if runs.shape != impacts.shape:
+            raise ValueError(f"runs must give the run of each impact; got {runs.size} runs "
+                             f"for {impacts.size} impacts")
+        impacts = impacts[runs == runs[np.argmax(impacts)]]
+    return np.sort(impacts)
+
+
+def detection_closeup(impact_times, start_time, end_time, *, tail_count=8, runs=None):
+    """Span (s) of the close-up of :func:`detection_figure`: the last `tail_count` impacts (of
+    the last run, where `runs` gives the run of each impact).
 
     Half the longest interval among them is added on either side (2 % of the recording for a
     single impact), within the recording from `start_time` to `end_time` (s) where that leaves
@@ -479,7 +493,7 @@ def detection_closeup(impact_times, start_time, end_time, *, tail_count=8):
     -------
     start, stop : float
     """
-    tail = np.sort(np.asarray(impact_times, dtype=float).ravel())[-int(tail_count):]
+    tail = _last_run(impact_times, runs)[-int(tail_count):]
     if not tail.size:
         return start_time, end_time
     if tail.size >= 2:
@@ -493,7 +507,7 @@ def detection_closeup(impact_times, start_time, end_time, *, tail_count=8):
 
 
 def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=None,
-                     tail_count=8):
+                     tail_count=8, runs=None):
     """The recording's envelope with the detected impacts, and a close-up of the last bounces.
 
     Parameters
@@ -513,6 +527,11 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
         of each pixel column (:func:`dashpot.envelope.channel_extremes`).
     tail_count : int, default 8
         Number of final impacts the close-up shows.
+    runs : array_like, optional
+        The run of each impact (a recording of several drops of the ball: the ``run`` column
+        of the impact table). With more than one, each run is labelled over its impacts and
+        a dotted line is drawn between runs, and the close-up shows the last run's impacts,
+        numbered within it.
 
     Returns
     -------
@@ -525,7 +544,10 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
     if time.shape != envelope.shape:
         raise ValueError(f"time and envelope must have the same length; got {time.size} and "
                          f"{envelope.size}")
-    impacts = np.sort(np.asarray(impact_times, dtype=float).ravel())
+    order = np.argsort(np.asarray(impact_times, dtype=float).ravel(), kind="stable")
+    impacts = np.asarray(impact_times, dtype=float).ravel()[order]
+    last_run = _last_run(impact_times, runs)
+    run_labels = np.zeros(0) if runs is None else np.asarray(runs).ravel()[order]
     if (sample_time is None) != (samples is None):
         raise ValueError("give both sample_time and samples, or neither")
     tail_count = int(tail_count)
@@ -544,16 +566,31 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
     overview.plot(impacts, np.full(impacts.shape, 0.97), transform=marks, linestyle="none",
                   marker="v", markersize=4, color=mark,
                   label=f"detected impacts ({impacts.size})")
+    # Runs in time order: where the run changes between two impacts, a dotted line midway.
+    changes = np.flatnonzero(run_labels[1:] != run_labels[:-1]) + 1
+    if changes.size:
+        overview.vlines(0.5 * (impacts[changes - 1] + impacts[changes]), 0.0, 1.0,
+                        transform=marks, color=ink, linewidth=0.8, linestyle=":",
+                        label="between runs (drops)")
+        for first_of_run in np.concatenate(([0], changes)):
+            overview.annotate(f"run {run_labels[first_of_run]}",
+                              xy=(impacts[first_of_run], 0.88), xycoords=marks,
+                              xytext=(3, 0), textcoords="offset points", fontsize="x-small",
+                              color=ink, ha="left", va="center",
+                              bbox={"boxstyle": "square,pad=0.1", "facecolor": "white",
+                                    "edgecolor": "none", "alpha": 0.8})
 
-    tail = impacts[-tail_count:]
-    start, stop = detection_closeup(impacts, time[0], time[-1], tail_count=tail_count)
+    tail = last_run[-tail_count:]
+    start, stop = detection_closeup(impacts, time[0], time[-1], tail_count=tail_count,
+                                    runs=None if runs is None else run_labels)
     if tail.size:
         overview.axvspan(start, stop, color="0.5", alpha=0.15, linewidth=0,
                          label="close-up below")
     overview.set_xlim(time[0], time[-1])
     overview.set_xlabel("time $t$ (s)")
     overview.set_ylabel("envelope (full scale)")
-    overview.set_title(f"Recording with {impacts.size} detected impacts")
+    overview.set_title(f"Recording with {impacts.size} detected impacts"
+                       + (f" in {changes.size + 1} runs" if changes.size else ""))
     overview.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
                     frameon=False)
     # Leave room above the envelope for the impact ticks and the legend.
@@ -569,7 +606,7 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
         close.plot(sx, sy, color="0.7", linewidth=0.5, label="raw samples")
     cx, cy = _window(time, envelope, start, stop, 2000)
     close.plot(cx, cy, color=ink, linewidth=0.9, label="envelope")
-    first = impacts.size - tail.size
+    first = last_run.size - tail.size
     for number, t in enumerate(tail, start=first + 1):
         close.axvline(t, color=mark, linewidth=0.9, linestyle="--")
         close.annotate(f"{number}", xy=(t, 1.0), xycoords=("data", "axes fraction"),
@@ -581,7 +618,8 @@ def detection_figure(time, envelope, impact_times, *, sample_time=None, samples=
     close.set_xlim(start, stop)
     close.set_xlabel("time $t$ (s)")
     close.set_ylabel("signal (full scale)")
-    close.set_title(f"Close-up: last {tail.size} of {impacts.size} impacts")
+    close.set_title(f"Close-up: last {tail.size} of {last_run.size} impacts"
+                    + (f" of run {run_labels[-1]}" if changes.size else ""))
     close.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
     ymin, ymax = close.get_ylim()
     close.set_ylim(ymin, ymin + 1.3 * (ymax - ymin))
