@@ -3,7 +3,11 @@ of samples, and one-line errors for files that cannot be used (truncated, corrup
 
 from __future__ import annotations
 
+import atexit
 import re
+import shutil
+import tempfile
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +19,15 @@ from ..errors import InputError
 # Every container the bundled libsndfile decodes, except header-less RAW (it cannot be opened
 # without being told its layout).
 _FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
+
+# Lossy codecs whose seeking libsndfile does not make sample-exact: Vorbis lands up to a
+# lapped block off (libsndfile issue 885, open in 1.2.2: reads after a seek were 1664 frames
+# off, or garbled); Opus and MP3 decode from a seek point after a pre-roll that need not
+# reproduce the sequential decode to the last bit. Such a file is decoded once, in order,
+# into a temporary copy, which every later read seeks in.
+_INEXACT_SEEK_SUBTYPES = {"VORBIS", "OPUS", "MPEG_LAYER_I", "MPEG_LAYER_II", "MPEG_LAYER_III"}
+_DECODED_COPIES_KEPT = 4  # most recently opened lossy files whose copies are kept
+_DECODE_BLOCK_FRAMES = 1 << 18
 
 
 # --------------------------------------------------------------------------------------------
@@ -105,11 +118,56 @@ def _wav_with_unset_sizes(path):
     return bytes(header), note
 
 
+class _DecodedCopies:
+    """Temporary 32-bit float WAV copies of lossy recordings, decoded once each, in order.
+
+    Keyed by the file's resolved path, size and modification time (an edited file is decoded
+    again); the least recently used beyond :data:`_DECODED_COPIES_KEPT` are deleted, and all
+    of them when the process exits. The decoders of these codecs output 32-bit floats, so
+    the copy holds exactly the samples a sequential read gives.
+    """
+
+    def __init__(self):
+        self._folder = None
+        self._copies = OrderedDict()
+
+    def copy_of(self, path, handle):
+        """Path of the decoded copy of `path`, open as `handle` (read from its start)."""
+        stat = path.stat()
+        key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+        if key in self._copies:
+            self._copies.move_to_end(key)
+            return self._copies[key]
+        if self._folder is None:
+            self._folder = Path(tempfile.mkdtemp(prefix="dashpot-decoded-"))
+            atexit.register(shutil.rmtree, self._folder, ignore_errors=True)
+        copy = self._folder / f"{len(self._copies)}-{stat.st_mtime_ns}-{path.stem[:40]}.wav"
+        try:
+            with sf.SoundFile(str(copy), "w", samplerate=handle.samplerate,
+                              channels=handle.channels, subtype="FLOAT", format="WAV") as out:
+                for block in _blocks(handle, path, _DECODE_BLOCK_FRAMES, dtype="float32"):
+                    out.write(block)
+        except BaseException:
+            copy.unlink(missing_ok=True)
+            raise
+        self._copies[key] = copy
+        while len(self._copies) > _DECODED_COPIES_KEPT:
+            _, oldest = self._copies.popitem(last=False)
+            oldest.unlink(missing_ok=True)
+        return copy
+
+
+_DECODED = _DecodedCopies()
+
+
 def _open(path):
     """Open `path` with libsndfile, turning every reason it cannot be used into InputError.
 
     A WAV whose header sizes were never filled in (0 or 0xFFFFFFFF, as a crashed recorder
-    leaves them) is read from the samples present; the handle's ``repair_note`` says so.
+    leaves them) is read from the samples present; the handle's ``repair_note`` says so. A
+    lossy recording (Vorbis, Opus, MP3), whose seeking libsndfile does not make exact, is
+    opened as its decoded copy (:class:`_DecodedCopies`; its ``lossy_codec`` names the codec,
+    "" for other files).
     """
     from . import UNREADABLE_MEDIA, unreadable_media_problem
 
@@ -142,6 +200,13 @@ def _open(path):
     if handle.frames == 0:
         handle.close()
         raise InputError(path, "empty recording: the file holds no samples")
+    codec = handle.subtype
+    if codec in _INEXACT_SEEK_SUBTYPES:
+        with handle:
+            copy = _DECODED.copy_of(path, handle)
+        handle = sf.SoundFile(str(copy))
+        handle.repair_note = ""
+    handle.lossy_codec = codec if codec in _INEXACT_SEEK_SUBTYPES else ""
     return handle
 
 
