@@ -226,6 +226,29 @@ def test_audacity_label_export(tmp_path, stiff, labels):
         read_timestamps(path, unit="ms")
 
 
+@pytest.mark.parametrize("line_end", ["\n", "\r\n"])
+def test_audacity_label_export_with_frequency_ranges(tmp_path, stiff, line_end):
+    """Labels placed in Audacity's spectrogram view carry a frequency range, which its label
+    export writes on a line of its own below the label: a backslash, then the low and the
+    high frequency in Hz, tab-separated, six decimals each. Some labels have one,
+    some not (a point label placed on the waveform); on Windows every line ends in CRLF.
+    Every label's start is read as an impact time, none of the frequency lines."""
+    times = np.round(stiff.impact_times + 0.5, 6)
+    lines = []
+    for k, t in enumerate(times):  # writing the fixture: a label per impact
+        lines.append(f"{t:.6f}\t{t:.6f}\tbounce {k + 1}")
+        if k % 3:
+            lines.append(f"\\\t{100.0 + k:.6f}\t{4000.0 + 10 * k:.6f}")
+    path = tmp_path / "labels.txt"
+    path.write_bytes((line_end.join(lines) + line_end).encode())
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=5e-7)
+    assert any("Audacity" in note for note in frame.attrs["notes"])
+    assert "frequency line(s)" in frame.attrs["notes"][0]
+
+
 def test_header_less_second_column_that_is_no_uncertainty_is_refused(tmp_path, stiff):
     """Instants exported by an annotation tool as 'time,label' with numbered labels (no
     header): the labels 1, 2, 3 ... are no 1σ of the times (an uncertainty as large as the

@@ -20,7 +20,9 @@ References
    set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
    with ``NaN``.
 .. [9] Audacity manual, "Label Tracks", exporting labels: a text file of one label per line,
-   start and end time in seconds and the label's text, tab-separated, no header.
+   start and end time in seconds and the label's text, tab-separated, no header; Audacity's
+   ``LabelStruct::Export`` writes a label's frequency range (spectral selection, in Hz) on a
+   line of its own below it, starting with a backslash and a tab (``\\<tab>f0<tab>f1``).
 """
 
 from __future__ import annotations
@@ -313,13 +315,27 @@ def _parse_cells(path, text, separator, decimal, member):
     return np.char.strip(cells)
 
 
+def _label_frequency_lines(lines):
+    """Boolean array: which lines are Audacity's frequency ranges of the label above [9]_.
+
+    Such a line starts with a backslash and a tab (Audacity's mark for a line that continues
+    the label before it), so no table row of numbers or words is one.
+    """
+    return np.array([line.startswith("\\\t") for line in lines], dtype=bool)
+
+
 def _text_table(path, raw, member):
     """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark).
 
-    Lines starting with '#' before the first table line are comments and are skipped.
+    Lines starting with '#' before the first table line are comments and are skipped, and so
+    are the frequency lines of an Audacity label export (see _label_frequency_lines).
     """
     text, encoding = _decode(path, raw, member)
     lines = text.splitlines()
+    frequency_lines = _label_frequency_lines(lines)
+    if frequency_lines.any():
+        lines = [line for line, skip in zip(lines, frequency_lines) if not skip]
+        text = "\n".join(lines)
     comments = 0
     while comments < len(lines) and lines[comments].lstrip().startswith("#"):
         comments += 1
@@ -380,6 +396,8 @@ def _text_table(path, raw, member):
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
                + (f", {comments} comment line(s) skipped" if comments else "")
+               + (f", {int(frequency_lines.sum())} label frequency line(s) skipped"
+                  if frequency_lines.any() else "")
                + (", Vernier Format 2 text export" if vernier is not None else "")
                + (f", {titles} title line(s) above the header skipped" if titles else ""))
     if tracker is None and not blocks:
