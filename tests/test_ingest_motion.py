@@ -709,6 +709,29 @@ def test_tracker_exports_are_motion_data(tmp_path, tracked_ball, layout):
         assert "from column 'y'" in notes
 
 
+@pytest.mark.parametrize("mark", [".", ","])
+def test_tracker_export_with_a_space_delimiter(tmp_path, tracked_ball, mark):
+    """Tracker's data export with its "Space" delimiter (Windows line ends, the numbers in
+    the system's decimal style; the ball not marked on the first three frames, whose x and y
+    are blank: two spaces after the time). Every bounce is found and timed within 4σ, as
+    from the tab-delimited export."""
+    time, x, height, truth = tracked_ball
+    rows = [[java_scientific(v).replace(".", mark) for v in row]
+            for row in zip(time, x, height)]
+    for row in rows[:3]:  # frames nobody marked
+        row[1:] = ["", ""]
+    path = tmp_path / "ball.txt"
+    path.write_bytes("\r\n".join(["mass_A", "t x y"] + [" ".join(row) for row in rows]
+                                 ).encode() + b"\r\n")
+    assert sniff_table(path) == "motion_sensor"
+    found = read_impacts(path)
+    assert len(found) == (truth["rebound_speeds"] > 0).sum()
+    assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+    notes = " ".join(found.attrs["notes"])
+    assert "space separated" in notes and "track 'mass_A'" in notes
+    assert "from column 'y'" in notes
+
+
 @pytest.mark.parametrize("speed", [0.5, 1.5, 3.0])
 def test_tracker_ball_thrown_forward_is_read_along_its_bounces(tmp_path, tracked_ball, speed):
     """A ball thrown forward, bouncing along the floor as it travels (x grows by up to 4.5 m,

@@ -1,8 +1,9 @@
 """Conventions shared by the lab-table readers: loading, headers, units, numbers, runs.
 
 A file is loaded as one or more tables of string cells: a text table (the separator sniffed
-among tab, semicolon and comma; the decimal mark a comma when the separator is not and numbers
-like ``1,25`` occur; leading ``#`` comment lines skipped; Tracker's data export layouts, a
+among tab, semicolon and comma, else a space where every line splits alike [7]_; the decimal
+mark a comma when the separator is not and numbers like ``1,25`` occur; leading ``#`` comment
+lines skipped; Tracker's data export layouts, a
 track named above its header or several side by side, are told apart in :mod:`.tracker`, each
 track's columns carrying its name as their run label), every CSV member of a zip
 archive (phyphox's export [2]_), or every sheet of a workbook — Excel ``.xlsx``, legacy Excel
@@ -19,6 +20,9 @@ References
    ``0.000000000E0``, separators comma/tab/semicolon with decimal point or comma, one CSV per
    set in a zip (metadata under ``meta/``), or one Excel sheet per set; shorter columns padded
    with ``NaN``.
+.. [7] D. Brown, Tracker, ``TrackerIO.getData`` and ``ExportDataDialog``: the data export's
+   delimiter is a tab, space, comma or semicolon (or one the user adds); blank cells where a
+   track has no point.
 .. [9] Audacity manual, "Label Tracks", exporting labels: a text file of one label per line,
    start and end time in seconds and the label's text, tab-separated, no header; Audacity's
    ``LabelStruct::Export`` writes a label's frequency range (spectral selection, in Hz) on a
@@ -155,7 +159,9 @@ def _sniff_separator(lines):
     """The separator that splits the sniffed lines into the header's number (> 1) of fields.
 
     One line in ten (at least one) may differ, so that a row with a stray extra field is
-    reported by its row rather than hiding the separator.
+    reported by its row rather than hiding the separator. A space (Tracker's "Space"
+    delimiter [7]_) is tried last and only where every line splits alike: a header's words
+    ('Time (s)') hold spaces too.
     """
     for candidate in ("\t", ";", ","):
         counts = [len(fields) for fields in csv.reader(lines, delimiter=candidate)]
@@ -163,6 +169,9 @@ def _sniff_separator(lines):
             differing = sum(count != counts[0] for count in counts)
             if differing <= max(1, len(counts) // 10):
                 return candidate
+    counts = np.array([len(line.split(" ")) for line in lines])
+    if len(lines) > 1 and counts[0] > 1 and np.all(counts == counts[0]):
+        return " "
     return None
 
 
@@ -391,7 +400,8 @@ def _text_table(path, raw, member):
         cells = _parse_cells(path, text, separator, decimal, member)
         if separator == "," and _quoted_decimal_commas(cells[1:]):
             decimal = ","  # comma separated, each number quoted with its decimal comma
-    spelled = {"\t": "tab", ";": "semicolon", ",": "comma", None: "single-column"}
+    spelled = {"\t": "tab", ";": "semicolon", ",": "comma", " ": "space",
+               None: "single-column"}
     variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
