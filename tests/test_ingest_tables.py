@@ -249,6 +249,38 @@ def test_audacity_label_export_with_frequency_ranges(tmp_path, stiff, line_end):
     assert "frequency line(s)" in frame.attrs["notes"][0]
 
 
+@pytest.mark.parametrize("suffix", [".srt", ".vtt"])
+def test_audacity_labels_exported_as_subtitles(tmp_path, stiff, suffix):
+    """Audacity exports its labels as SubRip or WebVTT cues when the file is named .srt or
+    .vtt: per label its number, 'HH:MM:SS,mmm --> HH:MM:SS,mmm' (WebVTT: a period before the
+    milliseconds, and 'WEBVTT' on the first line), its text (maybe empty) and a blank line.
+    Every label's start is an impact time, to the millisecond written, also past a minute;
+    on the command line too."""
+    times = np.round(np.concatenate([stiff.impact_times + 0.5, [61.25, 3601.5]]), 3)
+    mark = "," if suffix == ".srt" else "."
+
+    def stamp(t):
+        whole, ms = int(t), int(round((t - int(t)) * 1000))
+        return (f"{whole // 3600:02d}:{whole // 60 % 60:02d}:{whole % 60:02d}"
+                f"{mark}{ms:03d}")
+
+    lines = ["WEBVTT", ""] if suffix == ".vtt" else []
+    for k, t in enumerate(times):  # writing the fixture: a cue per label
+        lines += [str(k + 1), f"{stamp(t)} --> {stamp(t)}", "" if k % 2 else "bounce", ""]
+    path = tmp_path / f"labels{suffix}"
+    path.write_bytes(("\r\n".join(lines) + "\r\n").encode())
+    assert sniff_table(path) == "timestamps"
+    frame = dashpot.read_impacts(path)
+    check_schema(frame, "timestamps")
+    np.testing.assert_allclose(frame["time"], times, atol=1e-9)
+    np.testing.assert_allclose(frame["time_uncertainty"], 1e-3 / 12 ** 0.5, rtol=1e-6)
+    assert "SubRip/WebVTT" in frame.attrs["notes"][0]
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(path), "-o", str(output)])
+    assert status == 0, err
+    np.testing.assert_allclose(pd.read_csv(output)["time"], times, atol=1e-9)
+
+
 def test_header_less_second_column_that_is_no_uncertainty_is_refused(tmp_path, stiff):
     """Instants exported by an annotation tool as 'time,label' with numbered labels (no
     header): the labels 1, 2, 3 ... are no 1σ of the times (an uncertainty as large as the

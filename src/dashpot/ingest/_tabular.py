@@ -26,7 +26,10 @@ References
 .. [9] Audacity manual, "Label Tracks", exporting labels: a text file of one label per line,
    start and end time in seconds and the label's text, tab-separated, no header; Audacity's
    ``LabelStruct::Export`` writes a label's frequency range (spectral selection, in Hz) on a
-   line of its own below it, starting with a backslash and a tab (``\\<tab>f0<tab>f1``).
+   line of its own below it, starting with a backslash and a tab (``\\<tab>f0<tab>f1``);
+   saved under a ``.srt`` or ``.vtt`` name, its labels are SubRip or WebVTT cues instead (a
+   number, ``HH:MM:SS,mmm --> HH:MM:SS,mmm`` or with a period before the milliseconds, the
+   label's text, a blank line; WebVTT under a first line ``WEBVTT``).
 """
 
 from __future__ import annotations
@@ -333,14 +336,47 @@ def _label_frequency_lines(lines):
     return np.array([line.startswith("\\\t") for line in lines], dtype=bool)
 
 
+_CUE_TIMES = re.compile(r"^\s*(\d+):(\d{2}):(\d{2})[,.](\d{3})\s*-->\s*"
+                        r"(\d+):(\d{2}):(\d{2})[,.](\d{3})\s*$")
+
+
+def _subtitle_labels(lines):
+    """Audacity's labels exported as SubRip or WebVTT cues [9]_, restated in its text format
+    (start and end in s, the label's text; tab-separated), or None for any other text.
+
+    The times are written to the millisecond, and are restated with three decimals so that
+    their resolution stays what was written.
+    """
+    written = [line.strip() for line in lines if line.strip()]
+    if len(written) < 2 or not (written[0].startswith("WEBVTT") or (
+            written[0].isdigit() and _CUE_TIMES.match(written[1]))):
+        return None
+    matches = [_CUE_TIMES.match(line) for line in lines]
+    cues = [k for k, match in enumerate(matches) if match]
+    if not cues:
+        return None
+    fields = np.array([match.groups() for match in matches if match], dtype=float)
+    seconds = np.array([3600.0, 60.0, 1.0, 1e-3])
+    start, end = fields[:, :4] @ seconds, fields[:, 4:] @ seconds
+    # The label's text is the line below its times (empty for a label without text).
+    texts = [lines[k + 1].replace("\t", " ").strip() if k + 1 < len(lines) else ""
+             for k in cues]
+    return "\n".join(f"{a:.3f}\t{b:.3f}\t{text}" for a, b, text in zip(start, end, texts))
+
+
 def _text_table(path, raw, member):
     """Parse one text table (CSV, TSV, semicolon-separated; either decimal mark).
 
     Lines starting with '#' before the first table line are comments and are skipped, and so
-    are the frequency lines of an Audacity label export (see _label_frequency_lines).
+    are the frequency lines of an Audacity label export (see _label_frequency_lines); its
+    SubRip or WebVTT cues are read as its labels (see _subtitle_labels).
     """
     text, encoding = _decode(path, raw, member)
     lines = text.splitlines()
+    cues = _subtitle_labels(lines)
+    if cues is not None:
+        text = cues
+        lines = text.splitlines()
     frequency_lines = _label_frequency_lines(lines)
     if frequency_lines.any():
         lines = [line for line, skip in zip(lines, frequency_lines) if not skip]
@@ -405,6 +441,7 @@ def _text_table(path, raw, member):
     variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
+               + (", Audacity labels as SubRip/WebVTT cues" if cues is not None else "")
                + (f", {comments} comment line(s) skipped" if comments else "")
                + (f", {int(frequency_lines.sum())} label frequency line(s) skipped"
                   if frequency_lines.any() else "")
