@@ -12,14 +12,16 @@ it) and ``notes``. Files that cannot be used raise :class:`dashpot.errors.InputE
 file, the 1-based data row (counted after the header) where that applies, and the problem.
 
 Text tables are sniffed, not configured: the separator is the one of tab, semicolon or comma
-that splits the first lines into the same number (> 1) of fields, and the decimal mark is a
+(else a space, as Tracker may delimit its export) that splits the first lines into the same
+number (> 1) of fields, and the decimal mark is a
 comma when the separator is not and numbers like ``1,25`` occur (also inside quoted fields of a
 comma-separated file, and in a header-less single column, where ``1,234568`` is one number).
 A first line that is a single word above a separated header names a Tracker track
 (``mass_A``) and is skipped; other title lines (no number among their fields) above a header
 are skipped, noted. Vernier's text format (``Vernier Format 2``: six header lines per data
 set) is read data set by data set (:mod:`.vernier`); separators ending every line add no
-column; Audacity's label export (start, end, text; no header) is a list of impact times.
+column; Audacity's label export (start, end, text; no header; a label's frequency range on
+a line of its own below it is skipped; or SubRip/WebVTT cues) is a list of impact times.
 Workbooks —
 Excel ``.xlsx``, legacy Excel 97-2003 ``.xls`` (BIFF8, phyphox's "Excel" export) and
 OpenDocument ``.ods`` — are read sheet by sheet through pandas' calamine engine, and zip
