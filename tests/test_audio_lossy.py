@@ -89,6 +89,22 @@ def test_a_lossy_file_written_again_is_decoded_again(tmp_path, monkeypatch):
     assert min(found) >= 0.95
 
 
+def test_files_of_one_name_and_time_each_read_their_own_samples(tmp_path, monkeypatch):
+    # Takes named alike in folders of their own, written within one tick of the clock: each
+    # is read as its own, however many copies were made and dropped in between.
+    monkeypatch.setattr(audio_file, "_DECODED", audio_file._DecodedCopies())
+    rng = np.random.default_rng(20501309)
+    paths = []
+    for k in range(audio_file._DECODED_COPIES_KEPT + 3):
+        (tmp_path / str(k)).mkdir()
+        paths.append(_write(tmp_path / str(k) / "take.ogg",
+                            0.1 * rng.standard_normal(RATE // 4), "VORBIS"))
+        os.utime(paths[-1], ns=(10**18, 10**18))
+    for path in paths + paths[::-1]:
+        with _open(path) as handle:
+            np.testing.assert_array_equal(handle.read(), sf.read(str(path))[0])
+
+
 def test_only_the_latest_decoded_copies_are_kept(tmp_path, monkeypatch):
     copies = audio_file._DecodedCopies()
     monkeypatch.setattr(audio_file, "_DECODED", copies)

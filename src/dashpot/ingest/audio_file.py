@@ -4,6 +4,7 @@ of samples, and one-line errors for files that cannot be used (truncated, corrup
 from __future__ import annotations
 
 import atexit
+import os
 import re
 import shutil
 import tempfile
@@ -141,7 +142,10 @@ class _DecodedCopies:
         if self._folder is None:
             self._folder = Path(tempfile.mkdtemp(prefix="dashpot-decoded-"))
             atexit.register(shutil.rmtree, self._folder, ignore_errors=True)
-        copy = self._folder / f"{len(self._copies)}-{stat.st_mtime_ns}-{path.stem[:40]}.wav"
+        # A name of its own (mkstemp): two files of one name and time must not share a copy.
+        descriptor, name = tempfile.mkstemp(suffix=".wav", dir=self._folder)
+        os.close(descriptor)
+        copy = Path(name)
         try:
             with sf.SoundFile(str(copy), "w", samplerate=handle.samplerate,
                               channels=handle.channels, subtype="FLOAT", format="WAV") as out:
