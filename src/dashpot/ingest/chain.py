@@ -43,6 +43,7 @@ _ONSET_JITTER = 0.5e-3  # s: a faint transient's rough onset may move by this mu
 _NOISE_WEIGHT = 1.0  # score of any transient included in the chain, plus its log SNR
 _SECONDARY_SECONDS = 0.16  # ringing, rattle and echoes come up to this long after an impact
 _SECONDARY_WEIGHT = 0.25  # factor on the score of a transient that may be one of them
+_MIN_POWER_RATIO = 1e-6  # onset power over the detection threshold, at least, in a weight
 _SECONDARY_LOUDNESS = 3.0  # ... because a transient at least 1/3 as loud came before it
 _LEADING_LOUDNESS = 10.0  # the first impact is within 20 dB of the loudest
 _EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact time
@@ -187,15 +188,21 @@ def _chain_weights(times, power_ratio, amplitude):
     160 ms before it keeps its full score. Late bounces, less than 160 ms apart, are all
     quartered; among them the trend decides.
     """
-    weights = _NOISE_WEIGHT + 0.5 * np.log(power_ratio)
-    earlier = np.searchsorted(times, times - _SECONDARY_SECONDS)
-    if _envelope.COMPILED:
-        loudest_before = _envelope._kernels().window_maxima(amplitude, earlier)
-    else:
-        loudest_before = np.array([amplitude[a:i].max(initial=0.0)
-                                   for i, a in enumerate(earlier)])
-    secondary = loudest_before >= amplitude / _SECONDARY_LOUDNESS
+    # A faint sound in digital silence (a lossy codec's, or a recorder's zero padding) has
+    # an onset power the running sums may round to zero or below: it counts as the floor.
+    weights = _NOISE_WEIGHT + 0.5 * np.log(np.maximum(power_ratio, _MIN_POWER_RATIO))
+    secondary = (_loudest_before(times, amplitude, _SECONDARY_SECONDS)
+                 >= amplitude / _SECONDARY_LOUDNESS)
     return np.where(secondary, _SECONDARY_WEIGHT * weights, weights)
+
+
+def _loudest_before(times, amplitude, reach):
+    """Largest `amplitude` among the transients in the `reach` (s) before each of those at
+    `times` (s, increasing), itself excluded; 0 where there is none."""
+    earlier = np.searchsorted(times, times - reach)
+    if _envelope.COMPILED:
+        return _envelope._kernels().window_maxima(amplitude, earlier)
+    return np.array([amplitude[a:i].max(initial=0.0) for i, a in enumerate(earlier)])
 
 
 def _first_pass(times, power_ratio, amplitude, strong):

@@ -194,6 +194,7 @@ class _Stream:
     candidates: list = field(default_factory=list)
     dc_offset: float = 0.0
     scale: float = 1.0  # full scale per unit of the raw samples (2⁻¹⁵ for int16)
+    lossy_codec: str = ""  # the lossy codec the file was coded with (libsndfile's name), or ""
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
