@@ -14,7 +14,8 @@ kb/s 0.975 with 4 and 8). Its first run gave MP3 0.974 with 10 false impacts, Vo
 with 13 and Opus 0.990 with 5 (the WAV: 0.992 with 4): Vorbis under the bounds set
 beforehand (recall 0.95, false impacts 2.5 %). The bounds are now 0.93 and 3 %, which the
 code before (decoding in place, pre-echoes as sounds of their own) fails on this block: MP3
-0.859 with 49, Vorbis 0.837 with 62.
+0.859 with 49, Vorbis 0.837 with 62. The MP3 decoded to WAV, added after, gave 0.974 with 10
+on its first run (0.875 with 38 where pre-echoes were left out of lossy files only).
 """
 
 import os
@@ -153,15 +154,21 @@ LOSSY_BLOCK = range(20501501, 20501513)
 PHONE_QUALITY = {"MPEG_LAYER_III": 0.7, "VORBIS": 0.5, "OPUS": 0.5}  # 55-135 kb/s
 
 
-@pytest.mark.parametrize("codec", sorted(PHONE_QUALITY))
-def test_recall_on_lossy_recordings_of_phone_quality(tmp_path, codec):
-    # Codecs at a phone's rates (55-135 kb/s): each loses a little of what the WAV holds.
+@pytest.mark.parametrize(("codec", "decoded"), [(codec, False) for codec in sorted(PHONE_QUALITY)]
+                         + [("MPEG_LAYER_III", True)])
+def test_recall_on_lossy_recordings_of_phone_quality(tmp_path, codec, decoded):
+    # Codecs at a phone's rates (55-135 kb/s): each loses a little of what the WAV holds. A
+    # file decoded to WAV (as a phone's AAC converted by ffmpeg) no longer says it was lossy.
     total = found = false = 0
     for seed in LOSSY_BLOCK:
         samples, onsets, _ = disturbed_train(seed, RATE)
         path = _write(tmp_path / f"train{seed}{CODECS[codec][1]}",
                       samples / max(1.0, 1.05 * np.abs(samples).max()), codec,
                       PHONE_QUALITY[codec])
+        if decoded:
+            path = tmp_path / f"train{seed}.wav"
+            sf.write(str(path), sf.read(str(path.with_suffix(CODECS[codec][1])))[0], RATE,
+                     subtype="FLOAT")
         times = detect_impacts(path)["time"].to_numpy()
         score = score_train(onsets, times, np.ones(times.size), MATCH)
         total, found, false = total + onsets.size, found + score["found"], false + score["false"]

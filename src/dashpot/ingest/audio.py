@@ -142,8 +142,8 @@ __all__ = ["read_audio", "detect_impacts"]
 _SECONDARY_REACH_SECONDS = 2e-3
 _RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pass to settle
 _JOIN_READS_SECONDS = 0.05
-# A transient this long (s) before one this many times louder is that one's pre-echo, in a
-# lossy-coded file (_without_pre_echoes).
+# A transient this long (s) before one this many times louder is that one's pre-echo
+# (_without_pre_echoes).
 _PRE_ECHO_SECONDS = 6e-3
 _PRE_ECHO_LOUDNESS = 10.0
 # The file is analysed in blocks of this length (s): the noise each is judged against is its
@@ -262,9 +262,10 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
     (Vorbis reads after a seek came 1664 frames off), and the later steps read stretches of
     the file again; such a file is decoded once, in order, into a temporary copy that they
     read instead. A transform codec also spreads a loud transient's noise up to a block before
-    it (pre-echo): a transient up to 6 ms before one ten times louder is left out as that
-    one's pre-echo (:func:`_without_pre_echoes`), and a sound that leads into an impact's rise
-    is not taken for its onset (:func:`_retime_on_first_burst`). On 12 disturbed trains kept
+    it (pre-echo): in any file, a transient up to 6 ms before one ten times louder is left out
+    as that one's pre-echo (:func:`_without_pre_echoes`; the files decoded from lossy ones
+    gain most), and in a lossy file a sound that leads into an impact's rise is not taken for
+    its onset (:func:`_retime_on_first_burst`). On 12 disturbed trains kept
     apart (tests/test_audio_lossy.py), MP3 at 55 kb/s and Vorbis and Opus at 120-135 kb/s
     find 0.95-0.99 of the impacts with 1-3 % false ones, where the WAV finds 0.99 with 1 %
     (before: MP3 0.86 and Vorbis 0.84, with 10-12 % false). The codec's own error is not in
@@ -320,8 +321,7 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         _process(stream, pending, final=True)
         duration = handle.frames / sample_rate
         repair_note = handle.repair_note
-    if stream.lossy_codec:
-        stream.candidates = _without_pre_echoes(stream.candidates, sample_rate)
+    stream.candidates = _without_pre_echoes(stream.candidates, sample_rate)
     table = _impact_table(path, stream, sample_rate, duration)
     if repair_note:
         table.attrs["notes"].append(repair_note)
@@ -331,13 +331,15 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
 
 
 def _without_pre_echoes(candidates, sample_rate):
-    """The stored transients of a lossy-coded file without the codec's pre-echoes.
+    """The stored transients without those that come just before one ten times louder.
 
     A transform codec spreads the quantization noise of a block over all of it, so a loud
     transient is heard faintly up to a block before it (pre-echo [7]_): a transient within
     :data:`_PRE_ECHO_SECONDS` (6 ms, the short blocks of MP3, AAC and Vorbis at 32-48 kHz)
-    before one 10 times louder is that one's pre-echo. Impacts grow quieter along a train,
-    so no impact comes that soon before a 10 times louder one.
+    before one 10 times louder is that one's pre-echo. This holds for any file, since a
+    recording decoded from a lossy one (a phone's AAC converted to WAV) no longer says so;
+    and whatever the file, impacts grow quieter along a train, so that no impact comes that
+    soon before one 10 times louder (a sound there is a pre-echo, an apex click or an echo).
     """
     onsets = np.array([c["onset"] for c in candidates]) / sample_rate
     amplitude = np.array([c["amplitude"] for c in candidates])
