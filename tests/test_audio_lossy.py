@@ -18,6 +18,7 @@ code before (decoding in place, pre-echoes as sounds of their own) fails on this
 on its first run (0.875 with 38 where pre-echoes were left out of lossy files only).
 """
 
+import multiprocessing
 import os
 
 import numpy as np
@@ -114,6 +115,30 @@ def test_files_of_one_name_and_time_each_read_their_own_samples(tmp_path, monkey
     for path in paths + paths[::-1]:
         with _open(path) as handle:
             np.testing.assert_array_equal(handle.read(), sf.read(str(path))[0])
+
+
+def _open_all(paths):
+    for path in paths:
+        with _open(path):
+            pass
+
+
+def test_a_forked_process_keeps_its_own_copies(tmp_path, monkeypatch):
+    # A worker forked after its parent decoded a file must not drop the parent's copy when
+    # its own copies outnumber those kept.
+    copies = audio_file._DecodedCopies()
+    monkeypatch.setattr(audio_file, "_DECODED", copies)
+    rng = np.random.default_rng(20501310)
+    paths = [_write(tmp_path / f"take{k}.ogg", 0.1 * rng.standard_normal(RATE // 4), "VORBIS")
+             for k in range(audio_file._DECODED_COPIES_KEPT + 2)]
+    _open_all(paths[:1])
+    kept = set(copies._folder.iterdir())
+    worker = multiprocessing.get_context("fork").Process(target=_open_all, args=(paths[1:],))
+    worker.start()
+    worker.join()
+    assert worker.exitcode == 0 and set(copies._folder.iterdir()) == kept
+    with _open(paths[0]) as handle:
+        np.testing.assert_array_equal(handle.read(), sf.read(str(paths[0]))[0])
 
 
 def test_only_the_latest_decoded_copies_are_kept(tmp_path, monkeypatch):
