@@ -89,3 +89,37 @@ def test_bad_recordings_fail_cleanly(tmp_path, capsys, case):
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and str(source) in error
     assert not output.exists() and not list(tmp_path.glob(".*partial"))
+
+
+@pytest.mark.parametrize("command", ["impacts", "bounces", "fit", "analyze"])
+def test_a_folder_given_as_the_input_is_named_as_one(tmp_path, capsys, command):
+    """A folder named like a table was reported as "no such file"."""
+    folder = tmp_path / "impacts.csv"
+    folder.mkdir()
+    output = tmp_path / "out"
+    assert main([command, str(folder), "-o", str(output)]) == 2
+    assert capsys.readouterr().err == (f"dashpot {command}: error: {folder}: is a folder, "
+                                       f"not a file\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["impacts.csv"]
+
+
+@pytest.mark.parametrize("command", ["impacts", "bounces", "fit"])
+def test_a_table_that_cannot_be_read_fails_cleanly(tmp_path, capsys, monkeypatch, command):
+    """A table the system refuses to read (no permission, a failing disk) raised a traceback."""
+    from pathlib import Path
+
+    source = tmp_path / "impacts.csv"
+    source.write_text("time,time_uncertainty\n0.0,1e-5\n0.3,1e-5\n0.585,1e-5\n")
+    read_bytes = Path.read_bytes
+
+    def refused(path):
+        if path == source:
+            raise PermissionError(13, "Permission denied")
+        return read_bytes(path)
+
+    monkeypatch.setattr(Path, "read_bytes", refused)
+    output = tmp_path / "out.csv"
+    assert main([command, str(source), "-o", str(output)]) == 2
+    assert capsys.readouterr().err == (f"dashpot {command}: error: {source}: cannot read the "
+                                       f"file (Permission denied)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["impacts.csv"]

@@ -17,7 +17,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, require_file
 
 # The parser's choices and defaults, written out so that `dashpot --help` and a subcommand's
 # argument errors import no scientific module (physics.models alone pulls in scipy.optimize);
@@ -194,8 +194,7 @@ def _analyze(args, console):
 
     _refuse_standard_output(args, "folder")
     recording = Path(args.recording)
-    if not recording.is_file():
-        raise InputError(recording, "no such file")
+    require_file(recording)
     scene = load_scene(args.scene) if args.scene else Scene(name=recording.stem or "scene")
     scene = _with_uncertainty(scene, args)
     name = scene.name

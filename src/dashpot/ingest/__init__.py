@@ -72,7 +72,7 @@ def is_speed_error_column(name):
 
 from pathlib import Path
 
-from ..errors import InputError
+from ..errors import InputError, require_file
 
 AUDIO_SUFFIXES = (".wav", ".wave", ".flac", ".ogg", ".oga", ".opus", ".mp3", ".aif", ".aiff",
                   ".aifc", ".caf", ".au", ".snd", ".w64", ".rf64")
@@ -153,8 +153,7 @@ def unreadable_media_problem(path):
 def _read(path, kind, flag_length, gate_distance, unit, bumper_position, track):
     """The impact table of the reader `kind` chooses (see read_impacts)."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
+    require_file(path)
     if path.suffix.lower() in UNREADABLE_MEDIA:
         raise InputError(path, unreadable_media_problem(path))
     if kind is None:

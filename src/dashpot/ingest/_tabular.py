@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError
+from ..errors import InputError, require_file
 from . import FLAG_COLUMN, IMPACT_COLUMNS, is_speed_error_column
 
 TABLE_KINDS = ("phyphox", "timestamps", "motion_sensor", "photogate")
@@ -591,9 +591,11 @@ def _check_zip_sizes(path, archive, names):
 def _load_tables(path):
     """All tables in a file: a text table, every CSV of a zip, or every sheet of a workbook."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "no such file")
-    raw = path.read_bytes()
+    require_file(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as error:  # no permission, a failing disk
+        raise InputError(path, f"cannot read the file ({error.strerror or error})") from None
     if not raw.strip():
         raise InputError(path, "file is empty")
     if raw[:4] == b"PK\x03\x04":
