@@ -123,3 +123,18 @@ def test_a_table_that_cannot_be_read_fails_cleanly(tmp_path, capsys, monkeypatch
     assert capsys.readouterr().err == (f"dashpot {command}: error: {source}: cannot read the "
                                        f"file (Permission denied)\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["impacts.csv"]
+
+
+@pytest.mark.parametrize("command", ["bounces", "fit"])
+def test_a_run_number_too_large_to_read_exactly_is_refused(tmp_path, capsys, command):
+    """A run of 1e30 was written as run -9223372036854775808."""
+    source = tmp_path / "impacts.csv"
+    times = np.cumsum(np.r_[0.0, 0.3 * 0.95 ** np.arange(9)])
+    source.write_text("time,time_uncertainty,run\n"
+                      + "".join(f"{float(t)!r},1e-5,{'1e30' if k else 0}\n" for k, t in enumerate(times)))
+    output = tmp_path / "out"
+    assert main([command, str(source), "-o", str(output)]) == 2
+    assert capsys.readouterr().err == (
+        f"dashpot {command}: error: {source}, row 2, column 'run': run '1e30' is too large "
+        f"(runs are numbered from 0 to 9007199254740991)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["impacts.csv"]

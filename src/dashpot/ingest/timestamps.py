@@ -195,6 +195,7 @@ def _check_unnamed_uncertainties(path, table, times, sigma, index):
 # Columns that hold a magnitude or a 1σ: never negative.
 _NONNEGATIVE_COLUMNS = ("time_uncertainty", "impact_speed", "rebound_speed", "speed_uncertainty",
                         *SPEED_OWN_COLUMNS)
+_LARGEST_RUN = 2**53 - 1  # floats hold every whole number up to 2^53 exactly, not beyond
 
 
 def is_impact_table(path):
@@ -241,7 +242,7 @@ def read_impact_table(path):
         One line naming the file, and the row and column where they apply: no ``time``
         column; a cell that is not a number; an impact time that is empty, NaN or infinite;
         a negative or infinite uncertainty or speed; a ``run`` that is not a whole number
-        ≥ 0; times that do not increase within a run.
+        from 0 to 2^53 - 1; times that do not increase within a run.
 
     Notes
     -----
@@ -306,6 +307,13 @@ def _read_impact_table(path, table):
             k = int(np.flatnonzero(bad)[0])
             refuse("run", k, f"run '{table.cells[k, columns['run']]}' is not a whole number "
                              f"≥ 0")
+        # Beyond 2^53 floats skip whole numbers (two runs could read as one), and the cast
+        # to int64 wraps around past 2^63.
+        large = run > _LARGEST_RUN
+        if large.any():
+            k = int(np.flatnonzero(large)[0])
+            refuse("run", k, f"run '{table.cells[k, columns['run']]}' is too large (runs are "
+                             f"numbered from 0 to {_LARGEST_RUN})")
         run = run.astype(int)
     else:
         run = np.zeros(rows, dtype=int)
