@@ -96,6 +96,10 @@ BAD_INPUTS = {
                  "row 4, column 'time': impact times must increase"),
     "not_a_number": ("time,time_uncertainty\n0.1,1e-5\nlate,1e-5\n0.6,1e-5\n",
                      "row 2, column 'time': 'late' is not a number"),
+    # Raised an IndexError: every impact left out of the fit.
+    "all_inferred": ("time,time_uncertainty,flag\n" + "".join(
+        f"{t},1e-5,inferred\n" for t in (0.0, 0.3, 0.585, 0.85575, 1.1129625)),
+        "no impact left to fit: all 5 are flagged 'inferred' or spurious"),
 }
 
 

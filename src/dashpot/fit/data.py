@@ -29,6 +29,11 @@ def prepare_data(impacts, scene):
     -------
     FitData
 
+    Raises
+    ------
+    ValueError
+        Fewer than three impacts, or none left once the flagged ones are left out.
+
     Notes
     -----
     Where the recording gives no timing uncertainty the scene's timing resolution r gives
@@ -107,6 +112,9 @@ def prepare_data(impacts, scene):
                      f"fitted with their larger timing uncertainty")
     if np.any(flags == "missed"):
         notes.append(f"{int(np.sum(flags == 'missed'))} missed impact(s) bridged in the train")
+    if not keep.any():
+        raise ValueError(f"no impact left to fit: all {times.size} are flagged 'inferred' or "
+                         f"spurious")
     index = index[keep]
     index = index - index[0]
 
