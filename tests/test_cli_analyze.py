@@ -101,3 +101,27 @@ def test_says_which_file_it_analysed_when_the_scene_names_another(table_scene, t
     with h5py.File(out / "my-ball.h5", "r") as source:
         assert source.attrs["input_file"] == recording.name
         assert not source.attrs["input_is_scene_recording"]
+
+
+@pytest.mark.parametrize("case", ["parameters", "figures", "scene-recording"])
+def test_an_output_that_would_replace_an_input_is_refused(tmp_path, table_scene, case):
+    """The scene's name makes the output names: `<name>-parameters.csv` as the recording was
+    overwritten with the parameter table, a recording named `<name>` (no suffix) ended in
+    "cannot write the output (File exists)" after the whole analysis."""
+    recording, scene = table_scene
+    out = tmp_path / "out"
+    out.mkdir()
+    named = out / {"parameters": "my-ball-parameters.csv", "figures": "my-ball",
+                   "scene-recording": "my-ball.h5"}[case]
+    named.write_bytes(recording.read_bytes())
+    argv = ["analyze", str(named), "--scene", str(scene), "-o", str(out)]
+    if case == "scene-recording":  # the scene's own recording, not the one analysed
+        other = tmp_path / "scene.yaml"
+        other.write_text(scene.read_text() + f"recording: {named}\n")
+        argv = ["analyze", str(recording), "--scene", str(other), "-o", str(out)]
+    status, printed, err = run_cli(argv)
+    assert status == 2 and printed == ""
+    assert err == (f"dashpot analyze: error: {named}: refusing to overwrite the input with the "
+                   f"output\n")
+    assert named.read_bytes() == recording.read_bytes()
+    assert [p.name for p in out.iterdir()] == [named.name]

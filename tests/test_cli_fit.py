@@ -148,6 +148,17 @@ def test_output_over_an_input_is_refused(fitted, tmp_path):
         assert err == f"dashpot fit: error: {victim}: refusing to overwrite the input with " \
                       "the output\n"
         assert victim.read_bytes() == before
+    # The recording the scene names is the user's data too, fitted or not.
+    recording = tmp_path / "drop.csv"
+    recording.write_bytes(fitted["table"].read_bytes())
+    scene = tmp_path / "named.yaml"
+    scene.write_text(fitted["scene"].read_text() + f"recording: {recording}\n")
+    status, out, err = run_cli(["fit", str(fitted["table"]), "-o", str(recording),
+                                "--scene", str(scene)])
+    assert status == 2 and out == ""
+    assert err == f"dashpot fit: error: {recording}: refusing to overwrite the input with " \
+                  "the output\n"
+    assert recording.read_bytes() == fitted["table"].read_bytes()
     # The same file under another spelling is still the input.
     before = fitted["table"].read_bytes()
     alias = fitted["table"].parent / "." / fitted["table"].name

@@ -69,6 +69,28 @@ def _cannot_write(path, error):
     return InputError(path, f"cannot write the output ({reason})")
 
 
+def _refuse_replacing_inputs(outputs, inputs):
+    """Refuse to write any of `outputs` over one of `inputs` (under any spelling or link).
+
+    Parameters
+    ----------
+    outputs : iterable of str or os.PathLike
+        Every path the command is about to write (a file, or the folder of the figures).
+    inputs : iterable of str or os.PathLike or None
+        The files given, and the recording a scene names (None where there is none): the
+        user's data, which a careless ``-o`` or scene name must never replace.
+
+    Raises
+    ------
+    InputError
+        Naming the first output that is an input.
+    """
+    sources = {Path(source).resolve() for source in inputs if source is not None}
+    for output in outputs:
+        if Path(output).resolve() in sources:
+            raise InputError(output, "refusing to overwrite the input with the output")
+
+
 def _write_csv_atomically(table, output, inputs):
     """Write `table` to `output` via a unique temporary file; never over one of the inputs.
 
@@ -82,9 +104,7 @@ def _write_csv_atomically(table, output, inputs):
         table.to_csv(sys.stdout, index=False, lineterminator="\n")
         return
     output = Path(output)
-    for source in inputs:
-        if output.resolve() == Path(source).resolve():
-            raise InputError(output, "refusing to overwrite the input with the output")
+    _refuse_replacing_inputs([output], inputs)
     try:
         with atomic_path(output) as temporary:
             table.to_csv(temporary, index=False)
@@ -158,9 +178,7 @@ def _fit(args, console):
 
     _refuse_standard_output(args, "HDF5 file")
     scene = load_scene(args.scene) if args.scene else Scene()
-    inputs = [args.impacts] + ([args.scene] if args.scene else [])
-    if Path(args.output).resolve() in {Path(source).resolve() for source in inputs}:
-        raise InputError(args.output, "refusing to overwrite the input with the output")
+    _refuse_replacing_inputs([args.output], [args.impacts, args.scene, scene.recording])
     if Path(args.output).is_dir():
         raise InputError(args.output, "is a folder; give the HDF5 file to write")
     scene = _with_uncertainty(scene, args)
@@ -201,6 +219,9 @@ def _analyze(args, console):
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise InputError(out, "is a file; give the folder to write into")
+    # The scene's name makes the output names: checked before the analysis, not after it.
+    _refuse_replacing_inputs([out / f"{name}.h5", out / f"{name}-parameters.csv", out / name],
+                             [recording, args.scene, scene.recording])
     models = tuple(args.models or scene.models)
     with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
               # -v logs each step on standard error: a bar there would break its lines.
