@@ -125,3 +125,32 @@ def test_an_output_that_would_replace_an_input_is_refused(tmp_path, table_scene,
                    f"output\n")
     assert named.read_bytes() == recording.read_bytes()
     assert [p.name for p in out.iterdir()] == [named.name]
+
+
+@pytest.mark.parametrize("name, status", [("SIGTERM", 143), ("SIGHUP", 129), ("SIGINT", 130)])
+def test_a_stopped_run_leaves_no_staging_folder_and_says_one_line(tmp_path, table_scene, name,
+                                                                  status):
+    """`kill`, `timeout` or a closed terminal while the figures were drawn left the hidden
+    staging folder, with the half-written outputs, in the output folder; Ctrl-C printed a
+    traceback. An earlier result stays as it was."""
+    import subprocess
+    import sys
+
+    recording, scene = table_scene
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "my-ball.h5").write_bytes(b"an earlier result")
+    code = ("import os, signal, sys\n"
+            "import dashpot.figures\n"
+            "def stop(*args, **kwargs):\n"
+            f"    os.kill(os.getpid(), signal.{name})\n"
+            "dashpot.figures.save_scene_figures = stop\n"
+            "from dashpot.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    run = subprocess.run([sys.executable, "-c", code, "analyze", str(recording), "--scene",
+                          str(scene), "-o", str(out), "-q"], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == status and run.stdout == ""
+    assert run.stderr == f"dashpot analyze: interrupted ({name}); unfinished outputs removed\n"
+    assert [p.name for p in out.iterdir()] == ["my-ball.h5"]
+    assert (out / "my-ball.h5").read_bytes() == b"an earlier result"

@@ -4,7 +4,8 @@ Every failure is one line on standard error naming the file and the problem, wit
 2, and no output file is left behind: outputs are written to a temporary name and renamed.
 ``-o -`` writes a table to standard output (the command's own lines then go to standard
 error). ``-v`` shows what the library logs (the steps of an analysis, the notes on how each
-fit was made), ``-q`` only errors.
+fit was made), ``-q`` only errors. A run stopped by Ctrl-C, SIGTERM or SIGHUP removes what it
+was writing and says so in one line, with exit status 128 + the signal's number.
 """
 
 from __future__ import annotations
@@ -13,8 +14,10 @@ import argparse
 import logging
 import math
 import os
+import signal
 import sys
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import InputError, require_file
@@ -588,6 +591,52 @@ def build_parser():
     return parser
 
 
+# Signals that end a run as Ctrl-C does (kill, timeout, a closed terminal): SIGHUP is not on
+# every platform.
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP")
+                      if hasattr(signal, name))
+
+
+class _Stopped(KeyboardInterrupt):
+    """A stop signal other than SIGINT, raised as the KeyboardInterrupt SIGINT raises.
+
+    Parameters
+    ----------
+    number : int
+        The signal.
+    """
+
+    def __init__(self, number):
+        super().__init__(signal.Signals(number).name)
+        self.number = number
+
+
+def _stop(number, frame):
+    """Signal handler: raise :class:`_Stopped`."""
+    raise _Stopped(number)
+
+
+@contextmanager
+def _stoppable():
+    """Within the block SIGTERM and SIGHUP raise KeyboardInterrupt, as SIGINT does.
+
+    Their default action ends the process at once, leaving the temporary files and the
+    staging folder of the outputs under way behind; an exception unwinds through the writers,
+    which remove them. The previous handlers are restored on leaving.
+    """
+    saved = {}
+    for number in _STOP_SIGNALS:
+        try:
+            saved[number] = signal.signal(number, _stop)
+        except ValueError:  # not the main thread: handlers can only be set there
+            break
+    try:
+        yield
+    finally:
+        for number, handler in saved.items():
+            signal.signal(number, handler)
+
+
 def _log_level(args):
     """-q: errors only; default: warnings; -v: the steps (INFO); -vv: debugging."""
     if args.quiet:
@@ -612,13 +661,20 @@ def main(argv=None):
         logger.warning("note: %s", message)
 
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _stoppable():
             warnings.showwarning = note
             try:
                 args.run(args, _Console(args))
             except InputError as error:
                 print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
                 return 2
+            except KeyboardInterrupt as stop:
+                # The writers removed what they had begun: one line, and the shell's status
+                # for the signal (128 + its number) instead of a traceback.
+                number = getattr(stop, "number", signal.SIGINT)
+                print(f"dashpot {args.command}: interrupted ({signal.Signals(number).name}); "
+                      f"unfinished outputs removed", file=sys.stderr)
+                return 128 + number
             except BrokenPipeError:
                 # The reader of `-o -` left (`| head`): no traceback, and nothing more to
                 # stdout at exit (the Python documentation's recipe for SIGPIPE).
