@@ -124,3 +124,23 @@ def test_the_library_logs_and_prints_nothing(table, capsys, caplog):
     assert messages[0] == f"{impacts}: {len(found)} impacts (impact table)"
     assert [message.split()[1] for message in messages[2:]] == ["Ia", "IIa"]
     assert set(scene_fit.results) == {"Ia", "IIa"}
+
+
+@pytest.mark.parametrize("command", ["impacts", "bounces", "fit", "analyze"])
+def test_an_empty_output_name_is_refused_by_name(table, tmp_path, monkeypatch, capsys,
+                                                 command):
+    """`-o ""` (an unset shell variable) was taken for the current folder: "cannot write
+    the output (Device or resource busy)" naming ".", or ": is a folder"."""
+    from dashpot.cli import main
+
+    recording, impacts = table
+    source = recording if command in ("impacts", "analyze") else impacts
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        main([command, str(source), "-o", ""])
+    assert stop.value.code == 2
+    printed, err = capsys.readouterr()
+    assert printed == ""
+    assert err == (f"dashpot {command}: error: argument -o/--output: empty: give the name of "
+                   f"the output (see dashpot {command} --help)\n")
+    assert list(tmp_path.iterdir()) == []

@@ -439,6 +439,14 @@ def _number(low, high, *, unit, low_inclusive=False):
     return number
 
 
+def _output_name(text):
+    """argparse type of ``-o``: any name but the empty one (an unset shell variable), which
+    names no file and would be taken for the current folder."""
+    if not text:
+        raise argparse.ArgumentTypeError("empty: give the name of the output")
+    return text
+
+
 # Help of each subcommand: (one-line help, description, example). Plain text: argparse shows
 # it as it is, so no reST markup.
 COMMANDS = {
@@ -528,7 +536,7 @@ def build_parser():
 
     impacts = command("impacts")
     impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
-    impacts.add_argument("-o", "--output", required=True,
+    impacts.add_argument("-o", "--output", required=True, type=_output_name,
                          help="impact table to write (CSV; - for standard output)")
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
                                             "photogate"], help="reader (default: detected)")
@@ -547,7 +555,7 @@ def build_parser():
     impacts.set_defaults(run=_impacts)
     bounces = command("bounces")
     bounces.add_argument("impacts", help="impact table written by dashpot impacts")
-    bounces.add_argument("-o", "--output", required=True,
+    bounces.add_argument("-o", "--output", required=True, type=_output_name,
                          help="bounce table to write (CSV; - for standard output)")
     bounces.add_argument("--g", type=_number(*ACCELERATION_RANGE, unit="m/s²"),
                          default=STANDARD_GRAVITY,
@@ -567,7 +575,8 @@ def build_parser():
     bounces.set_defaults(run=_bounces)
     fit = command("fit")
     fit.add_argument("impacts", help="impact table from dashpot impacts, or a recording")
-    fit.add_argument("-o", "--output", required=True, help="HDF5 file to write")
+    fit.add_argument("-o", "--output", required=True, type=_output_name,
+                     help="HDF5 file to write")
     fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
@@ -577,7 +586,7 @@ def build_parser():
     fit.set_defaults(run=_fit)
     analyze = command("analyze")
     analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
-    analyze.add_argument("-o", "--output", required=True,
+    analyze.add_argument("-o", "--output", required=True, type=_output_name,
                          help="folder to write <name>.h5, <name>-parameters.csv and the "
                               "figures <name>/*.png|pdf into")
     analyze.add_argument("--scene", help="scene.yaml: what is known of the apparatus "
