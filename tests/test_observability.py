@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
@@ -150,6 +151,33 @@ def test_determined_beta_is_printed_as_a_number(cli_fits):
     summary = summary_from_files([cli_fits["fine"]["output"]])
     assert np.all(np.isfinite(summary["beta"])) and np.all(np.isfinite(summary["k"]))
     assert (summary["beta_note"] == "").all() and (summary["k_note"] == "").all()
+
+
+def test_summary_empties_beta_of_a_noise_fit_whose_omega0_is_not_determined():
+    # A fit under the noise model derives ω0 = g/v*: where v* is not determined (the ping-pong
+    # recording's noise:Ia, ω0 ~ 1e7 rad/s ± inf), its summary row gives β as the printed
+    # summary does, empty with the reason, not 1.7e5 1/s.
+    def estimate(value, stderr, low95, high95, status):
+        return SimpleNamespace(value=value, stderr=stderr, low95=low95, high95=high95,
+                               status=status)
+
+    fit = SimpleNamespace(success=True, redchi=0.986, estimates={
+        "zeta": estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
+        "v_star": estimate(1.0e-6, math.inf, 1.0e-6, 1.8e-3, "fitted"),
+        "omega0": estimate(9.58e6, math.inf, 5360.0, 9.59e6, "derived"),
+        "beta": estimate(1.66e5, math.inf, 93.0, 1.66e5, "derived"),
+        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+    assert set(not_determined(fit.estimates)) == {"beta"}
+    selection = pd.DataFrame({"model": ["Ia"], "rank": [1], "akaike_weight": [1.0],
+                              "delta_aic": [0.0], "delta_bic": [0.0]})
+    noise_selection = selection.drop(columns="rank").assign(selected=True)
+    scene_fit = SimpleNamespace(results={"Ia": fit}, selection=selection, verdict="",
+                                noise_results={"Ia": fit}, noise_selection=noise_selection,
+                                noise_verdict="")
+    row = summary_table({"scene": scene_fit}).set_index("model").loc["noise:Ia"]
+    assert math.isnan(row["beta"]) and math.isnan(row["beta_stderr"])
+    assert row["beta_note"].startswith("not determined (") and "omega0" in row["beta_note"]
+    assert row["zeta"] == 0.01735
 
 
 def test_analyze_prints_not_determined_for_beta_and_k(tmp_path):

@@ -40,7 +40,10 @@ GRAVITY_FREE_COUNTERPART = {"Ib": "Ia", "IIb": "IIa", "hybrid": "IIa"}
 
 def _omega0_undetermined(omega0):
     """True if a fitted ω0 (with value, stderr, high95, status) is not determined."""
-    if omega0 is None or omega0.status not in ("fitted", "prior"):
+    # A fit under the noise model derives ω0 = g/v* from its fitted v* ("derived"): it is as
+    # (un)determined as v* is, and judged alike, so that summary.csv says what the printed
+    # summary says.
+    if omega0 is None or omega0.status not in ("fitted", "prior", "derived"):
         return False
     relative = omega0.stderr / omega0.value if omega0.value else math.inf
     return not math.isfinite(omega0.high95) or not relative <= WEAK_RELATIVE_ERROR
