@@ -117,6 +117,18 @@ def test_hand_written_collision_with_three_bounces_heard(tmp_path):
     assert frame["time"].tolist() == pytest.approx([0.8, 1.4, 1.88])
 
 
+def test_phyphox_clicks_past_ten_seconds_agree_with_their_intervals(tmp_path):
+    # phyphox writes ten significant digits: a click past 10 s (1.093691667E1) is written to
+    # 1e-8 s, ten times coarser than the column's median cell, and its 'Interval' still agrees.
+    times = 0.4 * np.cumsum(0.98 ** np.arange(40))
+    path = tmp_path / "clicks.csv"
+    truth = write_phyphox_stopwatch(path, times)
+    assert truth["impact_times"][-1] > 10.0 and np.median(truth["impact_times"]) < 10.0
+    frame = read_phyphox(path)
+    assert np.allclose(frame["time"], truth["impact_times"], rtol=1e-9, atol=0)
+    assert any("time to the next click" in note for note in frame.attrs["notes"])
+
+
 def test_per_click_table_from_intervals_only(tmp_path):
     path = tmp_path / "clicks.csv"
     path.write_text('"Interval (s)"\n6.000000000E-1\n4.800000000E-1\n3.840000000E-1\nNaN\n')

@@ -20,8 +20,8 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ._tabular import (_check_duplicates, _check_times, _impact_frame, _load_tables, _numbers,
-                       _phyphox_layout, _unit_factor)
+from ._tabular import (_NUMBER, _check_duplicates, _check_times, _impact_frame, _load_tables,
+                       _numbers, _phyphox_layout, _unit_factor)
 
 PHYPHOX_AUDIO_RATE = 48000.0
 """Hz. phyphox's stopwatch experiments time a click by the index of an audio sample, so their
@@ -41,6 +41,24 @@ def _phyphox_time_uncertainty(resolution):
 def _column_index(table, pattern):
     """{name: index} of the columns whose name matches `pattern` fully."""
     return {c.name: j for j, c in enumerate(table.columns) if re.fullmatch(pattern, c.name)}
+
+
+def _cell_resolutions(table, index):
+    """One unit of the last written digit of each cell of column `index` (NaN where none).
+
+    The column's resolution (:func:`_numbers`) is the median over its cells; in phyphox's
+    exponent notation a cell's last digit grows with the number (1.093691667E1 is written to
+    1e-8 s, 9.005000000E-1 to 1e-10 s), so that checking one column against another needs each
+    cell's own.
+    """
+    strings = [cell.replace(",", ".") if table.decimal == "," else cell
+               for cell in table.cells[:, index]]
+    out = np.full(len(strings), np.nan)
+    for row, text in enumerate(strings):
+        match = _NUMBER.match(text.strip())
+        if match and (match["int"] or match["frac"]):
+            out[row] = 10.0 ** (int(match["exp"] or 0) - len(match["frac"] or ""))
+    return out
 
 
 def _phyphox_clicks(path, table, notes):
@@ -66,7 +84,11 @@ def _phyphox_clicks(path, table, notes):
             # Either alignment occurs: row k holds t_k − t_{k−1} (first row blank) or, when the
             # export pads the shorter buffer at its end, t_{k+1} − t_k (last row blank).
             steps = np.diff(times)
-            tolerance = 2.0 * (time_resolution[1:] + time_resolution[:-1]) + 1e-9
+            digits = np.fmax(time_resolution,
+                             _cell_resolutions(table, index["event time"])[used])
+            digits += np.nan_to_num(
+                _cell_resolutions(table, index["interval"])[: times.size], nan=0.0)
+            tolerance = 2.0 * (digits[1:] + digits[:-1]) + 1e-9
             both = np.isfinite(intervals[: times.size])
             backward = np.abs(intervals[1:times.size] - steps)
             forward = np.abs(intervals[: times.size - 1] - steps)
