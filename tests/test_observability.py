@@ -180,6 +180,17 @@ def test_summary_empties_beta_of_a_noise_fit_whose_omega0_is_not_determined():
     assert row["zeta"] == 0.01735
 
 
+def test_a_prior_the_fit_disagrees_with_is_named_with_its_unit():
+    impacts = timed_train("Ia", omega0=3000.0, zeta=0.02, v0=2.0, count=20, sigma=2e-5,
+                          seed=47)
+    scene = Scene(first_impact_speed=Known(3.0, 0.05))  # a drop height 50 % too high
+    fit = fit_model(prepare_data(impacts, scene), "Ia", scene)
+    note = next(note for note in fit.notes if "disagrees with the scene's" in note)
+    assert note.startswith("fitted v0 = ") and note.count(" m/s") == 2
+    assert "disagrees with the scene's 3 m/s" in note
+    assert "prior on v0 from the scene's first impact speed" in fit.notes
+
+
 def test_analyze_prints_not_determined_for_beta_and_k(tmp_path):
     impacts = timed_train("Ia", seed=43, **STIFF)
     table = tmp_path / "stiff.csv"

@@ -290,7 +290,9 @@ def _contact_priors(known, scene, g, notes):
         notes.append("prior on omega0 = pi/tau from the scene's contact time")
     if known.known_v0 is not None and known.fixed_v0 is None:
         priors.append(("v0", known.known_v0.value, known.known_v0.uncertainty))
-        notes.append("prior on v0 from the scene")
+        notes.append("prior on v0 from the scene's first impact speed"
+                     if scene.first_impact_speed is not None else
+                     "prior on v0 = sqrt(2 g_eff h) from the scene's drop height")
     return fixed, priors
 
 
@@ -426,8 +428,9 @@ def _fit(data, model, scene, notes, max_nfev, uncertainty, seed, accuracy, effec
         if abs(value - centre) > 3.0 * spread:
             label = "omega0" if name == "v_star" else name
             shown = (g / value, g / centre) if name == "v_star" else (value, centre)
-            notes.append(f"fitted {label} = {shown[0]:.4g} disagrees with the scene's "
-                         f"{shown[1]:.4g} by more than 3 sigma of the prior")
+            unit = {"v_star": " rad/s", "v0": " m/s"}.get(name, "")
+            notes.append(f"fitted {label} = {shown[0]:.4g}{unit} disagrees with the scene's "
+                         f"{shown[1]:.4g}{unit} by more than 3 sigma of the prior")
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.sqrt(np.diag(cov))
         correlation = cov / np.outer(scale, scale)

@@ -278,7 +278,9 @@ class NoiseProblem:
                 self.notes.append("first impact speed known: v0 fixed")
             else:
                 priors.append(("v0", known_v0.value, known_v0.uncertainty))
-                self.notes.append("prior on v0 from the scene")
+                self.notes.append("prior on v0 from the scene's first impact speed"
+                                  if scene.first_impact_speed is not None else
+                                  "prior on v0 = sqrt(2 g_eff h) from the scene's drop height")
         # The law's own parameter the scene knows (v* of a dashpot model from a known
         # stiffness and mass): fixed, or a Gaussian prior.
         known = (None if self.law.scene_prior is None
