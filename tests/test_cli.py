@@ -55,6 +55,16 @@ def test_bounces_needs_a_time_column(tmp_path, capsys):
     assert "no 'time' column" in capsys.readouterr().err
 
 
+def test_bounces_of_a_recording_says_to_find_its_impacts_first(tmp_path, capsys):
+    recording = _write_wav(tmp_path / "drop.wav", np.zeros(44100))
+    output = tmp_path / "b.csv"
+    assert main(["bounces", str(recording), "-o", str(output)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and str(recording) in error
+    assert f"dashpot impacts {recording} -o impacts.csv" in error
+    assert not output.exists()
+
+
 def _write_wav(path, samples, rate=44100):
     from dashpot.synth.audio import write_audio
 

@@ -135,7 +135,13 @@ def _impacts(args, console):
 def _bounces(args, console):
     from .analysis import read_impact_table
     from .bounces import bounce_table
+    from .ingest import AUDIO_SUFFIXES
 
+    if Path(args.impacts).suffix.lower() in AUDIO_SUFFIXES:
+        # A first try is often `bounces drop.wav`: say which command comes first, rather than
+        # that the file is no table.
+        raise InputError(args.impacts, f"a recording, not an impact table: find its impacts "
+                                       f"first (dashpot impacts {args.impacts} -o impacts.csv)")
     impacts = read_impact_table(args.impacts)
     try:
         table = bounce_table(impacts, g=args.g, contact_duration=args.contact_duration,
@@ -535,7 +541,7 @@ def build_parser():
         return sub
 
     impacts = command("impacts")
-    impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
+    impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG/MP3) or lab table (CSV/XLSX)")
     impacts.add_argument("-o", "--output", required=True, type=_output_name,
                          help="impact table to write (CSV; - for standard output)")
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
@@ -585,7 +591,7 @@ def build_parser():
                      help=UNCERTAINTY_HELP)
     fit.set_defaults(run=_fit)
     analyze = command("analyze")
-    analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG) or lab table (CSV/XLSX)")
+    analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG/MP3) or lab table (CSV/XLSX)")
     analyze.add_argument("-o", "--output", required=True, type=_output_name,
                          help="folder to write <name>.h5, <name>-parameters.csv and the "
                               "figures <name>/*.png|pdf into")
