@@ -144,5 +144,6 @@ def test_media_libsndfile_cannot_read_get_the_conversion_command(tmp_path, suffi
     assert len(lines) == 1, err
     assert str(path) in lines[0]
     assert f"ffmpeg -i bounce{suffix} -vn -c:a pcm_s16le bounce.wav" in lines[0]
+    assert "readable: WAV, FLAC, OGG, MP3," in lines[0]
     with pytest.raises(InputError, match="convert its sound to WAV"):
         read_impacts(path, kind="audio")

@@ -145,8 +145,8 @@ def unreadable_media_problem(path):
     kind = "video" if path.suffix.lower() in (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm",
                                               ".3gp", ".wmv") else "audio"
     target = path.with_suffix(".wav").name
-    return (f"{path.suffix.lower()} {kind} cannot be decoded here (readable: "
-            f"{', '.join(s.lstrip('.').upper() for s in AUDIO_SUFFIXES[::2])} ...); convert its "
+    return (f"{path.suffix.lower()} {kind} cannot be decoded here (readable: WAV, FLAC, OGG, "
+            f"MP3, AIFF, CAF, ...); convert its "
             f"sound to WAV first, e.g. `ffmpeg -i {path.name} -vn -c:a pcm_s16le {target}`")
 
 
