@@ -13,7 +13,8 @@ and the size of gravity's effect in contact against the bounce-to-bounce scatter
   gravity model fitted, |ε_model − ε_gravity-free| at the slowest fitted impact with the
   robust scatter of the interval ratios about their trend
   (:func:`dashpot.plausibility.ratio_trend`), and says in plain words when the data cannot see
-  it, or that a size the fits imply is no evidence where every fit misses the data.
+  it, or that a size the fits imply is no evidence where every fit misses the data or a
+  gravity-free fit (its own ζ taking up most of the effect) fits about as well.
 
 References
 ----------
@@ -34,6 +35,9 @@ __all__ = ["not_determined", "gravity_effect_note", "GRAVITY_FREE_COUNTERPART",
 
 # The contact quantities that carry ω0 (symbol, unit for the bound's text).
 CONTACT_QUANTITIES = {"beta": ("β", "1/s"), "k": ("k", "N/m"), "gamma": ("γ", "kg/s")}
+# ΔAIC below which a gravity-free model is said to fit about as well as a gravity model: where
+# the selection's verdict says no more than that it "is not excluded" (ΔAIC <= 4).
+FITS_AS_WELL_AIC = 4.0
 # The gravity-free model with the same end of contact as each gravity model.
 GRAVITY_FREE_COUNTERPART = {"Ib": "Ia", "IIb": "IIa", "hybrid": "IIa"}
 
@@ -144,7 +148,9 @@ def gravity_effect_note(data, results):
         bounce-to-bounce scatter, Y" when every model's effect is below the scatter Y of the
         interval ratios (ln-ratio scatter times the ratio at the slowest bounces), else the same
         numbers with "gravity in contact is visible in these data" (or, where every fit misses
-        the data by more than 3σ of its χ², that this is no evidence of it); with fewer than
+        the data by more than 3σ of its χ², that this is no evidence of it, and where a
+        gravity-free fit is within ΔAIC = 4 of the best gravity model, that it fits about as
+        well, so that the data do not show it); with fewer than
         eight impacts (six ratios) the effects alone, and that the scatter cannot be measured. Where
         no gravity model's ω0 is determined: "the data cannot see gravity in contact: <models>
         fit as well in the gravity-free limit (omega0 not determined)".
@@ -188,6 +194,13 @@ def gravity_effect_note(data, results):
         return (f"the data cannot see gravity in contact: its effect on ε {where}, {sizes}, "
                 f"is below the bounce-to-bounce scatter, {scatter:.2g}{free_limit}")
     misfit = _shared_misfit(data, results)
+    free_fit = _gravity_free_fits_as_well(results, effects)
+    if free_fit and not misfit:
+        # The effect is |ε_gravity − ε_free| at the same ζ; a gravity-free fit's own ζ takes
+        # up its mean over the train, and what is left may be below what the data show.
+        return (f"gravity in contact would change ε {where} by {sizes} at the fitted "
+                f"parameters, above the bounce-to-bounce scatter, {scatter:.2g}; but {free_fit}, "
+                f"so the data do not show it{free_limit}")
     if misfit:
         # ζ and v* of fits that miss the data are what the misfit drove them to.
         return (f"gravity in contact would change ε {where} by {sizes} at the fitted "
@@ -196,6 +209,24 @@ def gravity_effect_note(data, results):
                 f"of it{free_limit}")
     return (f"gravity in contact is visible in these data: its effect on ε {where}, {sizes}, "
             f"against a bounce-to-bounce scatter of {scatter:.2g}{free_limit}")
+
+
+def _gravity_free_fits_as_well(results, effects):
+    """"<model> fits about as well (ΔAIC = x against <gravity model>)" where a successful
+    gravity-free fit is within :data:`FITS_AS_WELL_AIC` of the best gravity model among
+    `effects`, else ''."""
+    free = [(fit.aic, model) for model, fit in results.items()
+            if model in GRAVITY_FREE_COUNTERPART.values() and fit.success
+            and math.isfinite(fit.aic)]
+    gravity = [(results[model].aic, model) for model in effects
+               if math.isfinite(results[model].aic)]
+    if not free or not gravity:
+        return ""
+    (free_aic, free_model), (gravity_aic, gravity_model) = min(free), min(gravity)
+    if free_aic - gravity_aic > FITS_AS_WELL_AIC:
+        return ""
+    return (f"a gravity-free model fits about as well ({free_model}: ΔAIC = "
+            f"{free_aic - gravity_aic:.1f} against {gravity_model})")
 
 
 def _shared_misfit(data, results):
