@@ -633,7 +633,8 @@ class _Problem(NoiseProblem):
             if far.size:
                 notes.append(f"{far.shape[0]} speed innovation(s) with |z| > {OUTLIER_Z:g}: "
                              + ", ".join(f"{('impact', 'rebound')[k]} speed of impact {n}"
-                                         for n, k in far) + " (kept in the fit)")
+                                         for n, k in far)
+                             + " (impacts counted from 0; kept in the fit)")
         # Degrees of freedom of Σz² at the adjusted σ_ε: n less the fitted mean parameters
         # the data determine (module notes, *Goodness of fit*).
         dof = max(ndata - sum(1 for f in fit_free if f <= self.index("v0")
@@ -641,7 +642,7 @@ class _Problem(NoiseProblem):
         outliers = np.flatnonzero(scored & (np.abs(np.nan_to_num(z)) > OUTLIER_Z))
         if outliers.size:
             notes.append(f"{outliers.size} innovation(s) with |z| > {OUTLIER_Z:g} at impact(s) "
-                         f"{', '.join(map(str, outliers))} (kept in the fit)")
+                         f"{', '.join(map(str, outliers))} (counted from 0; kept in the fit)")
         full, keep, dropped = self.covariance(fit.hessian[t], fit.params[t], fit_free)
         cov = full[np.ix_(keep, keep)]
         hessian_ok = bool(keep) or not fit_free
