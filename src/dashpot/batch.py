@@ -182,7 +182,7 @@ def fit_scene(task, output, log):
         for run, fit in runs_fit.runs.items():
             for model, result in fit.results.items():
                 log.info("run %s, %s: %s", run, model, result.message)
-        log.info("%s", joint_text(runs_fit))  # as `dashpot fit` prints it
+        log.info("%s", joint_text(runs_fit, verbose=True))  # as `dashpot fit -v` prints it
     for note in impacts.attrs.get("notes", []):
         log.info("reader: %s", note)
     for model, fit in scene_fit.results.items():

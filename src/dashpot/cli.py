@@ -332,15 +332,18 @@ def _say_reports(console, runs_fit, notes):
             console.say(f"run {run}:")
         console.say(report_text(fit, notes=notes, verbose=console.verbose))
     if several:
-        console.say(joint_text(runs_fit))
+        console.say(joint_text(runs_fit, verbose=console.verbose))
 
 
-def joint_text(runs_fit):
+def joint_text(runs_fit, verbose=False):
     """The contact parameters of each run's own fit beside those of the joint fit, per model.
 
     Parameters
     ----------
     runs_fit : dashpot.fit.RunsFit
+    verbose : bool, default False
+        Also the routine notes on how each joint fit was made (accuracy level, start values),
+        as ``-v`` shows them for each run's fits.
 
     Returns
     -------
@@ -357,7 +360,7 @@ def joint_text(runs_fit):
     lines = [header]
 
     from .fit.settings import WEAK_RELATIVE_ERROR
-    from .fit_report import format_measurement
+    from .fit_report import ROUTINE_PREFIXES, format_measurement
 
     def shown(estimate):
         if estimate is None:
@@ -388,7 +391,8 @@ def joint_text(runs_fit):
     for model, joint in runs_fit.joint.items():
         text.append(f"  joint {model}: chi2/nu = {joint.redchi:.3g}"
                     + ("" if joint.success else f" ({joint.message})"))
-        text += [f"    note: {note}" for note in joint.notes]
+        text += [f"    note: {note}" for note in joint.notes
+                 if verbose or not note.startswith(ROUTINE_PREFIXES)]
     return "\n".join(text)
 
 
