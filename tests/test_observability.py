@@ -242,6 +242,21 @@ def test_gravity_in_contact_is_not_called_visible_where_a_gravity_free_fit_does_
     assert note.endswith("so the data do not show it")
 
 
+def test_the_gravity_note_stays_with_the_deterministic_fits_not_the_noise_fits():
+    # The note weighs the deterministic fits' ζ, v* and misfit; the fits under the noise model
+    # judge gravity in contact by their own selection, and their rows must not carry it.
+    impacts = scattered_train("Ib", omega0=4500.0, zeta=0.0175, v0=1.5, v_min=0.3,
+                              scatter=0.003, sigma=2e-5, seed=44)
+    scene = Scene(contact_time=Known(7e-4, 1e-4))
+    result = fit_scene(impacts, scene, models=("Ia", "Ib"), noise=True)
+    note = next(note for note in result.data.notes if "gravity in contact" in note)
+    assert note in result.results["Ib"].notes
+    assert result.noise_results
+    for law, fit in result.noise_results.items():
+        assert note not in fit.notes, law
+    assert any("noise model" in said for said in result.noise_results["Ib"].notes)
+
+
 def test_gravity_models_without_a_determined_omega0_fit_in_the_gravity_free_limit():
     impacts = timed_train("Ib", seed=46, **STIFF)
     result = fit_scene(impacts, Scene(), models=("Ia", "Ib", "hybrid"))
