@@ -88,6 +88,14 @@ def recording_note(path, scene):
 
 
 
+def _noise_step(noise):
+    """What the log line on the fits says of the noise model (`noise`: True, False or
+    "auto", which fits it only where the deterministic fits miss the data)."""
+    if noise == "auto":
+        return " and, if they miss the data (noise: auto), the fits under the noise model"
+    return " and the fits under the noise model" if noise else ""
+
+
 def _fit_reporter(steps, progress):
     """Called with each fit's name as it is done: logs it with the CPU time so far and passes
     step 2 ... 1 + `steps` of 1 + `steps` to `progress` (step 1 is reading the impacts)."""
@@ -152,8 +160,7 @@ def analyze(path, scene=None, *, models=None, progress=None, noise=None):
         progress(1, 1 + steps, f"{len(impacts)} impacts")
     report = _fit_reporter(steps, progress)
 
-    logger.info("fitting %s%s", ", ".join(models),
-                " and the fits under the noise model" if noise else "")
+    logger.info("fitting %s%s", ", ".join(models), _noise_step(noise))
     try:
         scene_fit = fit_scene(impacts, scene, models, progress=report, noise=noise)
     except ValueError as error:
@@ -221,8 +228,7 @@ def analyze_runs(path, scene=None, *, models=None, progress=None, noise=None):
         progress(1, 1 + steps, f"{len(impacts)} impacts in {len(parts)} run(s)")
     report = _fit_reporter(steps, progress)
 
-    logger.info("fitting %s%s%s", ", ".join(models),
-                " and the fits under the noise model" if noise else "",
+    logger.info("fitting %s%s%s", ", ".join(models), _noise_step(noise),
                 f" to each of {len(parts)} runs and to all jointly" if several else "")
     try:
         runs_fit = fit_runs(impacts, scene, models, progress=report, noise=noise)
