@@ -128,6 +128,31 @@ def test_two_drops_of_the_real_bouncy_ball_are_two_runs_each_as_the_recording_al
                                    once, rtol=0, atol=1e-9)
 
 
+def test_a_drop_repeated_nearly_as_loud_is_a_drop_not_an_echo(tmp_path):
+    """A synthetic drop, 2 s of noise, and the same drop again at 0.9 of its loudness (from a
+    little lower): its impacts repeat the first's at one delay, but a drop's echo comes
+    weakened by its longer path and the wall. Before, the second drop was taken for an echo
+    of the first and left out, with no note."""
+    rng = np.random.default_rng(20_502_201)
+    times, speeds = hybrid_train(rng)
+    samples, onsets = impact_sound(times, speeds, sample_rate=RATE, seed=20_502_201,
+                                   snr_db=45.0)
+    gap = rng.normal(scale=np.std(samples[: int(0.1 * RATE)]), size=2 * RATE)
+    path = write_audio(tmp_path / "again.wav",
+                       np.concatenate([samples, gap, 0.9 * samples]), RATE, subtype="FLOAT")
+    table = detect_impacts(path)
+    alone = detect_impacts(write_audio(tmp_path / "alone.wav", samples, RATE,
+                                       subtype="FLOAT"))["time"].to_numpy()
+    found = score_train(onsets, alone, np.ones(alone.size), MATCH)["found"]
+    assert found >= onsets.size - 2
+    assert sorted(table["run"].unique()) == [0, 1]
+    first, second = (part["time"].to_numpy() for _, part in table.groupby("run"))
+    np.testing.assert_allclose(first, alone, rtol=0, atol=1e-9)
+    shift = (samples.size + gap.size) / RATE
+    score = score_train(onsets + shift, second, np.ones(second.size), MATCH)
+    assert score["found"] >= found - 1 and score["false"] <= 1
+
+
 @pytest.mark.parametrize("sound", ["rest clicks for 3 s", "echo at 0.3-0.5 s",
                                    "handling clicks before the drop"])
 def test_the_sounds_around_one_drop_make_no_other_run(sound, tmp_path):

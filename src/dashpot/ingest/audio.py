@@ -160,7 +160,8 @@ _RUN_SHRINK = 0.5  # its last interval is less than this share of its first;
 _RUN_LOUDNESS = 10.0  # its loudest impact is within this factor of the first train's;
 _FIRST_PASS_SHARE = 0.5  # of its impacts, at least, the chain's first pass finds
 _MAX_REST_RATIO = 0.99  # flight ratio after the last impact of a train, for its rest time
-_ECHO_TOLERANCE_SECONDS = 0.3e-3  # an echo's impacts repeat its source's at one delay
+_ECHO_TOLERANCE_SECONDS = 0.3e-3  # an echo's impacts repeat its source's at one delay,
+_ECHO_WEAKENING = 1.5  # ... each this many times fainter at least (3.5 dB)
 # and lies this long (s) past the last impact of the one before: its rings and echoes (2 ×
 # the longest secondary delay, as chain._echoing_members looks for them).
 _AFTER_TRAIN_SECONDS = 2 * _SECONDARY_SECONDS
@@ -559,10 +560,13 @@ def _other_drop(path, stream, rough, amplitude, sample_rate, start, end, trains)
 
 def _echo_of(train, source):
     """Whether at least half the impacts of `train` (an impact table) come one common delay
-    (to :data:`_ECHO_TOLERANCE_SECONDS`) after a louder impact of `source`: an echo copies
-    the train (from a far wall, at any delay)."""
+    (to :data:`_ECHO_TOLERANCE_SECONDS`) after an impact of `source` at least
+    :data:`_ECHO_WEAKENING` times as loud: an echo copies the train (from a far wall, at any
+    delay), weakened, since its path is longer and the wall absorbs part of the sound; a
+    drop that repeats the one before as loud is a drop."""
     delays = train["time"].to_numpy()[:, None] - source["time"].to_numpy()[None, :]
-    louder = source["amplitude"].to_numpy()[None, :] >= train["amplitude"].to_numpy()[:, None]
+    louder = (source["amplitude"].to_numpy()[None, :]
+              >= _ECHO_WEAKENING * train["amplitude"].to_numpy()[:, None])
     member, column = np.nonzero(louder & (delays > 0))
     if member.size == 0:
         return False
