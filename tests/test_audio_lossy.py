@@ -26,6 +26,7 @@ import pytest
 import soundfile as sf
 
 from audio_trains import score_train
+from dashpot.cli import main
 from dashpot.ingest import audio_file
 from dashpot.ingest.chain import _chain_weights
 from dashpot.ingest.audio import _without_pre_echoes, detect_impacts
@@ -198,3 +199,19 @@ def test_recall_on_lossy_recordings_of_phone_quality(tmp_path, codec, decoded):
         score = score_train(onsets, times, np.ones(times.size), MATCH)
         total, found, false = total + onsets.size, found + score["found"], false + score["false"]
     assert found / total >= 0.93 and false <= 0.03 * total
+
+
+def test_the_fits_of_a_lossy_recording_say_it_is_lossy(tmp_path, capsys):
+    # The note was among the reader's only: `dashpot fit` and `analyze` printed the fits of
+    # an MP3 without it.
+    samples, _, _ = disturbed_train(20501311, RATE)
+    path = _write(tmp_path / "drop.mp3", samples / max(1.0, 1.05 * np.abs(samples).max()),
+                  "MPEG_LAYER_III", 0.7)
+    assert main(["fit", str(path), "-o", str(tmp_path / "drop.h5"), "--models", "hybrid",
+                 "--no-noise"]) == 0
+    assert "note: lossy-coded recording (MP3)" in capsys.readouterr().out
+    wav = tmp_path / "drop.wav"
+    sf.write(str(wav), sf.read(str(path))[0], RATE, subtype="FLOAT")
+    assert main(["fit", str(wav), "-o", str(tmp_path / "wav.h5"), "--models", "hybrid",
+                 "--no-noise"]) == 0
+    assert "lossy-coded" not in capsys.readouterr().out

@@ -201,7 +201,8 @@ def _fit(args, console):
         raise _cannot_write(args.output, error) from None
     console.say(f"{args.impacts}: {len(impacts)} impacts -> {args.output}")
     _say_reports(console, runs_fit, [recording_note(args.impacts, scene), *flight_notes(scene),
-                                     acceleration_problem(impacts, scene.driving_acceleration)])
+                                     acceleration_problem(impacts, scene.driving_acceleration),
+                                     *impacts.attrs.get("warnings", [])])
 
 
 def _analyze(args, console):
@@ -287,7 +288,8 @@ def _analyze(args, console):
                 f"{out / parameters}, figures in {out / name}/")
     _say_reports(console, runs_fit, [recording_note(recording, scene if args.scene else None),
                                      *flight_notes(scene),
-                                     acceleration_problem(impacts, scene.driving_acceleration)])
+                                     acceleration_problem(impacts, scene.driving_acceleration),
+                                     *impacts.attrs.get("warnings", [])])
 
 
 def _with_uncertainty(scene, args):

@@ -43,7 +43,10 @@ column                        unit  meaning
 ============================  ====  ========================================================
 
 ``DataFrame.attrs`` holds ``source`` (the file), ``sensor`` (the reader's kind) and ``notes``
-(a list of plain-words remarks, e.g. which time unit was inferred). Bad input raises
+(a list of plain-words remarks, e.g. which time unit was inferred); ``warnings``, where
+present, are those of the notes a user must see beside any result drawn from the table (a
+lossy-coded recording, a WAV read past its broken header), which ``dashpot fit`` and
+``analyze`` print with their fits. Bad input raises
 :class:`dashpot.errors.InputError` naming the file, the row where it applies, and the problem.
 """
 

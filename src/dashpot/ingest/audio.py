@@ -324,10 +324,13 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         repair_note = handle.repair_note
     stream.candidates = _without_pre_echoes(stream.candidates, sample_rate)
     table = _impact_table(path, stream, sample_rate, duration)
-    if repair_note:
-        table.attrs["notes"].append(repair_note)
-    if stream.lossy_codec:
-        table.attrs["notes"].append(_lossy_note(stream.lossy_codec))
+    # What a user must see beside any fit of these impacts, as well as in the notes.
+    warnings = [note for note in (repair_note,
+                                  stream.lossy_codec and _lossy_note(stream.lossy_codec))
+                if note]
+    table.attrs["notes"] += warnings
+    if warnings:
+        table.attrs["warnings"] = warnings
     return table
 
 
