@@ -325,12 +325,12 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
     stream.candidates = _without_pre_echoes(stream.candidates, sample_rate)
     table = _impact_table(path, stream, sample_rate, duration)
     # What a user must see beside any fit of these impacts, as well as in the notes.
-    warnings = [note for note in (repair_note,
+    must_see = [note for note in (repair_note,
                                   stream.lossy_codec and _lossy_note(stream.lossy_codec))
                 if note]
-    table.attrs["notes"] += warnings
-    if warnings:
-        table.attrs["warnings"] = warnings
+    table.attrs["notes"] += must_see
+    if must_see:
+        table.attrs["warnings"] = must_see
     return table
 
 
