@@ -658,19 +658,37 @@ def _numbers(path, table, index, *, what):
             raise InputError(path, f"{table.where}'{cell}' is not a number", row=row + 1,
                              column=table.columns[index].header)
         raise InputError(path, f"{table.where}{what} '{cell}' is not a number", row=row + 1)
-    # Resolution of the written digits: one unit of the last decimal place, allowing for an
-    # exponent (phyphox writes 1.234567890E-1), taken for the whole column as the median over
-    # its cells. One cell's text does not set it: a spreadsheet writes the shortest text of a
+    # Resolution of the written digits, taken for the whole column as the median over its
+    # cells. One cell's text does not set it: a spreadsheet writes the shortest text of a
     # number (1.25 for 1.2500, 0.5 for a click at exactly half a second), and a workbook's
     # cells hold floats whose digits show no resolution at all.
-    parts = strings.str.extract(_NUMBER)
-    decimals = parts["frac"].fillna("").str.len() - pd.to_numeric(parts["exp"]).fillna(0)
-    written = 10.0 ** (-decimals.to_numpy(dtype=float))
+    written = _written_resolutions(strings)
     finite = np.isfinite(values.to_numpy(dtype=float))
     resolution = np.full(finite.size, np.nan)
     if finite.any():
         resolution[finite] = float(np.median(written[finite]))
     return values.to_numpy(dtype=float), resolution
+
+
+def _written_resolutions(strings):
+    """One unit of the last written digit of each number in `strings` (a pandas Series of str,
+    decimal point), allowing for an exponent (phyphox writes 1.234567890E-1 to 1e-10); NaN
+    where a cell is no number."""
+    parts = strings.str.strip().str.extract(_NUMBER)
+    decimals = parts["frac"].fillna("").str.len() - pd.to_numeric(parts["exp"]).fillna(0)
+    digits = (parts["int"].fillna("") + parts["frac"].fillna("")).str.len() > 0
+    return np.where(digits, 10.0 ** (-decimals.to_numpy(dtype=float)), np.nan)
+
+
+def _cell_resolutions(table, index):
+    """:func:`_written_resolutions` of each cell of column `index` of `table`: where the
+    written digits grow with the number (exponent notation: 1.093691667E1 is written to 1e-8,
+    9.005000000E-1 to 1e-10), checking one column against another needs each cell's own, not
+    the column's median (:func:`_numbers`)."""
+    strings = pd.Series(table.cells[:, index], dtype=object).astype(str)
+    if table.decimal == ",":
+        strings = strings.str.replace(",", ".", regex=False)
+    return _written_resolutions(strings)
 
 
 def _check_duplicates(path, table, rows=None):

@@ -20,8 +20,8 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ._tabular import (_NUMBER, _check_duplicates, _check_times, _impact_frame, _load_tables,
-                       _numbers, _phyphox_layout, _unit_factor)
+from ._tabular import (_cell_resolutions, _check_duplicates, _check_times, _impact_frame,
+                       _load_tables, _numbers, _phyphox_layout, _unit_factor)
 
 PHYPHOX_AUDIO_RATE = 48000.0
 """Hz. phyphox's stopwatch experiments time a click by the index of an audio sample, so their
@@ -41,24 +41,6 @@ def _phyphox_time_uncertainty(resolution):
 def _column_index(table, pattern):
     """{name: index} of the columns whose name matches `pattern` fully."""
     return {c.name: j for j, c in enumerate(table.columns) if re.fullmatch(pattern, c.name)}
-
-
-def _cell_resolutions(table, index):
-    """One unit of the last written digit of each cell of column `index` (NaN where none).
-
-    The column's resolution (:func:`_numbers`) is the median over its cells; in phyphox's
-    exponent notation a cell's last digit grows with the number (1.093691667E1 is written to
-    1e-8 s, 9.005000000E-1 to 1e-10 s), so that checking one column against another needs each
-    cell's own.
-    """
-    strings = [cell.replace(",", ".") if table.decimal == "," else cell
-               for cell in table.cells[:, index]]
-    out = np.full(len(strings), np.nan)
-    for row, text in enumerate(strings):
-        match = _NUMBER.match(text.strip())
-        if match and (match["int"] or match["frac"]):
-            out[row] = 10.0 ** (int(match["exp"] or 0) - len(match["frac"] or ""))
-    return out
 
 
 def _phyphox_clicks(path, table, notes):
