@@ -144,3 +144,21 @@ def test_an_empty_output_name_is_refused_by_name(table, tmp_path, monkeypatch, c
     assert err == (f"dashpot {command}: error: argument -o/--output: empty: give the name of "
                    f"the output (see dashpot {command} --help)\n")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("option", "value", "reader"), [
+    ("--flag-length", "0.02", "photogate"), ("--gate-distance", "0.1", "photogate"),
+    ("--bumper-position", "0.5", "motion-sensor"), ("--track", "mass A", "motion-sensor")])
+def test_a_reader_option_for_another_kind_of_file_is_refused(tmp_path, option, value, reader):
+    # Given for a timestamp table, these options were ignored without a word: the user took
+    # them to apply.
+    table = tmp_path / "impacts.csv"
+    table.write_text("time\n0.1\n0.5\n0.82\n1.08\n1.29\n")
+    written = tmp_path / "out.csv"
+    status, _, err = run_cli(["impacts", str(table), option, value, "-o", str(written)])
+    assert status == 2 and not written.exists()
+    line = err.strip()
+    assert "\n" not in line and str(table) in line
+    assert f"({option}) is for {reader} files" in line and "read as timestamps" in line
+    # The option of the reader that reads the file stays accepted.
+    assert run_cli(["impacts", str(table), "--unit", "s", "-o", str(written)])[0] == 0

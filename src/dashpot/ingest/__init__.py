@@ -122,7 +122,10 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     InputError
         The file does not exist, is not a supported recording (a phone's .m4a or a video:
         the message gives the ffmpeg command that extracts a WAV), its content is unusable,
-        or it holds no impact (an empty table is never returned: its reader's notes say why).
+        it holds no impact (an empty table is never returned: its reader's notes say why), or
+        an option is given that the reader of this kind of file does not use (it would be
+        ignored: `flag_length` and `gate_distance` are for photogates, `unit` for timestamp
+        tables, `bumper_position` and `track` for motion sensors).
     """
     impacts = _read(path, kind, flag_length, gate_distance, unit, bumper_position, track)
     if impacts.empty:
@@ -153,6 +156,24 @@ def unreadable_media_problem(path):
             f"sound to WAV first, e.g. `ffmpeg -i {path.name} -vn -c:a pcm_s16le {target}`")
 
 
+# The reader each option is for: an option given for another reader would be ignored, and
+# the user would believe it applied.
+_READER_OPTIONS = {"flag_length": "photogate", "gate_distance": "photogate",
+                   "unit": "timestamps", "bumper_position": "motion_sensor",
+                   "track": "motion_sensor"}
+
+
+def _check_reader_options(path, kind, **options):
+    """Raise InputError naming the first of `options` given (not None) that the reader
+    `kind` does not use."""
+    for name, value in options.items():
+        if value is not None and _READER_OPTIONS[name] != kind:
+            raise InputError(path, f"{name} (--{name.replace('_', '-')}) is for "
+                                   f"{_READER_OPTIONS[name].replace('_', '-')} files, and "
+                                   f"this file is read as {kind.replace('_', '-')}: leave it "
+                                   f"out, or give the kind of file (--kind)")
+
+
 def _read(path, kind, flag_length, gate_distance, unit, bumper_position, track):
     """The impact table of the reader `kind` chooses (see read_impacts)."""
     path = Path(path)
@@ -168,6 +189,8 @@ def _read(path, kind, flag_length, gate_distance, unit, bumper_position, track):
             kind = sniff_table(path)
     if kind not in KINDS:
         raise InputError(path, f"unknown kind {kind!r}; use one of {', '.join(KINDS)}")
+    _check_reader_options(path, kind, flag_length=flag_length, gate_distance=gate_distance,
+                          unit=unit, bumper_position=bumper_position, track=track)
     if kind == "audio":
         from .audio import detect_impacts
 
