@@ -103,6 +103,30 @@ def test_says_which_file_it_analysed_when_the_scene_names_another(table_scene, t
         assert not source.attrs["input_is_scene_recording"]
 
 
+def test_a_scene_that_names_its_recording_is_analysed_without_it(table_scene, tmp_path):
+    """`analyze --scene S` reads the recording S names (resolved against S's folder): a rerun
+    needs the scene alone. Without a recording and without a scene naming one: one line."""
+    import h5py
+
+    source, scene = table_scene
+    recording = tmp_path / source.name  # beside the scene, which names it relatively
+    recording.write_bytes(source.read_bytes())
+    named = tmp_path / "named.yaml"
+    named.write_text(scene.read_text() + f"recording: {recording.name}\n")
+    out = tmp_path / "out"
+    status, printed, err = run_cli(["analyze", "--scene", str(named), "-o", str(out)])
+    assert status == 0, err
+    assert printed.startswith(f"{recording}: ")
+    with h5py.File(out / "my-ball.h5", "r") as written:
+        assert written.attrs["input_file"] == recording.name
+        assert written.attrs["input_is_scene_recording"]
+    for argv, problem in (([], "recording: missing"),
+                          (["--scene", str(scene)], f"{scene}: names no recording")):
+        status, _, err = run_cli(["analyze", *argv, "-o", str(tmp_path / "none")])
+        assert status == 2 and problem in err and len(err.strip().splitlines()) == 1
+        assert not (tmp_path / "none").exists()
+
+
 @pytest.mark.parametrize("case", ["parameters", "figures", "scene-recording"])
 def test_an_output_that_would_replace_an_input_is_refused(tmp_path, table_scene, case):
     """The scene's name makes the output names: `<name>-parameters.csv` as the recording was

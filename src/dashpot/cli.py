@@ -221,9 +221,18 @@ def _analyze(args, console):
     from .store import write_scene_fit
 
     _refuse_standard_output(args, "folder")
+    scene = load_scene(args.scene) if args.scene else None
+    if args.recording is None:
+        # The scene names its recording: a rerun needs nothing else.
+        if scene is None:
+            raise InputError("recording", "missing: give the recording to analyze, or a "
+                                          "scene (--scene) that names one")
+        if scene.recording is None:
+            raise InputError(args.scene, "names no recording: give the recording to analyze")
+        args.recording = str(scene.recording)
     recording = Path(args.recording)
     require_file(recording)
-    scene = load_scene(args.scene) if args.scene else Scene(name=recording.stem or "scene")
+    scene = scene or Scene(name=recording.stem or "scene")
     scene = _with_uncertainty(scene, args)
     name = scene.name
     out = Path(args.output)
@@ -493,6 +502,7 @@ COMMANDS = {
         "<name>/*.png|pdf into the output folder, and print the summary of the fits (of "
         "every run of a multi-run file, and of the runs' joint fit).",
         ["dashpot analyze drop.wav --scene scene.yaml -o out/",
+         "dashpot analyze --scene scene.yaml -o out/",
          "dashpot analyze drop.wav -o out/ --noise -v"]),
 }
 
@@ -597,7 +607,9 @@ def build_parser():
                      help=UNCERTAINTY_HELP)
     fit.set_defaults(run=_fit)
     analyze = command("analyze")
-    analyze.add_argument("recording", help="audio file (WAV/FLAC/OGG/MP3) or lab table (CSV/XLSX)")
+    analyze.add_argument("recording", nargs="?",
+                         help="audio file (WAV/FLAC/OGG/MP3) or lab table (CSV/XLSX); "
+                              "default: the recording the scene names")
     analyze.add_argument("-o", "--output", required=True, type=_output_name,
                          help="folder to write <name>.h5, <name>-parameters.csv and the "
                               "figures <name>/*.png|pdf into")
