@@ -20,6 +20,9 @@ on its first run (0.875 with 38 where pre-echoes were left out of lossy files on
 
 import multiprocessing
 import os
+import subprocess
+import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -140,6 +143,32 @@ def test_a_forked_process_keeps_its_own_copies(tmp_path, monkeypatch):
     assert worker.exitcode == 0 and set(copies._folder.iterdir()) == kept
     with _open(paths[0]) as handle:
         np.testing.assert_array_equal(handle.read(), sf.read(str(paths[0]))[0])
+
+
+def test_copies_left_by_a_process_that_died_are_deleted(tmp_path, monkeypatch):
+    # A killed process (or a worker leaving through os._exit) runs no exit handler: its
+    # folder is deleted when another process makes its own; a running process's is kept.
+    if os.name != "posix":
+        pytest.skip("orphaned copies are found by process id on POSIX only")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                           capture_output=True, text=True, check=True)
+    orphaned = tmp_path / f"dashpot-decoded-{ended.stdout.strip()}-abc"
+    running = tmp_path / f"dashpot-decoded-{os.getppid()}-def"
+    for folder in (orphaned, running):
+        folder.mkdir()
+        (folder / "copy.wav").write_bytes(b"RIFF")
+    unrelated = tmp_path / "dashpot-decoded-notes"
+    unrelated.mkdir()
+    copies = audio_file._DecodedCopies()
+    monkeypatch.setattr(audio_file, "_DECODED", copies)
+    rng = np.random.default_rng(20503901)
+    with _open(_write(tmp_path / "take.ogg", 0.1 * rng.standard_normal(RATE // 4), "VORBIS")):
+        pass
+    assert not orphaned.exists()
+    assert running.is_dir() and unrelated.is_dir()
+    assert copies._folder.parent == tmp_path and copies._folder.name.startswith(
+        f"dashpot-decoded-{os.getpid()}-")
 
 
 def test_only_the_latest_decoded_copies_are_kept(tmp_path, monkeypatch):

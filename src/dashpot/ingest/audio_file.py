@@ -29,6 +29,7 @@ _FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
 _INEXACT_SEEK_SUBTYPES = {"VORBIS", "OPUS", "MPEG_LAYER_I", "MPEG_LAYER_II", "MPEG_LAYER_III"}
 _DECODED_COPIES_KEPT = 4  # most recently opened lossy files whose copies are kept
 _DECODE_BLOCK_FRAMES = 1 << 18
+_DECODED_PREFIX = "dashpot-decoded-"  # then the owning process's id and a random part
 
 
 # --------------------------------------------------------------------------------------------
@@ -127,7 +128,9 @@ class _DecodedCopies:
     of them when the process exits. A copy takes 4 bytes per sample and channel (a
     10-minute stereo recording at 48 kHz: 230 MB) in the system's temporary folder. The
     decoders of these codecs output 32-bit floats, so the copy holds exactly the samples a
-    sequential read gives. A process forked from another keeps copies of its own.
+    sequential read gives. A process forked from another keeps copies of its own. The folder
+    is named after its process; one whose process ended without its exit handlers (killed,
+    or a worker that left through ``os._exit``) is deleted when another process makes its own.
     """
 
     def __init__(self):
@@ -145,7 +148,8 @@ class _DecodedCopies:
             self._copies.move_to_end(key)
             return self._copies[key]
         if self._folder is None:
-            self._folder = Path(tempfile.mkdtemp(prefix="dashpot-decoded-"))
+            _remove_orphaned_copies()
+            self._folder = Path(tempfile.mkdtemp(prefix=f"{_DECODED_PREFIX}{os.getpid()}-"))
             atexit.register(shutil.rmtree, self._folder, ignore_errors=True)
         # A name of its own (mkstemp): two files of one name and time must not share a copy.
         descriptor, name = tempfile.mkstemp(suffix=".wav", dir=self._folder)
@@ -167,6 +171,23 @@ class _DecodedCopies:
 
 
 _DECODED = _DecodedCopies()
+
+
+def _remove_orphaned_copies():
+    """Delete the decoded-copy folders of processes that no longer run (POSIX only: Windows
+    has no harmless probe of a process id)."""
+    if os.name != "posix":
+        return
+    for folder in Path(tempfile.gettempdir()).glob(f"{_DECODED_PREFIX}*-*"):
+        owner = folder.name[len(_DECODED_PREFIX):].split("-", 1)[0]
+        if not owner.isdigit():
+            continue
+        try:
+            os.kill(int(owner), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except (PermissionError, OverflowError):  # another user's process, or not a pid
+            continue
 
 
 def _open(path):
