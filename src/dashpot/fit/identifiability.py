@@ -12,9 +12,14 @@ from .settings import STRONG_CORRELATION, WEAK_RELATIVE_ERROR
 
 
 def _identifiability_notes(estimates, varied, correlation, params):
-    """Plain-words warnings where the data do not pin a parameter down."""
+    """Plain-words warnings where the data do not pin a parameter down.
+
+    k = m omega0^2 shares omega0's notes only where a mass makes k part of the result
+    (``"k"`` in `estimates`).
+    """
     notes = []
-    labels = {"zeta": "zeta", "v_star": "omega0 (and so k)", "v0": "v0", "t0": "t0"}
+    omega0_label = "omega0 (and so k)" if "k" in estimates else "omega0"
+    labels = {"zeta": "zeta", "v_star": omega0_label, "v0": "v0", "t0": "t0"}
     for name in varied:
         param = params[name]
         if any(np.isfinite(bound) and abs(param.value - bound) <= 1e-3 * abs(bound)
@@ -23,9 +28,9 @@ def _identifiability_notes(estimates, varied, correlation, params):
                          f"these data")
     omega0 = estimates.get("omega0")
     if omega0 is not None and omega0.status != "fixed" and math.isinf(omega0.high95):
-        notes.append("omega0 (and so k) is not bounded above at 95 %: the data are consistent "
-                     "with the gravity-free limit (v* = g/omega0 -> 0)")
-    for key, label in (("omega0", "omega0 (and so k)"), ("zeta", "zeta"), ("beta", "beta")):
+        notes.append(f"{omega0_label} is not bounded above at 95 %: the data are consistent "
+                     f"with the gravity-free limit (v* = g/omega0 -> 0)")
+    for key, label in (("omega0", omega0_label), ("zeta", "zeta"), ("beta", "beta")):
         estimate = estimates.get(key)
         if estimate is not None and estimate.status != "fixed":
             relative = estimate.stderr / estimate.value if estimate.value else math.inf
