@@ -5,6 +5,7 @@ import os
 
 import numpy as np
 import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 import dashpot
@@ -406,3 +407,31 @@ def test_restitution_figure_names_failed_fits_in_its_legend():
     texts = _legend_texts(fig)
     assert "Ib (B): fit failed, not drawn" in texts
     assert "noise: hunt-crossley: fit failed, not drawn" in texts
+
+
+@pytest.mark.parametrize("entries", [5, 17, 40])
+def test_a_long_legend_goes_below_the_axes_and_leaves_them_their_width(entries):
+    # 17 entries: the five contact models, their noise fits and seven noise models, beside
+    # the data; beside the axes such a legend took half the figure's width.
+    fig = Figure(figsize=(9.5, 7.0), layout="constrained")
+    ax = fig.subplots()
+    labels = ["interval ratios (no drag correction)"] + [
+        f"noise: model {k}" for k in range(entries - 1)]
+    handles = [ax.plot([0, 1], [k, k], label=label)[0] for k, label in enumerate(labels)]
+    plots._figure_legend(fig, handles)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    figure_box = fig.bbox
+    axes_box = ax.get_window_extent(renderer)
+    legend_box = fig.legends[0].get_window_extent(renderer)
+    # Nothing of the legend outside the figure, nor over the axes.
+    assert figure_box.x0 - 1 <= legend_box.x0 and legend_box.x1 <= figure_box.x1 + 1
+    assert figure_box.y0 - 1 <= legend_box.y0 and legend_box.y1 <= figure_box.y1 + 1
+    assert not axes_box.overlaps(legend_box)
+    if entries <= 8:
+        assert legend_box.x0 >= axes_box.x1  # short: beside the axes
+    else:
+        assert legend_box.y1 <= axes_box.y0  # long: below them, in columns
+        assert axes_box.width >= 0.8 * figure_box.width
+        assert axes_box.height >= 0.4 * figure_box.height

@@ -215,9 +215,37 @@ def _onset_proxy():
                   linestyle="none", label=_ONSET_PROXY_LABEL)
 
 
+_LEGEND_BESIDE_AT_MOST = 8  # entries; a longer legend goes below the axes, in columns
+_LEGEND_LINE_CHARACTERS = 16  # characters of a small-font legend per inch of figure width
+_LEGEND_ROW_INCHES = 0.24  # height of one row of a small-font legend
+
+
+def _legend_columns(labels, characters):
+    """Most columns (at most 4) in which `labels`, filled column by column as matplotlib
+    does, span at most `characters` (each entry takes its text and about 6 more for the
+    handle and the gap)."""
+    for columns in range(min(4, len(labels)), 1, -1):
+        rows = -(-len(labels) // columns)
+        width = sum(max(len(label) for label in labels[k:k + rows]) + 6
+                    for k in range(0, len(labels), rows))
+        if width <= characters:
+            return columns
+    return 1
+
+
 def _figure_legend(fig, handles):
-    """One legend for the whole figure, outside the axes (never over the data)."""
-    fig.legend(handles=handles, loc="outside right upper", frameon=False)
+    """One legend for the whole figure, outside the axes (never over the data): beside them,
+    or, where it is long (beside, it would take the axes' width), below them in columns, the
+    figure made taller by its rows."""
+    if len(handles) <= _LEGEND_BESIDE_AT_MOST:
+        fig.legend(handles=handles, loc="outside right upper", frameon=False)
+        return
+    width, height = fig.get_size_inches()
+    columns = _legend_columns([handle.get_label() for handle in handles],
+                              _LEGEND_LINE_CHARACTERS * width)
+    fig.set_size_inches(width, height + _LEGEND_ROW_INCHES * -(-len(handles) // columns))
+    fig.legend(handles=handles, loc="outside lower center", ncols=columns, frameon=False,
+               fontsize="small")
 
 
 # --- theory figures -------------------------------------------------------------------------
