@@ -156,7 +156,8 @@ def test_a_stopped_run_leaves_no_staging_folder_and_says_one_line(tmp_path, tabl
                                                                   status):
     """`kill`, `timeout` or a closed terminal while the figures were drawn left the hidden
     staging folder, with the half-written outputs, in the output folder; Ctrl-C printed a
-    traceback. An earlier result stays as it was."""
+    traceback. An earlier result (replaced only at the end, as --force asks) stays as it
+    was."""
     import subprocess
     import sys
 
@@ -172,7 +173,8 @@ def test_a_stopped_run_leaves_no_staging_folder_and_says_one_line(tmp_path, tabl
             "from dashpot.cli import main\n"
             "sys.exit(main(sys.argv[1:]))\n")
     run = subprocess.run([sys.executable, "-c", code, "analyze", str(recording), "--scene",
-                          str(scene), "-o", str(out), "-q"], capture_output=True, text=True,
+                          str(scene), "-o", str(out), "-q", "--force"], capture_output=True,
+                         text=True,
                          timeout=300)
     assert run.returncode == status and run.stdout == ""
     assert run.stderr == f"dashpot analyze: interrupted ({name}); unfinished outputs removed\n"

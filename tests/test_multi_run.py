@@ -86,7 +86,8 @@ def test_fit_command_writes_every_run_and_the_joint_fit(three_runs, tmp_path, ca
     # How the joint fit was made (accuracy level) is shown with -v only, as for each run.
     joint_part = printed.split("joint (shared)", 1)[1]
     assert "  joint IIb: chi2/nu" in joint_part and "note: accuracy " not in joint_part
-    assert main(["-v", "fit", str(three_runs["path"]), "--models", "IIb", "-o", str(out)]) == 0
+    assert main(["-v", "fit", str(three_runs["path"]), "--models", "IIb", "-o", str(out),
+                 "--force"]) == 0
     assert "note: accuracy " in capsys.readouterr().out.split("joint (shared)", 1)[1]
     record = read_fit(out)
     assert sorted(record["runs"]) == [1, 2, 3]

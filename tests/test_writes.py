@@ -304,8 +304,8 @@ def test_fit_on_a_full_disk(full_disk, ball):
     output = _old_result(full_disk / "ball.h5")
     _fill(full_disk, leave=16384)  # room to start the file (about 50 kB), not to finish it
     done = subprocess.run([sys.executable, "-m", "dashpot.cli", "fit", str(ball[1]), "-o",
-                           str(output), "--models", "IIb"], capture_output=True, text=True,
-                          timeout=600)
+                           str(output), "--models", "IIb", "--force"], capture_output=True,
+                          text=True, timeout=600)
     assert done.returncode == 2, done.stderr[-2000:]
     _one_line_no_space(done.stderr, "fit", output)
     assert output.read_bytes() == b"previous result"
@@ -315,7 +315,7 @@ def test_fit_on_a_full_disk(full_disk, ball):
 def test_impacts_on_a_full_disk(full_disk, ball):
     output = _old_result(full_disk / "impacts.csv")
     _fill(full_disk)
-    status, out, err = run_cli(["impacts", str(ball[0]), "-o", str(output)])
+    status, out, err = run_cli(["impacts", str(ball[0]), "-o", str(output), "--force"])
     assert status == 2 and out == ""
     _one_line_no_space(err, "impacts", output)
     assert output.read_bytes() == b"previous result"
@@ -328,7 +328,8 @@ def test_analyze_on_a_full_disk(full_disk, ball):
     out = full_disk / "out"
     old = _old_result(out / "timestamps.h5")
     _fill(full_disk)
-    status, printed, err = run_cli(["analyze", str(ball[0]), "-o", str(out), "--models", "IIb"])
+    status, printed, err = run_cli(["analyze", str(ball[0]), "-o", str(out), "--models", "IIb",
+                                    "--force"])
     assert status == 2 and printed == ""
     _one_line_no_space(err, "analyze", out)
     assert old.read_bytes() == b"previous result"

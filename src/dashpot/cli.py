@@ -94,12 +94,51 @@ def _refuse_replacing_inputs(outputs, inputs):
             raise InputError(output, "refusing to overwrite the input with the output")
 
 
+def _refuse_existing_outputs(outputs, force):
+    """Refuse to replace an output an earlier run (or the user) left, unless `force`.
+
+    Called before any work is done, so that a refused run costs nothing and writes nothing:
+    a result from an earlier run may be the only copy of hours of analysis, or a file of the
+    user's that happens to carry the output's name.
+
+    Parameters
+    ----------
+    outputs : iterable of str or os.PathLike
+        Every path the command is about to write (a file, or the folder of the figures);
+        ``-`` (standard output) is skipped.
+    force : bool
+        ``--force`` was given: existing outputs are replaced.
+
+    Raises
+    ------
+    InputError
+        Naming the first output that exists.
+    """
+    if force:
+        return
+    for output in outputs:
+        if str(output) == STDOUT:
+            continue
+        path = Path(output)
+        # A dangling link is an existing name too: replacing it would lose where it pointed.
+        if path.exists() or path.is_symlink():
+            raise InputError(path, "exists; pass --force to replace it")
+
+
+def _check_outputs(outputs, inputs, force):
+    """Refuse outputs that would replace an input (always), then existing ones (without
+    ``--force``): before any work is done."""
+    _refuse_replacing_inputs([output for output in outputs if str(output) != STDOUT], inputs)
+    _refuse_existing_outputs(outputs, force)
+
+
 def _write_csv_atomically(table, output, inputs):
     """Write `table` to `output` via a unique temporary file; never over one of the inputs.
 
     ``-`` writes to standard output. Floats are written in their shortest round-trip form, so
     they read back bit for bit (a fixed number of digits would round Unix-epoch times to whole
-    seconds).
+    seconds). Whether an existing `output` may be replaced is decided before the work, by
+    :func:`_check_outputs`.
     """
     from .atomic import atomic_path
 
@@ -123,6 +162,7 @@ def _shown(output):
 def _impacts(args, console):
     from .ingest import read_impacts
 
+    _check_outputs([args.output], [args.recording], args.force)
     table = read_impacts(args.recording, kind=args.kind, flag_length=args.flag_length,
                          gate_distance=args.gate_distance, unit=args.unit,
                          bumper_position=args.bumper_position, track=args.track)
@@ -142,6 +182,7 @@ def _bounces(args, console):
         # that the file is no table.
         raise InputError(args.impacts, f"a recording, not an impact table: find its impacts "
                                        f"first (dashpot impacts {args.impacts} -o impacts.csv)")
+    _check_outputs([args.output], [args.impacts], args.force)
     impacts = read_impact_table(args.impacts)
     try:
         table = bounce_table(impacts, g=args.g, contact_duration=args.contact_duration,
@@ -190,6 +231,7 @@ def _fit(args, console):
     _refuse_replacing_inputs([args.output], [args.impacts, args.scene, scene.recording])
     if Path(args.output).is_dir():
         raise InputError(args.output, "is a folder; give the HDF5 file to write")
+    _refuse_existing_outputs([args.output], args.force)
     scene = _with_uncertainty(scene, args)
     impacts, runs_fit = analyze_runs(args.impacts, scene, models=args.models,
                                      noise=args.noise)
@@ -239,8 +281,9 @@ def _analyze(args, console):
     if out.exists() and not out.is_dir():
         raise InputError(out, "is a file; give the folder to write into")
     # The scene's name makes the output names: checked before the analysis, not after it.
-    _refuse_replacing_inputs([out / f"{name}.h5", out / f"{name}-parameters.csv", out / name],
-                             [recording, args.scene, scene.recording])
+    # The folder itself may exist (it holds other scenes' results); these three may not.
+    _check_outputs([out / f"{name}.h5", out / f"{name}-parameters.csv", out / name],
+                   [recording, args.scene, scene.recording], args.force)
     models = tuple(args.models or scene.models)
     with tqdm(total=1 + len(models) + 2, desc=recording.name, unit="step", leave=False,
               # -v logs each step on standard error: a bar there would break its lines.
@@ -532,6 +575,13 @@ def _verbosity_options(parser, default):
                        help="say what is done and how each fit was made (-vv: debugging)")
 
 
+def _force_option(parser):
+    """--force, on every subcommand that writes files."""
+    parser.add_argument("--force", action="store_true",
+                        help="replace outputs that already exist (default: refuse them, "
+                             "writing nothing)")
+
+
 def build_parser():
     """The command's argument parser (subcommands impacts, bounces, fit, analyze)."""
     from . import __version__
@@ -560,6 +610,7 @@ def build_parser():
     impacts.add_argument("recording", help="audio file (WAV/FLAC/OGG/MP3) or lab table (CSV/XLSX)")
     impacts.add_argument("-o", "--output", required=True, type=_output_name,
                          help="impact table to write (CSV; - for standard output)")
+    _force_option(impacts)
     impacts.add_argument("--kind", choices=["audio", "phyphox", "timestamps", "motion_sensor",
                                             "photogate"], help="reader (default: detected)")
     impacts.add_argument("--flag-length", type=_number(*FLAG_LENGTH_RANGE, unit="m"),
@@ -579,6 +630,7 @@ def build_parser():
     bounces.add_argument("impacts", help="impact table written by dashpot impacts")
     bounces.add_argument("-o", "--output", required=True, type=_output_name,
                          help="bounce table to write (CSV; - for standard output)")
+    _force_option(bounces)
     bounces.add_argument("--g", type=_number(*ACCELERATION_RANGE, unit="m/s²"),
                          default=STANDARD_GRAVITY,
                          help="acceleration towards the surface in m/s², in (%g, %g] "
@@ -599,6 +651,7 @@ def build_parser():
     fit.add_argument("impacts", help="impact table from dashpot impacts, or a recording")
     fit.add_argument("-o", "--output", required=True, type=_output_name,
                      help="HDF5 file to write")
+    _force_option(fit)
     fit.add_argument("--scene", help="scene.yaml: what is known of the apparatus")
     fit.add_argument("--models", nargs="+", choices=list(MODELS),
                      help="models to fit (default: the scene's, else all five)")
@@ -613,6 +666,7 @@ def build_parser():
     analyze.add_argument("-o", "--output", required=True, type=_output_name,
                          help="folder to write <name>.h5, <name>-parameters.csv and the "
                               "figures <name>/*.png|pdf into")
+    _force_option(analyze)
     analyze.add_argument("--scene", help="scene.yaml: what is known of the apparatus "
                                          "(its name names the outputs)")
     analyze.add_argument("--models", nargs="+", choices=list(MODELS),
