@@ -613,6 +613,41 @@ def test_not_a_table(tmp_path, reader, content):
         READERS[reader](path)
 
 
+@pytest.mark.parametrize("codec, name", [("utf-16-le", "UTF-16LE"), ("utf-16-be", "UTF-16BE")])
+def test_utf16_without_byte_order_mark_is_read(tmp_path, codec, name):
+    """A Windows logger's "Unicode text" without the byte-order mark (tabs, CRLF, a comment
+    line with a non-ASCII letter) was refused as binary data for its zero bytes."""
+    text = ("# Messung 3, Fallhöhe 0.5 m\r\ntime (s)\tuncertainty (s)\r\n0.5\t0.001\r\n"
+            "0.9\t0.001\r\n1.25\t0.001\r\n1.54\t0.001\r\n")
+    path = tmp_path / "clicks.txt"
+    path.write_bytes(text.encode(codec))
+    assert path.read_bytes()[:2] not in (b"\xff\xfe", b"\xfe\xff")
+    frame = read_timestamps(path)
+    np.testing.assert_array_equal(frame["time"], [0.5, 0.9, 1.25, 1.54])
+    np.testing.assert_array_equal(frame["time_uncertainty"], [0.001] * 4)
+    assert f"{name} without byte-order mark" in frame.attrs["notes"][0]
+    assert sniff_table(path) == "timestamps"
+
+
+BINARY = {
+    # A PNG's signature and IHDR chunk, then bytes as random as compressed image data.
+    "png": b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x01\x00\x00\x00\x01\x00\x08\x02"
+           + np.random.default_rng(1202).integers(0, 256, 4000, dtype=np.uint8).tobytes(),
+    # Raw unsigned 16-bit readings below 256: every high byte is zero, as in UTF-16 text;
+    # only the control characters they decode to tell them from text.
+    "small-words": np.random.default_rng(1203).integers(0, 256, 3000).astype("<u2").tobytes(),
+}
+
+
+@pytest.mark.parametrize("content", list(BINARY.values()), ids=list(BINARY))
+def test_binary_data_is_still_refused(tmp_path, content):
+    path = tmp_path / "clicks.txt"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=r"clicks\.txt: not a table: the file holds binary "
+                                         r"data$"):
+        read_timestamps(path)
+
+
 @pytest.mark.parametrize("reader", ["timestamps", "motion_sensor", "photogate"])
 def test_csv_without_time_column(tmp_path, reader):
     path = tmp_path / "notime.csv"

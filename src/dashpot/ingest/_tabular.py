@@ -267,11 +267,62 @@ def _ragged_problem(lines):
     return None
 
 
+# How much of a file decides whether it is UTF-16 without a byte-order mark.
+_UTF16_SNIFF_BYTES = 4096
+# In UTF-16 text of digits, separators and Latin letters nearly every code unit has a zero
+# high byte and no code unit has a zero low byte; binary data shows no such alternation. A
+# few non-Latin characters (a "µs" or "Δt" header) are allowed for.
+_UTF16_ZERO_HIGH_BYTES = 0.7
+_UTF16_ZERO_LOW_BYTES = 0.02
+_UTF16_NAMES = {"utf-16-le": "UTF-16LE", "utf-16-be": "UTF-16BE"}
+# No text table holds a control character (C0 or C1) other than tab, line feed and carriage
+# return; binary data read as UTF-16 is full of them.
+_CONTROL_CHARACTER = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f]")
+
+
+def _bomless_utf16(raw):
+    """The codec of `raw` where it is UTF-16 text without a byte-order mark, else None.
+
+    Some Windows programs (a few loggers, some of Excel's "Unicode text" saves) write UTF-16
+    LE or BE without the byte-order mark; their zero high bytes made the file look binary.
+    The byte pattern of the file's start picks the byte order, and the text must then decode
+    and hold no control character besides tabs and line breaks, so that binary data with
+    many zero bytes (16-bit samples, say) is not taken for text.
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's content (it starts with no UTF-16 byte-order mark).
+
+    Returns
+    -------
+    str or None
+        ``"utf-16-le"``, ``"utf-16-be"`` or None.
+    """
+    sample = raw[:_UTF16_SNIFF_BYTES]
+    sample = sample[:len(sample) - len(sample) % 2]
+    units = len(sample) // 2
+    if units < 2 or len(raw) % 2:
+        return None
+    zeros_even = sample[0::2].count(0) / units
+    zeros_odd = sample[1::2].count(0) / units
+    for codec, zero_high, zero_low in (("utf-16-le", zeros_odd, zeros_even),
+                                       ("utf-16-be", zeros_even, zeros_odd)):
+        if zero_high >= _UTF16_ZERO_HIGH_BYTES and zero_low <= _UTF16_ZERO_LOW_BYTES:
+            try:
+                text = raw.decode(codec)
+            except UnicodeDecodeError:
+                return None
+            return None if _CONTROL_CHARACTER.search(text) else codec
+    return None
+
+
 def _decode(path, raw, member):
     """Text of a table file and the name of its encoding.
 
-    UTF-16 with a byte-order mark (Excel's "Unicode text") and UTF-8 with or without one are
-    recognised; anything else is read as Windows-1252 (Excel's "CSV" on Western systems).
+    UTF-16 with a byte-order mark (Excel's "Unicode text") or without one (see
+    :func:`_bomless_utf16`) and UTF-8 with or without one are recognised; anything else is
+    read as Windows-1252 (Excel's "CSV" on Western systems).
     """
     if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
         try:
@@ -280,7 +331,10 @@ def _decode(path, raw, member):
             raise InputError(path, f"not a table: {member or 'the file'} starts like UTF-16 "
                                    f"text but does not decode ({error.reason})") from None
     if b"\x00" in raw:
-        raise InputError(path, f"not a table: {member or 'the file'} holds binary data")
+        codec = _bomless_utf16(raw)
+        if codec is None:
+            raise InputError(path, f"not a table: {member or 'the file'} holds binary data")
+        return raw.decode(codec), f"{_UTF16_NAMES[codec]} without byte-order mark"
     for encoding, name in (("utf-8-sig", "UTF-8"), ("cp1252", "Windows-1252")):
         try:
             return raw.decode(encoding), name
