@@ -751,22 +751,27 @@ def test_tracker_ball_thrown_forward_is_read_along_its_bounces(tmp_path, tracked
     assert "from column 'y'" in " ".join(found.attrs["notes"])
 
 
-def tracker6_export(path, time, tracks, *, columns=("x", "y"), delimiter="\t", mark="."):
+def tracker6_export(path, time, tracks, *, columns=("x", "y"), delimiter="\t", mark=".",
+                    decimals=None):
     """A data export as Tracker 6 writes it (ExportDataDialog): ``#multi:`` when it holds
     several tracks; a row of track names starting with the delimiter, each name followed by
     one delimiter per column; the header, ``t`` and each track's columns, each followed by the
     delimiter; one row per frame, blanks where a track has no point; numbers in the system's
-    decimal style ("0.000000E0", the time to full precision).
+    decimal style, whatever the delimiter ("0.000000E0", the time to full precision; with
+    `decimals`, "Formatted" as the table shows them, a fixed pattern such as "0.000").
 
     `tracks` maps a name to (which frames have a point, {column: values})."""
+    def number(value, digits):
+        written = f"{value:.{decimals}f}" if decimals else java_scientific(value, digits)
+        return written.replace(".", mark)
+
     lines = ["#multi:"] if len(tracks) > 1 else []
     lines.append(delimiter + "".join(name + delimiter * len(columns) for name in tracks))
     lines.append("t" + delimiter + "".join(c + delimiter for _ in tracks for c in columns))
     for i, t in enumerate(time):  # writing the fixture, a hundred rows
-        cells = [java_scientific(t).replace(".", mark)]
+        cells = [number(t, 9)]
         for marked, values in tracks.values():
-            cells += [java_scientific(values[c][i], 6).replace(".", mark) if marked[i] else ""
-                      for c in columns]
+            cells += [number(values[c][i], 6) if marked[i] else "" for c in columns]
         lines.append(delimiter.join(cells))
     path.write_text("\n".join(lines) + "\n")
 
@@ -829,6 +834,101 @@ def test_tracker_exports_of_one_or_several_tracks(tmp_path, tracked_ball, layout
     notes = " ".join(found.attrs["notes"])
     assert "Tracker column layout" in notes and f"run 0 = '{names[0]}'" in notes
     assert "1 frame(s) without a point inside the track left out" in notes
+
+
+def _ball_and_marker(tracked_ball, *, marker=True):
+    """The ball's track 'mass A' (no point on its first three frames) and a marker 'mass B'
+    tracked on the first 20 frames only."""
+    time, x, height, _ = tracked_ball
+    ball = np.ones(time.size, dtype=bool)
+    ball[:3] = False
+    tracks = {"mass A": (ball, {"x": x, "y": height})}
+    if marker:
+        tracks["mass B"] = (np.arange(time.size) < 20, {"x": x + 0.5,
+                                                        "y": np.full(time.size, 0.2)})
+    return tracks
+
+
+def _every_bounce(found, truth):
+    assert len(found) == (truth["rebound_speeds"] > 0).sum()
+    assert np.all(np.abs(z_scores(found, truth)["time"]) <= 4.0)
+
+
+@pytest.mark.parametrize("mark", [".", ","])
+@pytest.mark.parametrize("several", [False, True], ids=["one-track", "two-tracks"])
+def test_tracker6_export_with_a_space_delimiter(tmp_path, tracked_ball, several, mark):
+    """Tracker 6's export with its "Space" delimiter: the names 'mass A' and 'mass B' hold the
+    delimiter, so the row of names did not split into them and the file was "no header". Each
+    name is followed by one space per column; read as with the other delimiters: one track
+    as it is, of two the one asked for, and without a choice the error names both."""
+    time, _, _, truth = tracked_ball
+    path = tmp_path / "tracks.txt"
+    tracker6_export(path, time, _ball_and_marker(tracked_ball, marker=several),
+                    delimiter=" ", mark=mark)
+    assert sniff_table(path) == "motion_sensor"
+    if several:
+        with pytest.raises(InputError, match=r"tracks\.txt: Tracker export of 2 tracks "
+                                             r"\('mass A', 'mass B'\): choose one"):
+            read_impacts(path)
+        found = read_motion_sensor(path, track="mass A")
+    else:
+        found = read_impacts(path)
+    _every_bounce(found, truth)
+    notes = " ".join(found.attrs["notes"])
+    assert "space separated" in notes and "run 0 = 'mass A'" in notes
+    assert f"decimal {'comma' if mark == ',' else 'point'}" in notes
+
+
+def test_tracker6_space_delimited_names_that_cannot_be_told_apart(tmp_path, tracked_ball):
+    """With one column per track, one space both ends a name and may be inside one: 'mass A
+    mass B' could be two names or four. One line saying which delimiter to export with."""
+    time = tracked_ball[0]
+    path = tmp_path / "heights.txt"
+    tracker6_export(path, time, _ball_and_marker(tracked_ball), columns=("y",), delimiter=" ")
+    with pytest.raises(InputError) as refused:
+        read_motion_sensor(path, track="mass A")
+    assert str(refused.value) == (
+        f"{path}: Tracker export with the Space delimiter whose track names hold spaces "
+        f"('mass A mass B'), so the names cannot be told apart: export it again with the Tab "
+        f"delimiter (Export Data, Delimiter: Tab)")
+
+
+@pytest.mark.parametrize("several", [False, True], ids=["one-track", "two-tracks"])
+def test_tracker6_comma_delimiter_with_decimal_commas(tmp_path, tracked_ball, several):
+    """Tracker writes its numbers in the system's decimal style whatever the delimiter: its
+    "Comma" export in a decimal-comma locale split every number in two ("row 1: 6 fields
+    where the header row has 3"). Its numbers' fractions end in an exponent, and the header
+    counts the columns: each decimal comma is found, also beside blank cells."""
+    time, _, _, truth = tracked_ball
+    path = tmp_path / "tracks.csv"
+    tracker6_export(path, time, _ball_and_marker(tracked_ball, marker=several),
+                    delimiter=",", mark=",")
+    found = read_motion_sensor(path, track="mass A")
+    _every_bounce(found, truth)
+    notes = " ".join(found.attrs["notes"])
+    assert "comma separated, decimal comma" in notes
+    assert f"decimal commas told apart from the delimiter by the header's " \
+           f"{5 if several else 3} columns" in notes
+
+
+def test_tracker6_comma_delimiter_with_formatted_decimal_commas(tmp_path, tracked_ball):
+    """Exported "Formatted" (fixed decimals, no exponent): a row of numbers only has twice the
+    header's columns and is read; beside a blank cell, which comma is which cannot be told,
+    and the error names the row and the delimiters that work."""
+    time, x, height, truth = tracked_ball
+    every = np.ones(time.size, dtype=bool)
+    path = tmp_path / "formatted.csv"
+    tracker6_export(path, time, {"mass A": (every, {"x": x, "y": height})}, delimiter=",",
+                    mark=",", decimals=4)
+    _every_bounce(read_motion_sensor(path), truth)
+    tracker6_export(path, time, _ball_and_marker(tracked_ball, marker=False), delimiter=",",
+                    mark=",", decimals=4)
+    with pytest.raises(InputError) as refused:
+        read_motion_sensor(path)
+    assert str(refused.value) == (
+        f"{path}, row 1: comma-delimited with decimal commas, and its 4 comma-separated "
+        f"pieces do not tell which comma is a decimal mark in 3 columns: export it again with "
+        f"the Tab or Semicolon delimiter")
 
 
 def test_tracker_track_never_marked_needs_no_choice(tmp_path, tracked_ball):

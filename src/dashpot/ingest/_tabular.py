@@ -445,7 +445,7 @@ def _text_table(path, raw, member):
     if not head:
         raise InputError(path, f"{member + ': ' if member else ''}file is empty")
     # Tracker's layouts build on this module's cell conventions (imported here, not above).
-    from .tracker import multi_track_layout, stacked_tracks, titled_track
+    from .tracker import TrackerLayoutError, multi_track_layout, stacked_tracks, titled_track
     from .vernier import format2_layout
 
     vernier = format2_layout(lines[comments:])
@@ -455,9 +455,14 @@ def _text_table(path, raw, member):
         lines = text.splitlines()
         comments = 0
         head = lines[:20]
-    tracker = None if vernier is not None else multi_track_layout(lines[comments:])
+    try:
+        tracker = None if vernier is not None else multi_track_layout(lines[comments:])
+    except TrackerLayoutError as error:
+        raise InputError(path, f"{member + ': ' if member else ''}{error.problem}",
+                         row=error.row) from None
+    tracker_note = ""
     if tracker is not None:
-        separator, text, owner, tracks = tracker
+        separator, text, owner, tracks, tracker_note = tracker
         head = text.splitlines()[:20]
     else:
         separator = _sniff_separator(head)
@@ -492,7 +497,10 @@ def _text_table(path, raw, member):
             decimal = ","  # comma separated, each number quoted with its decimal comma
     spelled = {"\t": "tab", ";": "semicolon", ",": "comma", " ": "space",
                None: "single-column"}
-    variant = (f"CSV, {spelled[separator]}{' separated' if separator else ''}, decimal "
+    # Decimal commas rejoined from a comma-delimited Tracker export: the cells are tab-joined
+    # here, but the file is comma separated.
+    written = "," if tracker_note else separator
+    variant = (f"CSV, {spelled[written]}{' separated' if written else ''}, decimal "
                f"{'comma' if decimal == ',' else 'point'}"
                + (f", {encoding}" if encoding != "UTF-8" else "")
                + (", Audacity labels as SubRip/WebVTT cues" if cues is not None else "")
@@ -518,6 +526,8 @@ def _text_table(path, raw, member):
         variant += ", tracks one below the other, each under its name"
     names_list = ", ".join(f"'{t}'" for t in tracks)
     variant += f", Tracker data export of {len(tracks)} track(s) ({names_list})"
+    if tracker_note:
+        variant += f", {tracker_note}"
     table = _finish_table(path, cells, decimal, variant, member)
     several = len(tracks) > 1
     # Each track's columns carry its name as their run label (the time column is shared); with

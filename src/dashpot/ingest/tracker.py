@@ -8,6 +8,13 @@ export of several tracks side by side (a ``#multi:`` line, a row of track names 
 with the delimiter, the header with a delimiter after each column, blanks where a track has
 no point). Each track's columns carry its name as their run label.
 
+Tracker's delimiter is Tab, Space, Comma or Semicolon, and its numbers follow the system's
+decimal style whatever the delimiter. Under Space, track names may hold the delimiter
+("mass A"): the header's repeated columns tell how many spaces follow each name. Under Comma
+with decimal commas, the header's column count and Tracker's number format ("3,000000E-1")
+tell which comma is a decimal mark; where they do not, the error says to export again with
+another delimiter.
+
 References
 ----------
 .. [7] D. Brown, Tracker video analysis and modeling tool, help pages "Exporting data" and
@@ -23,7 +30,30 @@ import numpy as np
 
 from ._tabular import _TIME_NAMES, _is_number, _sniff_separator
 
-__all__ = ["multi_track_layout", "stacked_tracks", "titled_track"]
+__all__ = ["TrackerLayoutError", "multi_track_layout", "stacked_tracks", "titled_track"]
+
+# Tracker writes its unformatted numbers as "0.000000E0" (the time to full precision) in the
+# system's decimal style: with a decimal comma, the digits after it always end in an exponent.
+_INTEGER_PART = re.compile(r"[+-]?\d+")
+_FRACTION_WITH_EXPONENT = re.compile(r"\d+E[+-]?\d+")
+_FRACTION = re.compile(r"\d+(?:E[+-]?\d+)?")
+
+
+class TrackerLayoutError(ValueError):
+    """A Tracker export whose layout is recognised but cannot be read as it was written.
+
+    Parameters
+    ----------
+    problem : str
+        What is wrong and what to do, without the file's name.
+    row : int, optional
+        1-based data row (after the header) where the problem is.
+    """
+
+    def __init__(self, problem, row=None):
+        super().__init__(problem)
+        self.problem = problem
+        self.row = row
 
 
 def titled_track(head, lines):
@@ -71,11 +101,21 @@ def multi_track_layout(lines):
     after each), then one row per frame with blanks where a track has no point [7]_.
 
     Returns (separator, the text from the header on, each column's track name ('' for the
-    time column), the track names in order).
+    time column), the track names in order, a note on how the file was read ('' if plainly)).
+
+    Raises
+    ------
+    TrackerLayoutError
+        The layout is Tracker's but its cells or track names cannot be told apart: names with
+        spaces under the Space delimiter, decimal commas under the Comma delimiter where the
+        header's column count does not settle which comma is which.
     """
     first = [k for k, line in enumerate(lines[:60]) if line.strip()][:3]
     if len(first) < 3:
         return None
+    spaced = _space_delimited_layout(lines, first)
+    if spaced is not None:
+        return spaced
     for separator in ("\t", ";", ","):
         names = next(csv.reader([lines[first[0]]], delimiter=separator))
         header = next(csv.reader([lines[first[1]]], delimiter=separator))
@@ -95,6 +135,142 @@ def multi_track_layout(lines):
         named_at = np.where(written != "", np.arange(width), 0)
         owner = written[np.maximum.accumulate(named_at)].astype(str)
         tracks = tuple(dict.fromkeys(owner[1:][owner[1:] != ""]))
-        text = "\n".join([separator.join(header[:width])] + lines[first[1] + 1:])
-        return separator, text, list(owner), tracks
+        rows, note = lines[first[1] + 1:], ""
+        if separator == ",":
+            rows, note = _rejoined_decimal_commas(rows, width)
+            separator = "\t" if note else separator
+        text = "\n".join([separator.join(header[:width])] + rows)
+        return separator, text, list(owner), tracks, note
     return None
+
+
+def _space_delimited_layout(lines, first):
+    """Tracker 6's layout under its "Space" delimiter, or None if `lines` are not that.
+
+    The row of track names is the delimiter, then each name followed by one delimiter per
+    column; a name may hold spaces itself ("mass A"), so the names are found from the header:
+    its columns repeat once per track, and each name is followed by exactly that many spaces.
+
+    Parameters
+    ----------
+    lines : list of str
+        The file's lines after its comment lines (``#multi:`` among them).
+    first : list of int
+        Indices of the first three non-blank lines.
+
+    Returns
+    -------
+    tuple or None
+        As :func:`multi_track_layout`.
+
+    Raises
+    ------
+    TrackerLayoutError
+        The names cannot be told apart (names with spaces, one column per track).
+    """
+    names_line, header_line = lines[first[0]].rstrip("\r\n"), lines[first[1]].rstrip("\r\n")
+    if not names_line.startswith(" ") or not names_line.strip():
+        return None
+    header = header_line.split(" ")
+    while len(header) > 1 and header[-1] == "":
+        header.pop()  # the delimiter Tracker writes after the last column name
+    words = header[1:]
+    row = lines[first[2]].split(" ")[0]
+    if (header[0].strip().lower() not in _TIME_NAMES or not words or not all(words)
+            or np.any(_is_number(words, ".")) or not _is_number([row.replace(",", ".")], ".")[0]):
+        return None
+    names = _names_followed_by_spaces(names_line[1:], words)
+    if names is None:
+        raise TrackerLayoutError(
+            f"Tracker export with the Space delimiter whose track names hold spaces "
+            f"('{names_line.strip()}'), so the names cannot be told apart: export it again "
+            f"with the Tab delimiter (Export Data, Delimiter: Tab)")
+    columns = len(words) // len(names)
+    owner = [""] + [name for name in names for _ in range(columns)]
+    text = "\n".join([" ".join(header)] + lines[first[1] + 1:])
+    return " ", text, owner, tuple(names), ""
+
+
+def _names_followed_by_spaces(text, words):
+    """The track names in `text` (each followed by one space per column), or None.
+
+    The number of columns per track is the shortest period of the header's column names
+    `words` whose split of `text` gives as many names as tracks, none empty or with a space
+    at either end; a period of one column makes single spaces both separators and, possibly,
+    part of a name, and is accepted only where that split is the one consistent with it.
+    """
+    for columns in range(1, len(words) + 1):
+        count, remainder = divmod(len(words), columns)
+        if remainder or words != words[:columns] * count:
+            continue
+        pieces = text.split(" " * columns)
+        names = pieces[:-1]
+        if (pieces[-1] == "" and len(names) == count
+                and all(name and name == name.strip() for name in names)):
+            return names
+    return None
+
+
+def _rejoined_decimal_commas(rows, width):
+    """The data rows of a comma-delimited export, their decimal commas rejoined where needed.
+
+    Tracker writes its numbers in the system's decimal style whatever the delimiter, so a
+    "Comma" export in a decimal-comma locale splits every number in two. A row of `width`
+    fields holds no decimal comma, one of twice as many holds nothing but numbers with one;
+    in between, a comma followed by digits and an exponent ("3,000000E-1", as Tracker writes
+    unformatted numbers) is a decimal comma.
+
+    Parameters
+    ----------
+    rows : list of str
+        The lines below the header.
+    width : int
+        The header's number of columns.
+
+    Returns
+    -------
+    (list of str, str)
+        The rows (tab-separated if any decimal comma was rejoined, else as given) and a note
+        saying so ('' if there was none).
+
+    Raises
+    ------
+    TrackerLayoutError
+        A row whose commas cannot be told apart, naming it.
+    """
+    split = [next(csv.reader([row])) if row.strip() else [] for row in rows]
+    # A delimiter after a row's last cell is one empty field too many, not a decimal comma.
+    if all(len(fields) <= width or (len(fields) == width + 1 and fields[-1] == "")
+           for fields in split):
+        return rows, ""
+    rejoined = []
+    for number, fields in enumerate(split, start=1):
+        cells = _cells_of(fields, width) if fields else []
+        if cells is None:
+            raise TrackerLayoutError(
+                f"comma-delimited with decimal commas, and its {len(fields)} comma-separated "
+                f"pieces do not tell which comma is a decimal mark in {width} columns: export "
+                f"it again with the Tab or Semicolon delimiter", row=number)
+        rejoined.append("\t".join(cells))
+    return rejoined, (f"decimal commas told apart from the delimiter by the header's {width} "
+                      f"columns")
+
+
+def _cells_of(fields, width):
+    """The `width` cells of one row's comma-separated `fields`, or None where ambiguous."""
+    if len(fields) <= width:
+        return fields  # no decimal comma (blank cells, whole numbers)
+    if len(fields) == 2 * width and all(
+            _INTEGER_PART.fullmatch(a) and _FRACTION.fullmatch(b)
+            for a, b in zip(fields[0::2], fields[1::2])):
+        return [f"{a},{b}" for a, b in zip(fields[0::2], fields[1::2])]
+    cells, k = [], 0
+    while k < len(fields):
+        if (k + 1 < len(fields) and _INTEGER_PART.fullmatch(fields[k])
+                and _FRACTION_WITH_EXPONENT.fullmatch(fields[k + 1])):
+            cells.append(f"{fields[k]},{fields[k + 1]}")
+            k += 2
+        else:
+            cells.append(fields[k])
+            k += 1
+    return cells if len(cells) == width else None
