@@ -15,8 +15,12 @@ runs them over the file.
    these noise-normalised powers, the statistic of an energy detector for a signal of unknown
    shape in independent noise, which cannot cancel between channels the way a sum of the
    waveforms can (the two microphones of a stereo recording hear the same impact with
-   different delays and polarities). A transient is a jump of this power over 0.5 ms against
-   the 2 ms before it (an STA/LTA trigger [1]_): strong above 9 dB, weak above 6 dB.
+   different delays and polarities). No channel's noise is taken below the quantization
+   noise of the file's samples (step/√12), and a channel that records less (a dead input:
+   digital silence, save rare one-step blips) is left out of the mean and of the timing
+   while another channel records noise (:func:`.envelope._heard`). A transient is a jump of
+   this power over 0.5 ms against the 2 ms before it (an STA/LTA trigger [1]_): strong above
+   9 dB, weak above 6 dB.
 2. Rough onset: the Akaike-information-criterion picker [2]_ on the 3 ms before each trigger
    (but not into the transient triggered before it) finds where the power leaves the level
    before it, which catches a weak first arrival preceding the loud part of a transient;
@@ -121,7 +125,7 @@ from scipy import signal
 from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
-from .audio_file import _blocks, _open, read_audio
+from .audio_file import _blocks, _open, _quantization_noise, read_audio
 from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
                     _echoing_members, _explained_secondaries, _fill_impacts, _first_pass,
                     _fixed_delays, _hidden_causes, _loudest_before, _louder_between,
@@ -129,7 +133,7 @@ from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_
                     _secondary_delays, _secondary_levels, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
-                       _STA_SECONDS, MIN_SAMPLE_RATE, _process, _Settings, _Stream)
+                       _STA_SECONDS, MIN_SAMPLE_RATE, _heard, _process, _Settings, _Stream)
 from .onset import (_AMBIGUITY_REACH_SECONDS, _BURST_BACKGROUND, _BURST_BACKGROUND_SECONDS,
                     _BURST_MIN_LEAD_SECONDS, _BURST_REACH_SECONDS, _edge_samples, _first_burst,
                     _one_sound, _onset_posterior, _onset_reach, _rise_crossing, _rise_samples,
@@ -235,11 +239,12 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
 
     Notes
     -----
-    Channels: detection uses all of them (mean noise-normalised power); times come from the
-    single channel whose onsets are the most precise (smallest median uncertainty). Averaging
-    channels would overstate the precision when their noise is shared (room noise heard by
-    both microphones, or one microphone mixed to several channels), and the channels of a
-    stereo pair hear each impact at different delays.
+    Channels: detection uses all of them (mean noise-normalised power) but those that record
+    less noise than their samples resolve (a dead input, while another channel is live);
+    times come from the single channel whose onsets are the most precise (smallest median
+    uncertainty). Averaging channels would overstate the precision when their noise is
+    shared (room noise heard by both microphones, or one microphone mixed to several
+    channels), and the channels of a stereo pair hear each impact at different delays.
 
     Selection: among all transients, the impacts are those of the best chain whose successive
     interval ratios stay within [0.45, 1.2] and follow a smooth trend (see
@@ -305,7 +310,8 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         sixteen_bit = handle.subtype == "PCM_16"
         stream = _Stream(settings=settings, channels=handle.channels, sos=sos,
                          scale=2.0**-15 if sixteen_bit else 1.0,
-                         lossy_codec=handle.lossy_codec)
+                         lossy_codec=handle.lossy_codec,
+                         noise_floor=max(_quantization_noise(handle.subtype), _NOISE_FLOOR))
         block_frames = max(int(round(_BLOCK_SECONDS * sample_rate)), settings.carry)
         pending = None
         # One block of look-ahead, so that the last one is processed as final. A last block
@@ -380,8 +386,10 @@ def _fitted_onsets(stream):
             windows = np.stack([candidates[i]["windows"] for i in todo])  # (K, C, W)
             pre, post = windows[:, :, : settings.pre], windows[:, :, settings.pre:]
             snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
-                pre.std(axis=2), _NOISE_FLOOR)
-            best = np.argmax(snr, axis=1)
+                pre.std(axis=2), stream.noise_floor)
+            # Only among the channels the detection heard (a dead one's blip would be timed).
+            onsets = np.array([candidates[i]["onset"] for i in todo]) / settings.sample_rate
+            best = np.argmax(np.where(stream.heard_at(onsets), snr, -np.inf), axis=1)
             rows = np.arange(len(todo))
             onset, sigma, _ = _onset_posterior(windows[rows, best], settings.pre,
                                                settings.sample_rate)
@@ -786,7 +794,16 @@ def _train_table(path, stream, sample_rate, duration):
 
     notes = [f"time: onset of each impact transient (Bayesian change-point fit of the rising "
              f"edge of its first burst), {sample_rate} Hz recording"]
-    if stream.channels > 1:
+    silent = np.flatnonzero(~np.any([_heard(noise, stream.noise_floor)
+                                     for _, noise, _ in stream.noise_blocks], axis=0))
+    if stream.channels > 1 and silent.size:
+        notes.append(f"{stream.channels} channels: transients detected on those that recorded "
+                     f"noise, times taken from channel {timing} (the best signal-to-noise "
+                     f"ratio at the onsets); channel{'s' if silent.size > 1 else ''} "
+                     f"{', '.join(map(str, silent))} recorded less than the quantization noise"
+                     f" of the samples (a dead input: digital silence, perhaps with rare "
+                     f"one-step blips) and {'were' if silent.size > 1 else 'was'} left out")
+    elif stream.channels > 1:
         notes.append(f"{stream.channels} channels: transients detected on all of them, times "
                      f"taken from channel {timing} (the best signal-to-noise ratio at the "
                      f"onsets)")
@@ -886,8 +903,9 @@ def _choose(path, stream, candidates, rough, strength, amplitude, strong, precis
     pre = windows[:, :, : stream.settings.pre]
     post = windows[:, :, stream.settings.pre:]
     snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
-        pre.std(axis=2), _NOISE_FLOOR)
-    timing = int(np.argmax(np.median(snr, axis=0)))
+        pre.std(axis=2), stream.noise_floor)
+    heard = stream.heard_at(rough[chain])
+    timing = int(np.argmax(np.median(np.where(heard, snr, -np.inf), axis=0)))
     # Impacts already fitted on the timing channel during the selection keep that fit.
     onset, sigma = np.zeros(chain.size), np.zeros(chain.size)
     done = np.array([precise.fits.get(int(i), (0.0, 0.0, -1))[2] == timing for i in chain],

@@ -283,6 +283,52 @@ def _blocks(handle, path, block_frames, dtype="float64"):
                                f"{seen} could be read")
 
 
+# Subtypes stored as integers of the width their name ends with.
+_INTEGER_SUBTYPE = re.compile(r"(?:PCM|ALAC|DWVW|DPCM)_[SU]?(\d+)")
+# Float subtypes: the spacing of their values just below full scale (1), eps/2 of the type.
+_FLOAT_STEPS = {"FLOAT": np.finfo(np.float32).eps / 2, "DOUBLE": np.finfo(np.float64).eps / 2}
+
+
+def _quantization_noise(subtype):
+    """RMS of the rounding error of a sample format: step/√12 (full scale).
+
+    A stored sample pins its signal down to a step of the format only: the rounding error is
+    spread uniformly over the step, with this RMS [1]_. So no channel is judged against less
+    noise than this, whatever its quiet stretches measure: one that measures less (digital
+    silence with rare one-step blips, as an unconnected input of some interfaces records)
+    holds nothing a noise level could be estimated from, and against its estimate (about
+    zero) its blips would be enormous transients.
+
+    Parameters
+    ----------
+    subtype : str
+        libsndfile's name of the sample format (``SoundFile.subtype``).
+
+    Returns
+    -------
+    float
+        Step of the format (full scale = 1) over √12: 2⁻⁽ᵇ⁻¹⁾/√12 for b-bit integers. Floats
+        have no fixed step (it shrinks with the level); they take the spacing of their values
+        just below full scale (2⁻²⁴ for 32 bits, whose 24 significant bits resolve a
+        full-scale sound as finely as 25-bit integers), finer than the step of the 24-bit
+        converters that record any real sound. Codecs that libsndfile decodes into 16-bit
+        words (µ-law, A-law, ADPCM, GSM, G.72x) take the 16-bit step, a lower bound of their
+        coarser resolution.
+
+    References
+    ----------
+    .. [1] B. Widrow and I. Kollár, "Quantization Noise", Cambridge University Press (2008)
+       (the uniform model of the quantization error and its variance, q²/12).
+    """
+    if subtype in _FLOAT_STEPS:
+        step = float(_FLOAT_STEPS[subtype])
+    else:
+        integer = _INTEGER_SUBTYPE.fullmatch(subtype)
+        bits = int(integer.group(1)) if integer else 16
+        step = 2.0 ** -(bits - 1)
+    return step / np.sqrt(12.0)
+
+
 def _check_block_seconds(block_seconds):
     if not np.isfinite(block_seconds) or block_seconds <= 0:
         raise ValueError(f"block_seconds must be a positive number of seconds; got "

@@ -25,7 +25,7 @@ from . import envelope as _envelope
 from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
                        _MERGE_SECONDS, _NOISE_FLOOR, _RING_GAP_SECONDS, _STA_SECONDS,
-                       _WEAK_JUMP_FACTOR, _onset_picks)
+                       _WEAK_JUMP_FACTOR, _channel_weights, _onset_picks)
 from .onset import _onset_posterior
 
 
@@ -1246,7 +1246,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     noise, rho = stream.noise_at(predicted)  # as the detection had it there
     detector = np.zeros_like(filtered)
     detector[1:] = filtered[1:] - rho * filtered[:-1]
-    power = (detector * detector) @ (1.0 / (stream.channels * noise**2))
+    power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, noise**2)
     loudness = np.concatenate(([0.0], np.cumsum(power)))
     taps = None
     if predicted_sound and centre - reach - offset > 4 * _PREDICTOR_ORDER:
@@ -1255,7 +1255,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         # the whitened signal's.
         taps = _sound_predictor(filtered, centre - reach - offset)
         detector, floor = _prediction_error(filtered, taps, noise, rho)
-        power = (detector * detector) @ (1.0 / (stream.channels * floor))
+        power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, floor)
     cumulative = np.concatenate(([0.0], np.cumsum(power)))
     earliest = centre - reach
     if not_before is not None:

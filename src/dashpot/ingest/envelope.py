@@ -25,7 +25,9 @@ _STA_SECONDS = 0.5e-3  # short window after a sample: the first half millisecond
 _BACKGROUND_SECONDS = 2e-3  # the level just before it
 _NOISE_FRAME_SECONDS = 5e-3  # frames whose RMS gives the noise floor
 _NOISE_PERCENTILE = 10.0  # quiet frames: below the impacts, above digital silence
-_NOISE_FLOOR = 1e-9  # full scale; stands in for the noise of digitally silent channels
+# Full scale: keeps a division by a noise finite. A channel's noise is floored higher, at the
+# quantization noise of the file's format (_Stream.noise_floor), save float64's.
+_NOISE_FLOOR = 1e-9
 _MAX_NOISE_CORRELATION = 0.99
 # Windows around a transient: the noise before it and the start of it (the data of the onset
 # fit), its peak amplitude and what marks it clipped.
@@ -195,6 +197,11 @@ class _Stream:
     dc_offset: float = 0.0
     scale: float = 1.0  # full scale per unit of the raw samples (2⁻¹⁵ for int16)
     lossy_codec: str = ""  # the lossy codec the file was coded with (libsndfile's name), or ""
+    # Least noise RMS a channel is judged against (full scale): the quantization noise of the
+    # file's sample format (:func:`.audio_file._quantization_noise`). A dead input (digital
+    # silence with rare one-step blips) measures less; against that, its blips would be
+    # enormous transients.
+    noise_floor: float = _NOISE_FLOOR
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
@@ -210,6 +217,11 @@ class _Stream:
         return (np.stack([noise for _, noise, _ in self.noise_blocks])[block],
                 np.stack([rho for _, _, rho in self.noise_blocks])[block])
 
+    def heard_at(self, seconds):
+        """Which channels the detection used at the moments `seconds` (s): boolean array of
+        shape (..., channels), :func:`_heard` of the noise of the block each lies in."""
+        return _heard(self.noise_at(seconds)[0], self.noise_floor)
+
     def highpass_from_rest(self, raw):
         """`raw` (frames, channels; float, full scale) high-passed, each channel's filter
         started at rest on its first sample, so that a DC offset does not ring through the
@@ -224,6 +236,59 @@ class _Stream:
                 None, None, :]
         filtered, self.filter_state = _sosfilt(self.sos, block, self.filter_state, self.scale)
         return filtered
+
+
+def _heard(noise, noise_floor):
+    """Channels that recorded noise: whose noise RMS is above the quantization noise.
+
+    A channel whose quiet stretches hold less noise than its sample format can resolve
+    records no analogue signal there: a dead or unconnected input, digitally silent save
+    for rare one-step blips. Against the quantization noise its blips are √12 ≈ 3.5σ (a step
+    over step/√12): no triggers, but as large as the rare peaks of a live channel's noise,
+    and in the mean over the channels they still move the picks of the live channel's
+    transients (a 16-bit stereo copy of the ping-pong recording with 300 blips on a dead
+    channel kept 48 of its 52 impacts with the floor alone). Such a channel's power is left
+    out of the detection, and its samples out of the timing, while another channel recorded
+    noise; so is a channel gated to digital silence between impacts beside a live one, which
+    hears them too. A recording in which no channel recorded noise (a noise gate on all of
+    them) keeps them all, each judged against the quantization noise.
+
+    Parameters
+    ----------
+    noise : ndarray, shape (..., channels)
+        Noise RMS of each channel (full scale), floored at `noise_floor`.
+    noise_floor : float
+        Quantization noise RMS of the file's format (full scale).
+
+    Returns
+    -------
+    ndarray of bool, shape (..., channels)
+    """
+    heard = noise > noise_floor
+    return heard | ~heard.any(axis=-1, keepdims=True)
+
+
+def _channel_weights(noise, noise_floor, variance):
+    """Weight of each channel's power in the detection statistic: 1/(channels heard ×
+    `variance`) for the channels heard (:func:`_heard`), 0 for the others, so that the
+    statistic is the mean power of the channels heard over the `variance` of their noise.
+
+    Parameters
+    ----------
+    noise : ndarray, shape (..., channels)
+        Noise RMS of each channel (full scale), floored at `noise_floor` (full scale).
+    noise_floor : float
+        Quantization noise RMS of the file's format (full scale).
+    variance : ndarray, shape (..., channels)
+        Variance of the noise of the power that is weighted (full scale²).
+
+    Returns
+    -------
+    ndarray, shape (..., channels)
+        Weights (1/full scale²).
+    """
+    heard = _heard(noise, noise_floor)
+    return np.where(heard, 1.0 / (heard.sum(axis=-1, keepdims=True) * variance), 0.0)
 
 
 def _sosfilt(sos, block, initial, scale=1.0):
@@ -317,10 +382,11 @@ def _process(stream, block, final):
         # Innovation RMS of the quiet frames: the noise of the whitened signal below.
         innovation = np.maximum(quiet_energy * (1 - stream.rho**2) / (quiet.sum(axis=0) * frame),
                                 0.0)
-        stream.noise = np.maximum(np.sqrt(innovation), _NOISE_FLOOR)
+        stream.noise = np.maximum(np.sqrt(innovation), stream.noise_floor)
     elif stream.noise is None:
         stream.rho = np.zeros(stream.channels)
-        stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)), _NOISE_FLOOR)
+        stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)),
+                                  stream.noise_floor)
     if not stream.noise_blocks or stream.noise_blocks[-1][1] is not stream.noise:
         # A new estimate (a block too short keeps the previous one, the same array) holds
         # from the first sample whose triggers this block judges.
@@ -329,8 +395,8 @@ def _process(stream, block, final):
     # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
     # frequencies it removes the slow swells of power that would otherwise look like onsets
     # in a half-millisecond window.
-    # The statistic is the mean noise-normalised power over the channels.
-    weights = 1.0 / (stream.channels * stream.noise**2)
+    # The statistic is the mean noise-normalised power over the channels that recorded noise.
+    weights = _channel_weights(stream.noise, stream.noise_floor, stream.noise**2)
     limit = frames - settings.lookahead + 1  # triggers need this much recording after them
     lo, hi = settings.history, max(limit, settings.history)
     # Triggers down to a lower jump are kept as weak candidates: the selection looks among
