@@ -435,3 +435,25 @@ def test_a_long_legend_goes_below_the_axes_and_leaves_them_their_width(entries):
         assert legend_box.y1 <= axes_box.y0  # long: below them, in columns
         assert axes_box.width >= 0.8 * figure_box.width
         assert axes_box.height >= 0.4 * figure_box.height
+
+
+def test_restitution_limits_hug_a_narrow_spread_of_eps():
+    """ε between 0.9590 and 0.9594 (a synthetic scene's) fills the axes: padded by 5 % of its
+    span, not by a fixed 5e-4 that left two thirds of the axes empty, and labelled without an
+    offset."""
+    speed = np.linspace(0.8, 2.0, 12)
+    eps = 0.9590 + 0.0004 * np.linspace(0.0, 1.0, 12)
+    flat = {"Ia": (np.linspace(0.7, 2.0, 50), np.full(50, 0.9592))}
+    fig = plots.restitution_speed_figure(speed, eps, None, None, flat)
+    ax = fig.axes[0]
+    bottom, top = ax.get_ylim()
+    assert bottom < eps.min() and eps.max() < top
+    assert top - bottom <= 1.2 * (eps.max() - eps.min())
+    _render(fig)
+    assert ax.yaxis.get_offset_text().get_text() == ""
+
+
+def test_restitution_limits_of_equal_values_are_not_empty():
+    fig = plots.restitution_speed_figure([1.0, 2.0], [0.8, 0.8], None, None, {})
+    bottom, top = fig.axes[0].get_ylim()
+    assert bottom < 0.8 < top and top - bottom < 0.05

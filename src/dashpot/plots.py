@@ -836,6 +836,9 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     ax.set_xlim(*_speed_limits(np.concatenate([p[0] for p in points]), _joined(points, 2)))
     ax.set_ylim(*_restitution_limits(ax.get_xlim(), np.concatenate([p[1] for p in points]),
                                      _joined(points, 3), drawn))
+    # ε that spans a few 1e-4 would otherwise be labelled as an offset ("+9.59e-1") plus
+    # ticks in units of its last digits.
+    ax.ticklabel_format(axis="y", useOffset=False)
     ax.set_xlabel("impact speed $v$ (m/s)")
     ax.set_ylabel(EPS_LABEL)
     ax.set_title("Restitution against impact speed")
@@ -875,8 +878,9 @@ def _speed_limits(speed, speed_error):
 
 def _restitution_limits(speed_range, eps, eps_error, lines):
     """y range of the restitution figure: the measured points with their error bars and every
-    curve inside the speed range (a capture drop there included), padded by 5 %, never beyond
-    the physical range [0, 1] by more than the data themselves go."""
+    curve inside the speed range (a capture drop there included), padded by 5 % of their span
+    (ε near 0.959 that varies by 0.0005 fills the axes, not a third of them), never beyond the
+    physical range [0, 1] by more than the data themselves go."""
     error = 0.0 if eps_error is None else np.nan_to_num(eps_error)
     values = [eps - error, eps + error]
     for line in lines:
@@ -887,7 +891,8 @@ def _restitution_limits(speed_range, eps, eps_error, lines):
     if not values.size:
         return 0.0, 1.02
     low, high = float(values.min()), float(values.max())
-    pad = 0.05 * max(high - low, 0.01)
+    # A single value (or all equal) has no span: then 1 % of the value, at least 1e-3.
+    pad = 0.05 * (high - low) if high > low else max(0.01 * abs(high), 1e-3)
     return max(low - pad, min(low, 0.0)), high + pad
 
 
