@@ -39,7 +39,7 @@ from . import plots
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
-           "drag_corrected_points", "noise_effect_steps",
+           "drag_corrected_points", "noise_effect_steps", "scene_name",
            "scene_figures", "detection_figure_data", "detection_figure", "save_scene_figures"]
 
 SCENE_FIGURES = ("intervals", "restitution", "selection")
@@ -223,8 +223,27 @@ def _finite_or_none(values):
     return values if values.size and np.all(np.isfinite(values)) else None
 
 
+def scene_name(record):
+    """The scene's name as its file stores it (``name`` of the root attribute ``scene``), or
+    None where the file does not say."""
+    import json
+
+    try:
+        name = json.loads(record.get("attrs", {}).get("scene", "") or "{}").get("name")
+    except (TypeError, ValueError, AttributeError):
+        return None
+    return str(name) if name else None
+
+
 def scene_figures(record):
-    """The figures :data:`SCENE_FIGURES` of one scene, as a dict of name -> Figure."""
+    """The figures :data:`SCENE_FIGURES` of one scene, as a dict of name -> Figure, each
+    titled with the scene's name (:func:`dashpot.plots.name_scene`)."""
+    figures = _scene_figures(record)
+    name = scene_name(record)
+    return {key: plots.name_scene(figure, name) for key, figure in figures.items()}
+
+
+def _scene_figures(record):
     index, observed, uncertainty, predictions, failed = interval_series(record)
     speed, eps, speed_sigma, eps_sigma = restitution_points(record)
     corrected = drag_corrected_points(record)
@@ -362,9 +381,10 @@ def detection_figure(record, recording):
     impacts = record["impacts"]["time"].to_numpy(float)
     runs = record["impacts"]["run"].to_numpy() if "run" in record["impacts"] else None
     data = detection_figure_data(recording, impacts, runs=runs)
-    return plots.detection_figure(data["time"], data["envelope"], impacts,
-                                  sample_time=data["sample_time"], samples=data["samples"],
-                                  runs=runs)
+    figure = plots.detection_figure(data["time"], data["envelope"], impacts,
+                                    sample_time=data["sample_time"], samples=data["samples"],
+                                    runs=runs)
+    return plots.name_scene(figure, scene_name(record))
 
 
 def save_scene_figures(record, folder, *, recording=None):

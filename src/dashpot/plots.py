@@ -44,8 +44,8 @@ from .physics.models import GRAVITY_MODELS
 
 __all__ = ["MODEL_LABELS", "MODEL_STYLES", "contact_time_figure", "critical_speed_figure",
            "detection_closeup", "detection_figure", "intervals_figure", "restitution_figure",
-           "restitution_speed_figure", "restitution_vs_speed_figure", "save_figure",
-           "selection_figure"]
+           "name_scene", "restitution_speed_figure", "restitution_vs_speed_figure",
+           "save_figure", "selection_figure"]
 
 MODEL_LABELS = {"Ia": "Ia (A)", "Ib": "Ib (B)", "IIa": "IIa (C)", "IIb": "IIb (D)",
                 "hybrid": "hybrid"}
@@ -1061,6 +1061,29 @@ def _weight_bars(ax, models, weights, delta, criterion, colors, labels, notes=No
     ax.set_xlim(-0.6, len(models) - 0.4)
     ax.set_ylabel("Akaike weight (dimensionless)")
     ax.grid(axis="y", alpha=0.3)
+
+
+def name_scene(figure, scene):
+    """Name the scene a figure shows in a title above all its axes (the figure's suptitle).
+
+    A figure copied out of the report, or opened from ``results/plots/<scene>/``, then still
+    says which recording it is of.
+
+    Parameters
+    ----------
+    figure : matplotlib.figure.Figure
+        A scene figure.
+    scene : str or None
+        The scene's name; None or "" leaves the figure as it is.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        `figure`, with the suptitle "scene <name>".
+    """
+    if scene:
+        figure.suptitle(f"scene {scene}", fontweight="bold")
+    return figure
 
 
 # --- output ---------------------------------------------------------------------------------
