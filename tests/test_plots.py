@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import _get_dash_pattern
 
 import dashpot
 from dashpot import plots
@@ -88,7 +89,8 @@ def test_models_keep_one_style_and_paper_label_everywhere():
     for fig in (theory, scene):
         for model, line in _model_lines(fig.axes[0]).items():
             assert line.get_color() == plots.MODEL_STYLES[model]["color"]
-            assert line.get_linestyle() == plots.MODEL_STYLES[model]["linestyle"]
+            assert line._unscaled_dash_pattern == _get_dash_pattern(
+                plots.MODEL_STYLES[model]["linestyle"])
             assert line.get_label() == plots.MODEL_LABELS[model]
 
 
@@ -457,3 +459,17 @@ def test_restitution_limits_of_equal_values_are_not_empty():
     fig = plots.restitution_speed_figure([1.0, 2.0], [0.8, 0.8], None, None, {})
     bottom, top = fig.axes[0].get_ylim()
     assert bottom < 0.8 < top and top - bottom < 0.05
+
+
+def test_coinciding_gravity_free_curves_both_show():
+    """Ia and IIa often give the same constant ε (Ia was drawn, then hidden under IIa's
+    dashes): both are dashed, with dashes as long as their gaps, IIa's in Ia's gaps."""
+    speed = np.linspace(0.5, 2.0, 20)
+    curves = {model: (speed, np.full(speed.size, 0.95)) for model in ("Ia", "IIa")}
+    fig = plots.restitution_speed_figure(speed, np.full(speed.size, 0.95), None, None, curves)
+    lines = _model_lines(fig.axes[0])
+    (ia_offset, (ia_on, ia_off)), (iia_offset, (iia_on, iia_off)) = (
+        lines[model]._unscaled_dash_pattern for model in ("Ia", "IIa"))
+    assert ia_on == ia_off == iia_on == iia_off > 0
+    assert (iia_offset - ia_offset) % (2 * ia_on) == pytest.approx(ia_on)
+    assert lines["Ia"].get_linewidth() == lines["IIa"].get_linewidth()

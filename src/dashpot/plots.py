@@ -53,10 +53,14 @@ MODEL_LABELS = {"Ia": "Ia (A)", "Ib": "Ib (B)", "IIa": "IIa (C)", "IIb": "IIb (D
 
 # Okabe-Ito colours (distinguishable with the common colour-vision deficiencies); type I models
 # in blues, type II in green/purple, the hybrid in vermillion. Dashed = no gravity in contact.
+# The two dashed models often coincide (both have a constant ε, the same where the fits agree):
+# their dashes are as long as their gaps and IIa's fall in Ia's gaps, so that where the curves
+# lie on each other they alternate blue and green instead of IIa's hiding Ia's.
+_DASH = 4.0  # points at linewidth 1
 MODEL_STYLES = {
-    "Ia": {"color": "#0072B2", "marker": "o", "linestyle": "--"},
+    "Ia": {"color": "#0072B2", "marker": "o", "linestyle": (0.0, (_DASH, _DASH))},
     "Ib": {"color": "#56B4E9", "marker": "s", "linestyle": "-"},
-    "IIa": {"color": "#009E73", "marker": "^", "linestyle": "--"},
+    "IIa": {"color": "#009E73", "marker": "^", "linestyle": (_DASH, (_DASH, _DASH))},
     "IIb": {"color": "#CC79A7", "marker": "D", "linestyle": "-"},
     "hybrid": {"color": "#D55E00", "marker": "v", "linestyle": "-"},
 }
