@@ -28,7 +28,8 @@ G = 9.80665  # the default scene's g
 DETECTOR = 10e-6  # s, the detector's stated timing error
 # Columns of the summary before the noise fits were added to it.
 COLUMNS_WITHOUT_NOISE = (
-    "scene", "model", "success", "selected", "akaike_weight", "delta_aic", "delta_bic", "redchi",
+    "scene", "model", "success", "selected", "akaike_weight", "delta_aic", "delta_qaic",
+    "delta_bic", "redchi",
     "beta", "beta_stderr", "beta_note", "k", "k_stderr", "k_note", "omega0", "omega0_stderr",
     "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict", "status", "problem")
 NOISE_COLUMNS = ("sigma_eps", "sigma_j", "noise_verdict")
@@ -271,3 +272,23 @@ def test_an_effect_carried_by_a_kept_fit_is_listed_as_required():
     assert box.x1 <= figure.bbox.x1 and box.y0 >= figure.bbox.y0
     # Without the nested-steps columns (older files): no list, nothing hatched.
     assert noise_effect_steps(table.drop(columns="kept")) is None
+
+
+def test_summary_gives_the_delta_each_akaike_weight_is_computed_from(scene_files):
+    """Where no model describes the data the weights come from ΔQAIC = ΔAIC/ĉ: a row of
+    ΔAIC 1.7e5 and weight 0.23 read as a contradiction without the ΔQAIC beside them."""
+    _, noisy_path, _ = scene_files
+    record = load_record(noisy_path)
+    table = summary_from_records({"noisy": record})
+    rows = table.set_index("model")
+    stored = record["selection"].set_index("model")
+    assert rows.loc["Ia", "delta_qaic"] == pytest.approx(stored.loc["Ia", "delta_qaic"])
+    noise = record["noise_selection"].set_index("model")
+    for law in noise.index:
+        assert rows.loc[f"noise:{law}", "delta_qaic"] == pytest.approx(
+            noise.loc[law, "delta_qaic"])
+    finite = np.isfinite(table["delta_qaic"].to_numpy(float))
+    weights = np.exp(-0.5 * table["delta_qaic"].to_numpy(float)[finite & ~table["model"]
+                                                                 .str.startswith("noise:")])
+    assert weights / weights.sum() == pytest.approx(
+        table.loc[finite & ~table["model"].str.startswith("noise:"), "akaike_weight"])

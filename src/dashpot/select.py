@@ -157,7 +157,8 @@ def summary_table(scene_fits):
     -------
     pandas.DataFrame
         Columns ``scene``, ``model``, ``success``, ``selected``, ``akaike_weight``,
-        ``delta_aic``, ``delta_bic``, ``redchi``, and for each of ``beta`` (1/s), ``k`` (N/m),
+        ``delta_aic``, ``delta_qaic`` (ΔAIC/ĉ, the Δ the Akaike weight is computed from: equal
+        to ΔAIC where the fits describe the data, ĉ = 1), ``delta_bic``, ``redchi``, and for each of ``beta`` (1/s), ``k`` (N/m),
         ``omega0`` (rad/s), ``zeta``, ``v0`` (m/s) its value and ``*_stderr`` (NaN where the
         scene does not give it, e.g. k without a mass), ``beta_note`` and ``k_note`` (empty,
         or why β or k is NaN although fitted: "not determined (<the data's 95 % bound>;
@@ -181,6 +182,7 @@ def summary_table(scene_fits):
                    "selected": bool(selection.loc[model, "rank"] == 1),
                    "akaike_weight": selection.loc[model, "akaike_weight"],
                    "delta_aic": selection.loc[model, "delta_aic"],
+                   "delta_qaic": _delta_qaic(selection, model),
                    "delta_bic": selection.loc[model, "delta_bic"], "redchi": fit.redchi}
             row.update(_contact_columns(fit, not_determined))
             row["verdict"] = scene_fit.verdict
@@ -192,6 +194,13 @@ def summary_table(scene_fits):
         if noise_results:
             rows += _noise_rows(name, scene_fit, noise_results, noise_verdict, not_determined)
     return pd.DataFrame(rows)
+
+
+def _delta_qaic(selection, model):
+    """The Δ a model's Akaike weight is computed from: ΔQAIC (ΔAIC/ĉ), or ΔAIC for a table
+    written before ΔQAIC was stored (then the weights were computed from ΔAIC)."""
+    column = "delta_qaic" if "delta_qaic" in selection else "delta_aic"
+    return selection.loc[model, column]
 
 
 def _contact_columns(fit, not_determined):
@@ -219,6 +228,7 @@ def _noise_rows(name, scene_fit, noise_results, noise_verdict, not_determined):
                "selected": bool(selection.loc[law, "selected"]),
                "akaike_weight": selection.loc[law, "akaike_weight"],
                "delta_aic": selection.loc[law, "delta_aic"],
+               "delta_qaic": _delta_qaic(selection, law),
                "delta_bic": selection.loc[law, "delta_bic"], "redchi": fit.redchi}
         row.update(_contact_columns(fit, not_determined))
         row["verdict"] = scene_fit.verdict

@@ -35,7 +35,7 @@ TRUTH_SUMMARY_COLUMNS = tuple(f"{name}_{kind}" for name in TRUTH_PARAMETERS
 """A synthetic scene's true parameters and each row's pulls against them."""
 
 SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "delta_aic",
-                   "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
+                   "delta_qaic", "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
                    "k_note", "omega0",
                    "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
                    "sigma_eps", "sigma_j", "noise_verdict", "notes", *TRUTH_SUMMARY_COLUMNS,
@@ -94,7 +94,8 @@ def summary_from_records(records):
     -------
     pandas.DataFrame
         Columns :data:`SUMMARY_COLUMNS` (as :func:`dashpot.select.summary_table`): scene,
-        model, success, selected (rank 1 by AIC), akaike_weight, delta_aic, delta_bic,
+        model, success, selected (rank 1 by AIC), akaike_weight, delta_aic, delta_qaic (the
+        Δ akaike_weight is computed from: ΔAIC/ĉ where no model describes the data), delta_bic,
         redchi, β (1/s), k (N/m, NaN without a mass), ω0 (rad/s), ζ, v0 (m/s) each with its
         ``*_stderr``, ``beta_note`` and ``k_note`` (why β or k is empty although fitted: not
         determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
