@@ -473,3 +473,15 @@ def test_coinciding_gravity_free_curves_both_show():
     assert ia_on == ia_off == iia_on == iia_off > 0
     assert (iia_offset - ia_offset) % (2 * ia_on) == pytest.approx(ia_on)
     assert lines["Ia"].get_linewidth() == lines["IIa"].get_linewidth()
+
+
+def test_capture_onsets_on_the_axes_edge_are_whole_circles():
+    """Ib's and the hybrid's ε fall to 0 at capture, on the lower edge of the ε axes: their
+    onset circles are drawn whole, not clipped to their upper half."""
+    fig = plots.restitution_vs_speed_figure(zetas=(0.2,), points=60)
+    onsets = [line for line in fig.axes[0].get_lines()
+              if str(line.get_gid()).endswith(" onset")]
+    at_edge = [line for line in onsets
+               if np.asarray(line.get_ydata(), float)[0] <= fig.axes[0].get_ylim()[0] + 1e-3]
+    assert at_edge
+    assert not any(line.get_clip_on() for line in onsets)

@@ -200,13 +200,19 @@ def _eps_against_speed(model, zeta):
     return evaluate
 
 
-def _mark_end(ax, model, x, y):
-    """Open circle where a curve ends because capture sets in."""
+def _mark_end(ax, model, x, y, *, clip=True):
+    """Open circle where a curve ends because capture sets in.
+
+    ``clip=False`` for ε figures, whose axes hold every onset: the onsets of Ib and the hybrid
+    lie at ε = 0, on the lower edge, where a clipped circle showed only its upper half. (The
+    contact-time figure keeps clipping: Ia's onset lies far above its axes.) The unclipped
+    circle is left out of the layout, as a clipped one is.
+    """
     finite = np.flatnonzero(np.isfinite(y))
     if finite.size and finite[-1] < y.size - 1:
         ax.plot(x[finite[-1]], y[finite[-1]], marker="o", markersize=5, markerfacecolor="white",
                 color=_style(model)["color"], linestyle="none", gid=f"{model} onset",
-                label="_nolegend_", zorder=3)
+                label="_nolegend_", zorder=3, clip_on=clip)[0].set_in_layout(clip)
         return True
     return False
 
@@ -342,7 +348,7 @@ def restitution_figure(speeds=(23, 15, 5), zeta_max=1.5, points=301):
         for model in MODELS:
             x, eps = _curve_without_capture(_eps_against_zeta(model, vtilde), zeta)
             handles[model] = _model_line(ax, model, x, eps)
-            ended |= _mark_end(ax, model, x, eps)
+            ended |= _mark_end(ax, model, x, eps, clip=False)
         ax.set_xlim(0.0, zeta[-1])
         ax.set_ylim(0.0, 1.02)
         ax.set_xlabel(ZETA_LABEL)
@@ -445,7 +451,7 @@ def restitution_vs_speed_figure(zetas=(0.05, 0.2, 0.5), vtilde_range=(0.5, 1e3),
             x, eps = _curve_without_capture(_eps_against_speed(model, zeta), vtilde)
             handles[model] = _model_line(ax, model, x, eps)
             # Reversed: the curve starts (not ends) where capture stops.
-            started |= _mark_end(ax, model, x[::-1], eps[::-1])
+            started |= _mark_end(ax, model, x[::-1], eps[::-1], clip=False)
         ax.set_xlim(low, high)
         ax.set_ylim(0.0, 1.02)
         ax.set_xlabel(VTILDE_LABEL)
