@@ -257,7 +257,8 @@ def test_the_burst_of_the_member_before_is_not_an_impact_hidden_under_it():
     sounds = np.sort(np.concatenate((impacts, bursts)))
     loudness = np.where(np.isin(sounds, bursts), 1.2, 1.0)
 
-    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         return onset_near(sounds, moment, tolerance, 1.2)
 
     times, sigmas, _, _ = _hidden_causes(impacts, np.ones(impacts.size), np.array([delay]),

@@ -90,7 +90,8 @@ def test_the_error_floor_is_the_variance_of_the_error_on_the_noise():
 
 def fake_probe(sounds, amplitude):
     """A probe that finds the nearest of `sounds` (s) within the tolerance, of `amplitude`."""
-    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         return onset_near(sounds, moment, tolerance, amplitude)
     return probe
 

@@ -711,9 +711,9 @@ def _train_table(path, stream, sample_rate, duration):
     filled, retimed = [], []  # added rows; results of impacts timed again (None: left out)
 
     def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
-              any_jump=False):
+              any_jump=False, impulse=False):
         return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound,
-                      expected, any_jump)
+                      expected, any_jump, impulse)
 
     delays = _secondary_delays(rough, chain)
     levels = _secondary_levels(rough, amplitude, chain, delays)
