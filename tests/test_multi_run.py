@@ -364,7 +364,10 @@ def test_capstone_fits_cover_the_truth_at_their_stated_sigma():
 
     train = bounce_sequence("hybrid", beta=CART["beta"], omega0=CART["omega0"], g=CART["g"],
                             v0=1.0, n_max=30)
-    scene = scene_from_mapping({"name": "cart", "models": ["hybrid"],
+    # noise: false: the fits judged here are the deterministic ones, the same with or without
+    # the noise model (fit_scene); noise: auto would add it to the few runs whose χ² lies
+    # beyond its 3σ bound, at about half of this test's cost.
+    scene = scene_from_mapping({"name": "cart", "models": ["hybrid"], "noise": False,
                                 "apparatus": {"mass": CART["mass"], "g_eff": CART["g"]}})
     truth = {"beta": CART["beta"], "k": CART["mass"] * CART["omega0"] ** 2}
     pulls = {"run": [], "joint": []}
@@ -518,7 +521,9 @@ def test_joint_fit_intervals_cover_at_their_stated_rates():
                                          "time_uncertainty": SIGMA, "run": run})
                            for run, times in enumerate(trains, start=1)], ignore_index=True)
         table.attrs["notes"] = []
-        joint = fit_runs(table, scene, ("IIb",)).joint["IIb"]
+        # The deterministic joint fit, the same without the noise model (fit_scene), which
+        # noise: auto would add to the few runs whose χ² lies beyond its 3σ bound.
+        joint = fit_runs(table, scene, ("IIb",), noise=False).joint["IIb"]
         assert joint.success
         for name in pulls:
             estimate = joint.estimates[name]
