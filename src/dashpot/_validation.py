@@ -26,7 +26,7 @@ def _as_float_array(name, value):
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as error:
         raise ValueError(f"{name} must be a real number or array of them; got {value!r}") from error
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise ValueError(f"{name} must be finite; got a non-finite value in {value!r}")
     return array
 
@@ -34,7 +34,7 @@ def _as_float_array(name, value):
 def check_nonnegative(name, value):
     """Float array of `value`; ValueError naming `name` unless finite and >= 0."""
     array = _as_float_array(name, value)
-    if np.any(array < 0.0):
+    if (array < 0.0).any():
         raise ValueError(f"{name} must be >= 0 (allowed range [0, inf)); got {value!r}")
     return array
 
@@ -42,7 +42,7 @@ def check_nonnegative(name, value):
 def check_positive(name, value):
     """Float array of `value`; ValueError naming `name` unless finite and > 0."""
     array = _as_float_array(name, value)
-    if np.any(array <= 0.0):
+    if (array <= 0.0).any():
         raise ValueError(f"{name} must be > 0 (allowed range (0, inf)); got {value!r}")
     return array
 

@@ -238,7 +238,7 @@ class RestitutionLaw:
 def finite(name, value):
     """`value` as a float array; ValueError naming `name` where it is not finite."""
     array = np.asarray(value, dtype=float)
-    if not np.all(np.isfinite(array)):
+    if not np.isfinite(array).all():
         raise ValueError(f"{name} must be finite; got {value!r}")
     return array
 
