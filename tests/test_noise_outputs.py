@@ -31,7 +31,7 @@ COLUMNS_WITHOUT_NOISE = (
     "scene", "model", "success", "selected", "akaike_weight", "delta_aic", "delta_qaic",
     "delta_bic", "redchi",
     "beta", "beta_stderr", "beta_note", "k", "k_stderr", "k_note", "omega0", "omega0_stderr",
-    "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict", "status", "problem")
+    "omega0_note", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict", "status", "problem")
 NOISE_COLUMNS = ("sigma_eps", "sigma_j", "noise_verdict")
 
 

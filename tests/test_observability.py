@@ -178,6 +178,42 @@ def test_summary_empties_beta_of_a_noise_fit_whose_omega0_is_not_determined():
     assert math.isnan(row["beta"]) and math.isnan(row["beta_stderr"])
     assert row["beta_note"].startswith("not determined (") and "omega0" in row["beta_note"]
     assert row["zeta"] == 0.01735
+    # ω0 keeps the number the fit ended at, ± inf: its own note says why.
+    assert row["omega0_stderr"] == math.inf
+    assert row["omega0_note"].startswith("not determined (") and "rad/s" in row["omega0_note"]
+
+
+def test_every_non_finite_number_of_an_undetermined_omega0_row_has_its_note():
+    # The ping-pong recording's noise:Ia (ω0 ~ 1e7 rad/s ± inf, no mass): each NaN or inf in
+    # β and ω0 is explained in its own row's note; k is NaN without a mass (as documented).
+    def estimate(value, stderr, low95, high95, status):
+        return SimpleNamespace(value=value, stderr=stderr, low95=low95, high95=high95,
+                               status=status)
+
+    undetermined = SimpleNamespace(success=True, redchi=1.0, estimates={
+        "zeta": estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
+        "omega0": estimate(9.58e6, math.inf, 5360.0, math.inf, "fitted"),
+        "beta": estimate(1.66e5, math.inf, 93.0, math.inf, "derived"),
+        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+    determined = SimpleNamespace(success=True, redchi=1.0, estimates={
+        "zeta": estimate(0.0175, 2.0e-4, 0.0171, 0.0179, "fitted"),
+        "omega0": estimate(4500.0, 50.0, 4400.0, 4600.0, "fitted"),
+        "beta": estimate(78.75, 1.0, 76.7, 80.8, "derived"),
+        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+    selection = pd.DataFrame({"model": ["Ia", "IIa"], "rank": [1, 2],
+                              "akaike_weight": [0.5, 0.5], "delta_aic": [0.0, 0.0],
+                              "delta_bic": [0.0, 0.0]})
+    scene_fit = SimpleNamespace(results={"Ia": undetermined, "IIa": determined},
+                                selection=selection, verdict="")
+    rows = summary_table({"scene": scene_fit}).set_index("model")
+    row = rows.loc["Ia"]
+    assert row["omega0"] == 9.58e6 and row["omega0_stderr"] == math.inf
+    assert row["omega0_note"] == ("not determined (ω0 > 5.36e+03 rad/s at 95 %, no upper "
+                                  "bound; omega0 unbounded above at 95 %)")
+    for key in ("beta", "omega0"):
+        if not (math.isfinite(row[key]) and math.isfinite(row[f"{key}_stderr"])):
+            assert row[f"{key}_note"].startswith("not determined"), key
+    assert rows.loc["IIa", "omega0_note"] == ""
 
 
 def test_a_prior_the_fit_disagrees_with_is_named_with_its_unit():

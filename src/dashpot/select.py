@@ -163,7 +163,10 @@ def summary_table(scene_fits):
         scene does not give it, e.g. k without a mass), ``beta_note`` and ``k_note`` (empty,
         or why β or k is NaN although fitted: "not determined (<the data's 95 % bound>;
         <why>)" where the data do not determine ω0, see
-        :func:`dashpot.fit.observability.not_determined`), plus ``verdict``; then
+        :func:`dashpot.fit.observability.not_determined`), ``omega0_note`` (empty, or the same
+        words on ω0 itself where the data do not determine it: its value is where the fit
+        ended and its error often infinite, see
+        :func:`dashpot.fit.observability.omega0_note`), plus ``verdict``; then
         ``sigma_eps`` (1), ``sigma_j`` (s) and ``noise_verdict``. A scene fitted under the
         noise model as well (``noise_results``) adds one row per noise fit, model
         ``"noise:<law>"``, with its selection figures from ``noise_selection``, ``redchi`` of
@@ -204,16 +207,23 @@ def _delta_qaic(selection, model):
 
 
 def _contact_columns(fit, not_determined):
-    """β, k, ω0, ζ, v0 of one fit with their errors, and why β or k is empty where it is."""
+    """β, k, ω0, ζ, v0 of one fit with their errors, why β or k is empty where it is, and why
+    ω0 is not determined where it is not."""
+    from .fit.observability import omega0_note
+
     undetermined = not_determined(fit.estimates) if fit.success else {}
+    # β and k have no number where ω0 is not determined; ω0 keeps the one the fit ended at
+    # (often ± inf), and its note says that it is no measurement.
+    notes = {"beta": undetermined.get("beta", ""), "k": undetermined.get("k", ""),
+             "omega0": omega0_note(fit.estimates.get("omega0")) if fit.success else ""}
     columns = {}
     for key in ("beta", "k", "omega0", "zeta", "v0"):
         estimate = fit.estimates.get(key)
         shown = estimate is not None and key not in undetermined
         columns[key] = estimate.value if shown else math.nan
         columns[f"{key}_stderr"] = estimate.stderr if shown else math.nan
-        if key in ("beta", "k"):
-            columns[f"{key}_note"] = undetermined.get(key, "")
+        if key in notes:
+            columns[f"{key}_note"] = notes[key]
     return columns
 
 

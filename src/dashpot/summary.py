@@ -35,11 +35,10 @@ TRUTH_SUMMARY_COLUMNS = tuple(f"{name}_{kind}" for name in TRUTH_PARAMETERS
 """A synthetic scene's true parameters and each row's pulls against them."""
 
 SUMMARY_COLUMNS = ("scene", "model", "success", "selected", "akaike_weight", "delta_aic",
-                   "delta_qaic", "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k", "k_stderr",
-                   "k_note", "omega0",
-                   "omega0_stderr", "zeta", "zeta_stderr", "v0", "v0_stderr", "verdict",
-                   "sigma_eps", "sigma_j", "noise_verdict", "notes", *TRUTH_SUMMARY_COLUMNS,
-                   "status", "problem")
+                   "delta_qaic", "delta_bic", "redchi", "beta", "beta_stderr", "beta_note", "k",
+                   "k_stderr", "k_note", "omega0", "omega0_stderr", "omega0_note", "zeta",
+                   "zeta_stderr", "v0", "v0_stderr", "verdict", "sigma_eps", "sigma_j",
+                   "noise_verdict", "notes", *TRUTH_SUMMARY_COLUMNS, "status", "problem")
 """Columns of the summary table, in order (units in :data:`dashpot.store.SUMMARY_UNITS`; the
 CSV's headers carry them, :func:`dashpot.store.csv_header`)."""
 
@@ -51,8 +50,8 @@ STATUSES = {
 }
 """Values of the ``status`` column and what each means."""
 
-_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "verdict", "noise_verdict", "notes",
-                 "status", "problem")
+_TEXT_COLUMNS = ("scene", "model", "beta_note", "k_note", "omega0_note", "verdict",
+                 "noise_verdict", "notes", "status", "problem")
 # h5py raises all of these for a damaged or foreign file, depending on where the damage is.
 _READ_ERRORS = (OSError, RuntimeError, KeyError, ValueError, TypeError)
 
@@ -98,7 +97,8 @@ def summary_from_records(records):
         Δ akaike_weight is computed from: ΔAIC/ĉ where no model describes the data), delta_bic,
         redchi, β (1/s), k (N/m, NaN without a mass), ω0 (rad/s), ζ, v0 (m/s) each with its
         ``*_stderr``, ``beta_note`` and ``k_note`` (why β or k is empty although fitted: not
-        determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
+        determined by the data), ``omega0_note`` (why ω0's value is no measurement and its
+        error often infinite: not determined by the data), the scene's verdict, then ``sigma_eps`` (1), ``sigma_j`` (s) and
         ``noise_verdict``: empty for the deterministic fits' rows, except the noise verdict of a
         scene with fits under the noise model, which also has one row per noise fit (model
         ``"noise:<law>"``); ``notes``, the row's fit notes in plain words joined by " | "
@@ -265,7 +265,8 @@ def _one_line(error):
 def _scene_row(scene, status, problem):
     row = {column: math.nan for column in SUMMARY_COLUMNS}
     row.update(scene=scene, model="", success=False, selected=False, beta_note="", k_note="",
-               verdict="", noise_verdict="", notes="", status=status, problem=problem)
+               omega0_note="", verdict="", noise_verdict="", notes="", status=status,
+               problem=problem)
     return row
 
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from .settings import WEAK_RELATIVE_ERROR
 
-__all__ = ["not_determined", "gravity_effect_note", "GRAVITY_FREE_COUNTERPART",
+__all__ = ["not_determined", "omega0_note", "gravity_effect_note", "GRAVITY_FREE_COUNTERPART",
            "CONTACT_QUANTITIES"]
 
 # The contact quantities that carry ω0 (symbol, unit for the bound's text).
@@ -89,14 +89,46 @@ def not_determined(estimates):
     omega0 = estimates.get("omega0")
     if not _omega0_undetermined(omega0):
         return {}
+    why = _why_omega0_undetermined(omega0)
+    return {key: f"not determined ({bound_text(symbol, unit, estimates[key])}; {why})"
+            for key, (symbol, unit) in CONTACT_QUANTITIES.items() if key in estimates}
+
+
+def omega0_note(omega0):
+    """Why a fitted ω0 is not determined, with the data's bound on it, or ''.
+
+    ω0 itself keeps the value and error the fit ended at (an error that is often infinite);
+    this note says what they mean, as :func:`not_determined` does for β, k and γ.
+
+    Parameters
+    ----------
+    omega0 : Estimate-like or None
+        A fit's ``omega0`` estimate (any object with ``value``, ``stderr``, ``low95``,
+        ``high95`` and ``status``).
+
+    Returns
+    -------
+    str
+        "not determined (<bound>; <why>)", e.g. "not determined (ω0 > 5.36e+03 rad/s at
+        95 %, no upper bound; omega0 unbounded above at 95 %)"; '' where ω0 is determined or
+        fixed (see the module notes).
+    """
+    if not _omega0_undetermined(omega0):
+        return ""
+    return (f"not determined ({bound_text('ω0', 'rad/s', omega0)}; "
+            f"{_why_omega0_undetermined(omega0)})")
+
+
+def _why_omega0_undetermined(omega0):
+    """The reason, in words, that an undetermined ω0 is not determined."""
     if math.isfinite(omega0.high95):
-        why = f"omega0's relative error {omega0.stderr / omega0.value:.2g}"
+        relative = omega0.stderr / omega0.value if omega0.value else math.inf
+        why = f"omega0's relative error {relative:.2g}"
     else:
         why = "omega0 unbounded above at 95 %"
     if omega0.status == "prior":
         why += " even with the scene's prior"
-    return {key: f"not determined ({bound_text(symbol, unit, estimates[key])}; {why})"
-            for key, (symbol, unit) in CONTACT_QUANTITIES.items() if key in estimates}
+    return why
 
 
 def gravity_effect(model, zeta, v_star, speed):
