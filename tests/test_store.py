@@ -238,6 +238,29 @@ def test_every_dataset_has_a_unit(written):
     assert datasets["fits/IIb/eps_curve/speed"][1]["units"] == "m/s"
 
 
+def test_every_nan_column_says_why_in_a_note(written, tmp_path):
+    # An audio recording's table: times, their σ and loudness, no speeds (as the audio reader
+    # gives it); the bounce table's last ratio has no next interval.
+    impacts = written["impacts"].assign(amplitude=0.5)
+    path = tmp_path / "audio.h5"
+    write_scene_fit(path, written["scene_fit"], impacts)
+    datasets = _datasets(path)
+    for name, (values, attrs) in datasets.items():
+        if name.split("/")[0] in ("impacts", "bounces") and values.dtype.kind == "f":
+            # A note exactly where a column holds NaN.
+            assert ("note" in attrs) == bool(np.isnan(values).any()), name
+    for column in ("impact_speed", "rebound_speed", "speed_uncertainty"):
+        values, attrs = datasets[f"impacts/{column}"]
+        assert np.isnan(values).all()
+        assert attrs["note"].startswith("all NaN: the recording gives impact times only")
+    values, attrs = datasets["bounces/restitution"]
+    assert np.isnan(values[-1]) and np.isfinite(values[:-1]).all()
+    assert attrs["note"] == ("NaN on the last interval of each run: there is no next "
+                             "interval T_{n+1}")
+    assert "note" not in datasets["impacts/amplitude"][1]
+    assert "note" not in datasets["impacts/time"][1]
+
+
 def test_tables_read_back_with_plain_h5py_and_pandas(written):
     impacts, scene_fit = written["impacts"], written["scene_fit"]
     with h5py.File(written["path"], "r") as source:

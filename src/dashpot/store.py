@@ -60,6 +60,47 @@ BOUNCE_UNITS = {"run": "1", "bounce": "1", "start_time": "s", "interval": "s",
 # Attributes of a bounce table corrected for air drag: what corrected it.
 BOUNCE_DRAG_ATTRIBUTES = ("drag_constant", "drag_constant_uncertainty", "effective_gravity",
                           "drag_source", "drag_note")
+# Why a column of the impact or bounce table holds NaN, for its dataset's attribute `note`
+# (given only where it holds NaN): (the text where every value is, the text where some are).
+_SPEED_NOT_MEASURED = (
+    "all NaN: the recording gives impact times only, no speeds (an audio recording, a "
+    "stopwatch or a table of times)",
+    "NaN where the speed was not measured (a motion sensor: no free flight fitted on that "
+    "side of the impact)")
+IMPACT_NAN_NOTES = {
+    "time_uncertainty": ("all NaN: the recording states no timing error",
+                         "NaN where the recording states no timing error"),
+    "amplitude": ("all NaN: the recording gives no loudness of its impacts (measured in audio "
+                  "recordings only)", "NaN where the table gives no amplitude"),
+    "impact_speed": _SPEED_NOT_MEASURED, "rebound_speed": _SPEED_NOT_MEASURED,
+    "speed_uncertainty": _SPEED_NOT_MEASURED,
+    FLIGHT_CORRELATION_COLUMN: (
+        "all NaN: no two speeds measured on one flight",
+        "NaN on each run's last impact (no next flight) and where a speed was not measured"),
+}
+_SPEED_ERROR_NOT_MEASURED = ("all NaN: no speed measured",
+                             "NaN where the speed was not measured")
+_NO_NEXT_INTERVAL = "NaN on the last interval of each run: there is no next interval T_{n+1}"
+_SIGMA_UNKNOWN = ("all NaN: the impact times' 1σ is unknown",
+                  "NaN where an impact time's 1σ is unknown")
+BOUNCE_NAN_NOTES = {
+    "interval_uncertainty": _SIGMA_UNKNOWN, "rebound_speed_uncertainty": _SIGMA_UNKNOWN,
+    "restitution": (_NO_NEXT_INTERVAL,) * 2,
+    "restitution_uncertainty": (f"{_NO_NEXT_INTERVAL}; and where an impact time's 1σ is "
+                                f"unknown",) * 2,
+    "launch_speed": ("NaN where no launch speed gives the flight's duration",) * 2,
+    "launch_speed_uncertainty": ("NaN where there is no launch speed, or an impact time's 1σ "
+                                 "is unknown",) * 2,
+    "landing_speed": ("NaN where there is no launch speed",) * 2,
+    "landing_speed_uncertainty": ("NaN where there is no launch speed, or an impact time's 1σ "
+                                  "is unknown",) * 2,
+    "restitution_corrected": (f"{_NO_NEXT_INTERVAL}; and where there is no launch speed",) * 2,
+    "restitution_corrected_uncertainty": (
+        f"{_NO_NEXT_INTERVAL}; and where there is no launch speed, an impact time's 1σ is "
+        f"unknown or the impact was left out of the fit",) * 2,
+    "restitution_corrected_drag_uncertainty": (
+        f"{_NO_NEXT_INTERVAL}; and where there is no launch speed",) * 2,
+}
 SELECTION_UNITS = {"model": "1", "success": "1", "nvarys": "1", "ndata": "1", "chisqr": "1",
                    "redchi": "1", "aic": "1", "bic": "1", "delta_aic": "1", "delta_bic": "1", "delta_qaic": "1",
                    "akaike_weight": "1", "rank": "1"}
@@ -152,10 +193,11 @@ def _dataset(group, name, values, unit, dtype=None):
     return dataset
 
 
-def _table(parent, name, table, units, dtypes=None):
+def _table(parent, name, table, units, dtypes=None, nan_notes=None):
     """A table group: one dataset per column, in order (`dtypes`: column -> type where the
     column's own would not do); the column ``TABLE_SCALES[name]`` a dimension scale that
-    every other column is attached to."""
+    every other column is attached to. A column of `nan_notes` that holds NaN gets the
+    attribute ``note`` saying why (:func:`_nan_note`)."""
     group = parent.create_group(name, track_order=True)
     group.attrs["columns"] = list(map(str, table.columns))
     dtypes = dtypes or {}
@@ -163,6 +205,10 @@ def _table(parent, name, table, units, dtypes=None):
     datasets = {str(column): _dataset(group, str(column), table[column].to_numpy(),
                                       units.get(column, "1"), dtypes.get(column))
                 for column in table.columns}
+    for column, reasons in (nan_notes or {}).items():
+        note = _nan_note(table[column].to_numpy(), reasons) if column in table else ""
+        if note:
+            datasets[column].attrs["note"] = note
     scale = datasets.get(TABLE_SCALES.get(name))
     if scale is not None:
         scale.make_scale(TABLE_SCALES[name])
@@ -170,6 +216,18 @@ def _table(parent, name, table, units, dtypes=None):
             if column != TABLE_SCALES[name]:
                 dataset.dims[0].attach_scale(scale)
     return group
+
+
+def _nan_note(values, reasons):
+    """Why `values` hold NaN: ``reasons[0]`` where all of them do, ``reasons[1]`` where some
+    do, '' where none (or they are no numbers)."""
+    values = np.asarray(values)
+    if values.dtype.kind != "f":
+        return ""
+    missing = np.isnan(values)
+    if not missing.any():
+        return ""
+    return reasons[0] if missing.all() else reasons[1]
 
 
 def _attach(group, dataset):
@@ -363,7 +421,8 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
             drop=True)
         group = _table(out, "impacts", table, {
             **IMPACT_UNITS, **{c: "1" if c == FLIGHT_CORRELATION_COLUMN else "m/s"
-                               for c in errors}}, IMPACT_DTYPES)
+                               for c in errors}}, IMPACT_DTYPES,
+            {**dict.fromkeys(errors, _SPEED_ERROR_NOT_MEASURED), **IMPACT_NAN_NOTES})
         group.attrs["notes"] = json.dumps(list(impacts.attrs.get("notes", [])))
         # data.excluded counts rows of its own run only.
         run = impacts["run"].to_numpy() if "run" in impacts else np.zeros(len(table))
@@ -405,7 +464,7 @@ def _bounces(group, scene_fit):
     from .analysis import stored_bounces
 
     table = stored_bounces(scene_fit)
-    written = _table(group, "bounces", table, BOUNCE_UNITS)
+    written = _table(group, "bounces", table, BOUNCE_UNITS, nan_notes=BOUNCE_NAN_NOTES)
     drag = table.attrs.get("drag")
     if drag is not None:
         written.attrs.update(dict(zip(BOUNCE_DRAG_ATTRIBUTES, (
