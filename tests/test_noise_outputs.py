@@ -2,7 +2,7 @@
 
 A scene file written with the noise fits gives one summary row per noise fit (model
 ``noise:<law>``) with its σ_ε, σ_j and χ²/ν of the innovations, and its figures draw each
-noise fit's ε(v) and a second selection panel (with the effects the data required beside it);
+noise fit's ε(v) and a second selection panel (with the effects the data required below it);
 a scene file without them gives the summary and figures it gave before, plus the empty noise
 columns. The train is drawn by the noise model's own simulator: 30 impacts from 2 m/s,
 ε = 0.94 with 0.4 % bounce-to-bounce scatter.
@@ -124,6 +124,15 @@ def test_scene_without_noise_keeps_its_rows_and_gets_empty_noise_columns(scene_f
     assert (table["noise_verdict"] == "").all()
 
 
+def _effects_legend(figure):
+    """The selection figure's list of the effects the noise selection tried, or None."""
+    legends = [*figure.legends, *(ax.get_legend() for ax in figure.axes)]
+    found = [legend for legend in legends
+             if legend is not None and legend.get_gid() == "noise-effects"]
+    assert len(found) <= 1
+    return found[0] if found else None
+
+
 def _lines_by_gid(figure):
     return {line.get_gid(): line for ax in figure.axes for line in ax.get_lines()
             if line.get_gid()}
@@ -191,16 +200,17 @@ def test_the_drag_train_loses_many_times_its_scatter_per_flight():
 @pytest.mark.parametrize("which", ["constant", "drag"])
 def test_selection_figure_says_which_effects_the_data_required(which, scene_files,
                                                                drag_scene_file):
-    """Beside the noise panel a legend: its heading names the effects the data required (as
+    """Below the noise panel a legend: its heading names the effects the data required (as
     the verdict does), one entry per effect tried with its best fit's ΔBIC against the
     simpler rung from the noise selection table; the bars of fits not kept are hatched and
     say "not kept"."""
     path = scene_files[1] if which == "constant" else drag_scene_file
     record = load_record(path)
     table, verdict = record["noise_selection"], record["noise_verdict"]
-    noise_axes = scene_figures(record)["selection"].axes[1]
-    legend = noise_axes.get_legend()
-    assert legend is not None and legend.get_gid() == "noise-effects"
+    figure = scene_figures(record)["selection"]
+    noise_axes = figure.axes[1]
+    legend = _effects_legend(figure)
+    assert legend is not None
     heading = " ".join(legend.get_title().get_text().split())  # wrapped over lines
     entries = [text.get_text() for text in legend.get_texts()]
     # The verdict's split into required and not required effects.
@@ -237,6 +247,7 @@ def test_figures_of_a_scene_without_noise_have_no_noise_curves_or_panel(scene_fi
     assert set(_lines_by_gid(figures["restitution"])) == {"Ia"}
     assert len(figures["selection"].axes) == 1
     assert figures["selection"].axes[0].get_legend() is None
+    assert _effects_legend(figures["selection"]) is None
 
 
 def test_an_effect_carried_by_a_kept_fit_is_listed_as_required():
@@ -256,20 +267,20 @@ def test_an_effect_carried_by_a_kept_fit_is_listed_as_required():
     figure = selection_figure(["Ia"], [1.0], [0.0], noise=(["constant", "Ia", "Ib"],
                               [0.1, 0.2, 0.7], [3.0, 1.0, 0.0], "AIC"),
                               noise_steps=steps, noise_kept=table["kept"])
-    legend = figure.axes[1].get_legend()
+    legend = _effects_legend(figure)
     heading = " ".join(legend.get_title().get_text().split())  # wrapped over lines
     assert heading.startswith("the data required contact duration, gravity in contact (")
     entries = [text.get_text() for text in legend.get_texts()]
     assert entries[0] == ("contact duration: required, carried by Ib\n"
                           "Ia: ΔBIC = 2.0 against constant")
-    # Drawn, the list sits inside the figure beside the panel (the layout made room for it).
+    # Drawn, the list sits inside the figure below the panel (the layout made room for it).
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     canvas = FigureCanvasAgg(figure)
     canvas.draw()
     box = legend.get_window_extent(canvas.get_renderer())
-    assert box.x0 >= figure.axes[1].get_window_extent().x1
-    assert box.x1 <= figure.bbox.x1 and box.y0 >= figure.bbox.y0
+    assert box.y1 <= figure.axes[1].get_window_extent().y0
+    assert box.x0 >= figure.bbox.x0 and box.x1 <= figure.bbox.x1 and box.y0 >= figure.bbox.y0
     # Without the nested-steps columns (older files): no list, nothing hatched.
     assert noise_effect_steps(table.drop(columns="kept")) is None
 

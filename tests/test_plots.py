@@ -439,6 +439,42 @@ def test_a_long_legend_goes_below_the_axes_and_leaves_them_their_width(entries):
         assert axes_box.height >= 0.4 * figure_box.height
 
 
+def test_selection_figure_with_many_noise_fits_is_at_most_12_inches_wide():
+    # The real recordings' noise panel: seven restitution laws, the drag rung and the five
+    # contact models, with the list of effects tried. It was 22 in wide (3315 px), its text
+    # tiny in the report.
+    names = ["constant", "constant+drag", "linear", "quadratic", "power",
+             "viscoelastic-hertz", "hunt-crossley", *dashpot.MODELS]
+    weights = np.r_[0.0, 1.0, np.zeros(len(names) - 2)]
+    delta = np.r_[43.6, 0.0, np.linspace(13.7, 116.1, len(names) - 2)]
+    steps = [("drag", "constant+drag", "constant", 41.7, True, ""),
+             ("speed term", "quadratic", "constant", 27.9, True, ""),
+             ("contact duration", "IIa", "constant", 0.3, False, ""),
+             ("gravity in contact", "Ib", "constant", 1.5, False, "")]
+    fig = plots.selection_figure(dashpot.MODELS, [0.33, 0.06, 0.33, 0.23, 0.05],
+                                 [0.0, 3.4, 0.0, 0.7, 3.6], criterion="QAIC",
+                                 noise=(names, weights, delta, "AIC"), noise_steps=steps,
+                                 noise_kept=[True] * 7 + [False] * 5)
+    assert fig.get_size_inches()[0] <= 12.0
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    (legend,) = fig.legends
+    legend_box = legend.get_window_extent(renderer)
+    figure_box = fig.bbox
+    assert figure_box.x0 - 1 <= legend_box.x0 and legend_box.x1 <= figure_box.x1 + 1
+    assert figure_box.y0 - 1 <= legend_box.y0 and legend_box.y1 <= figure_box.y1 + 1
+    for ax in fig.axes:
+        # Neither over a panel nor beside it, taking its width: below the lowest one.
+        assert not ax.get_window_extent(renderer).overlaps(legend_box)
+        assert legend_box.y1 <= ax.get_tightbbox(renderer).y0 + 1
+        assert ax.get_window_extent(renderer).width >= 0.8 * figure_box.width
+    # The crowded panel's tick labels are tilted, not run into each other; the five
+    # models' stay level.
+    assert {tick.get_rotation() for tick in fig.axes[1].get_xticklabels()} == {30}
+    assert {tick.get_rotation() for tick in fig.axes[0].get_xticklabels()} == {0}
+
+
 def test_restitution_limits_hug_a_narrow_spread_of_eps():
     """ε between 0.9590 and 0.9594 (a synthetic scene's) fills the axes: padded by 5 % of its
     span, not by a fixed 5e-4 that left two thirds of the axes empty, and labelled without an

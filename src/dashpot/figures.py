@@ -9,7 +9,7 @@ scene file (``results/<scene>.h5``, read with :func:`load_record`):
   where the scene was also fitted under the noise model, each of those fits' ε(v) (its law at
   the fitted parameters, over the observed speed range, as stored in ``noise_fits/<law>``);
 - ``selection``: the Akaike weights and ΔAIC of the models, with a second panel of the fits
-  under the noise model where the scene has them, beside it the effects the data required
+  under the noise model where the scene has them, below it the effects the data required
   (:func:`noise_effect_steps`: each effect's best ΔBIC against its simpler rung) and the bars of
   the fits the nested steps did not keep hatched;
 - ``detection`` (audio recordings only): the recording's envelope with the detected impacts.
@@ -282,7 +282,7 @@ def _weights_and_criterion(selection):
 
 def _selection_figure(selection, noise_selection=None):
     """The selection figure, with the panel of the fits under the noise model where given
-    (the effects the data required beside it, the fits not kept hatched)."""
+    (the effects the data required below it, the fits not kept hatched)."""
     models, weights, delta, criterion = _weights_and_criterion(selection)
     if noise_selection is None:
         return plots.selection_figure(models, weights, delta, criterion=criterion)

@@ -950,9 +950,10 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
     Returns
     -------
     matplotlib.figure.Figure
-        One axes: Akaike weight (dimensionless) per model; a second one per fit under the
-        noise model where `noise` is given, with the effects the data required in its legend
-        where `noise_steps` is given.
+        One axes: Akaike weight (dimensionless) per model; a second one below it per fit
+        under the noise model where `noise` is given, and where `noise_steps` is given the
+        effects the data required in a figure legend (gid "noise-effects") below that. At
+        most 12 in wide, tick labels tilted where they would run into each other.
     """
     models = [str(m) for m in models]
     weights, delta = _weights_and_delta(models, akaike_weights, delta_aic)
@@ -962,11 +963,11 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
         names = [str(n) for n in names]
         panels.append((names, *_weights_and_delta(names, noise_weights, noise_delta),
                        noise_criterion))
-    width = max(len(panel[0]) for panel in panels)
-    # Room on the right for the list of effects beside the noise panel.
-    extra = 4.5 if noise is not None and noise_steps is not None else 0.0
-    fig = Figure(figsize=(1.3 * max(width, 3) + 2.0 + extra, 4.5 * len(panels)),
-                 layout="constrained")
+    bars = max(len(panel[0]) for panel in panels)
+    # At most _SELECTION_MAX_WIDTH wide (a report scales a wider figure's text down to
+    # nothing): many bars get narrower, and the list of effects goes below the noise panel.
+    fig = Figure(figsize=(min(1.3 * max(bars, 3) + 2.0, _SELECTION_MAX_WIDTH),
+                          4.5 * len(panels)), layout="constrained")
     axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
     model_colors = [_style(m)["color"] for m in models]
     _weight_bars(axes[0], models, weights, delta, criterion, model_colors,
@@ -987,11 +988,33 @@ def selection_figure(models, akaike_weights, delta_aic, *, criterion="AIC", nois
         if noise_kept is not None:
             _hatch_not_kept(axes[1], names, noise_kept)
         if noise_steps is not None:
-            _effect_legend(axes[1], noise_steps, hatched=noise_kept is not None)
+            _effect_legend(fig, noise_steps, hatched=noise_kept is not None)
+    for ax in axes:
+        _tilt_crowded_labels(ax)
     return fig
 
 
+_SELECTION_MAX_WIDTH = 12.0  # inches
 _NOT_KEPT_HATCH = "//"
+_TICK_CHARACTER_INCHES = 0.085  # width of a character of a tick label (10 pt), about
+_SMALL_LINE_INCHES = 0.17  # height of a line of small-font legend text, with its spacing
+
+
+def _tilt_crowded_labels(ax):
+    """Tilt the tick labels of a bar panel where the longest is wider than a bar's slot
+    (a noise panel of a dozen laws and models: "viscoelastic-hertz" ran into its
+    neighbours)."""
+    labels = [tick.get_text() for tick in ax.get_xticklabels()]
+    if not labels:
+        return
+    figure_width = ax.get_figure().get_size_inches()[0]
+    # The axes take about the figure's width less 1.2 in for the y label and ticks.
+    slot = (figure_width - 1.2) / len(labels)
+    if max(map(len, labels)) * _TICK_CHARACTER_INCHES > slot:
+        ax.tick_params(axis="x", labelrotation=30)
+        for tick in ax.get_xticklabels():
+            tick.set_horizontalalignment("right")
+            tick.set_rotation_mode("anchor")
 
 
 def _hatch_not_kept(ax, names, kept):
@@ -1007,9 +1030,11 @@ def _hatch_not_kept(ax, names, kept):
             bar.set_hatch(_NOT_KEPT_HATCH)
 
 
-def _effect_legend(ax, steps, *, hatched):
-    """Legend beside the noise panel: which effects the data required (the heading), then
-    each effect tried with its best fit's ΔBIC against its simpler rung."""
+def _effect_legend(fig, steps, *, hatched):
+    """Legend below the noise panel (the figure's lowest), in columns: which effects the
+    data required (the heading), then each effect tried with its best fit's ΔBIC against
+    its simpler rung. The figure is made taller by the legend's height, so that the panels
+    keep theirs."""
     from matplotlib.patches import Patch
 
     from .noise_selection import NESTED_STEP_BIC
@@ -1031,9 +1056,15 @@ def _effect_legend(ax, steps, *, hatched):
     if hatched:
         handles.append(Patch(facecolor="white", edgecolor="0.2", hatch=_NOT_KEPT_HATCH))
         labels.append("hatched bar: fit not kept")
-    legend = ax.legend(handles, labels, title=heading, loc="upper left",
-                       bbox_to_anchor=(1.02, 1.0), fontsize="small", title_fontsize="small",
-                       alignment="left", frameon=False)
+    width, height = fig.get_size_inches()
+    lines = [max(label.split("\n"), key=len) for label in labels]
+    columns = _legend_columns(lines, _LEGEND_LINE_CHARACTERS * width)
+    rows = -(-len(labels) // columns)
+    text_lines = heading.count("\n") + 1 + 2 * rows  # every entry takes two lines
+    fig.set_size_inches(width, height + _SMALL_LINE_INCHES * text_lines + 0.2)
+    legend = fig.legend(handles, labels, title=heading, loc="outside lower center",
+                        ncols=columns, fontsize="small", title_fontsize="small",
+                        alignment="left", frameon=False)
     legend.set_gid("noise-effects")
     return legend
 
