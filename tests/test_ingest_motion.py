@@ -732,6 +732,57 @@ def test_tracker_export_with_a_space_delimiter(tmp_path, tracked_ball, mark):
     assert "from column 'y'" in notes
 
 
+def tracker_export(path, time, x, height, *, delimiter="\t", mark=".", decimals=None,
+                   unmarked=3):
+    """Tracker's older single-track data export: the track's name on the first line, the
+    header ``t``, ``x``, ``y`` and one row per frame, the numbers in the system's decimal style
+    whatever the delimiter ("0.000000000E0"; with `decimals`, "Formatted" with that many), x
+    and y blank on the first `unmarked` frames (nobody marked the ball there)."""
+    def number(value):
+        written = f"{value:.{decimals}f}" if decimals else java_scientific(value)
+        return written.replace(".", mark)
+
+    rows = [[number(v) for v in row] for row in zip(time, x, height)]
+    for row in rows[:unmarked]:
+        row[1:] = ["", ""]
+    lines = ["mass_A", delimiter.join(("t", "x", "y"))] + [delimiter.join(row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_tracker_export_with_the_comma_delimiter_and_decimal_commas(tmp_path, tracked_ball):
+    """The older single-track export under the "Comma" delimiter in a decimal-comma locale:
+    every number splits in two ("0,000000000E0,3,120000000E-1,..."), so its rows have more
+    fields than its header, and the file was refused as "not a table". The header's three
+    columns and the numbers' exponents tell which comma is a decimal mark, as in Tracker 6's
+    layout; every bounce is found and timed within 4σ."""
+    time, x, height, truth = tracked_ball
+    path = tmp_path / "ball.txt"
+    tracker_export(path, time, x, height, delimiter=",", mark=",")
+    assert sniff_table(path) == "motion_sensor"
+    found = read_impacts(path)
+    _every_bounce(found, truth)
+    notes = " ".join(found.attrs["notes"])
+    assert "comma separated, decimal comma" in notes and "track 'mass_A'" in notes
+    assert "decimal commas told apart from the delimiter by the header's 3 columns" in notes
+    assert "from column 'y'" in notes
+
+
+def test_tracker_export_with_the_comma_delimiter_and_formatted_decimal_commas(tmp_path,
+                                                                              tracked_ball):
+    """Exported "Formatted" (no exponent): beside the unmarked frames' blank cells
+    ("0,0000,,") no comma tells itself a decimal mark. One line naming the file and the row,
+    saying which delimiters to export with."""
+    time, x, height, _ = tracked_ball
+    path = tmp_path / "formatted.txt"
+    tracker_export(path, time, x, height, delimiter=",", mark=",", decimals=4)
+    with pytest.raises(InputError) as refused:
+        read_impacts(path)
+    assert str(refused.value) == (
+        f"{path}, row 1: comma-delimited with decimal commas, and its 4 comma-separated "
+        f"pieces do not tell which comma is a decimal mark in 3 columns: export it again with "
+        f"the Tab or Semicolon delimiter")
+
+
 @pytest.mark.parametrize("speed", [0.5, 1.5, 3.0])
 def test_tracker_ball_thrown_forward_is_read_along_its_bounces(tmp_path, tracked_ball, speed):
     """A ball thrown forward, bouncing along the floor as it travels (x grows by up to 4.5 m,

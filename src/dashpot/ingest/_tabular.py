@@ -470,9 +470,13 @@ def _text_table(path, raw, member):
             separator = None  # one header-less column of numbers with a decimal comma
     title = None
     if tracker is None and separator is None:
-        titled = titled_track(head, lines[comments:])
+        try:
+            titled = titled_track(head, lines[comments:])
+        except TrackerLayoutError as error:
+            raise InputError(path, f"{member + ': ' if member else ''}{error.problem}",
+                             row=error.row) from None
         if titled is not None:
-            separator, title, text, head = titled
+            separator, title, text, head, tracker_note = titled
     titles = 0
     if tracker is None and separator is None and title is None:
         titled = _below_title_lines(head, lines[comments:])
@@ -512,6 +516,8 @@ def _text_table(path, raw, member):
     if tracker is None and not blocks:
         if title:
             variant += f", first line names the track '{title}' (Tracker data export)"
+        if tracker_note:
+            variant += f", {tracker_note}"
         try:
             table = _finish_table(path, cells, decimal, variant, member)
         except InputError:

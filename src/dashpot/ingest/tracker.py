@@ -61,16 +61,62 @@ def titled_track(head, lines):
     separated header [7]_; None if `head` (the first non-blank lines) is not that.
 
     Returns (separator, the track's name, the text from the header on, the head from the
-    header on).
+    header on, a note on how the file was read ('' if plainly)).
+
+    Raises
+    ------
+    TrackerLayoutError
+        Comma-delimited with decimal commas, where the header's column count does not
+        settle which comma is which (as :func:`multi_track_layout`).
     """
     if len(head) <= 2 or _is_number([head[0].strip()], ".")[0]:
         return None
     below = _sniff_separator(head[1:])
-    if below is None or below in head[0] or np.any(
+    if below is None:
+        # Under the Comma delimiter with decimal commas every number splits in two, so the
+        # rows have more fields than the header: no separator splits them alike.
+        return _titled_track_with_decimal_commas(head, lines)
+    if below in head[0] or np.any(
             _is_number([f.strip() for f in next(csv.reader([head[1]], delimiter=below))], ".")):
         return None
     first = next(k for k, line in enumerate(lines) if line.strip())
-    return below, head[0].strip(), "\n".join(lines[first + 1:]), head[1:]
+    return below, head[0].strip(), "\n".join(lines[first + 1:]), head[1:], ""
+
+
+def _titled_track_with_decimal_commas(head, lines):
+    """The single-track export under the Comma delimiter with decimal commas, its rows
+    rejoined by the header's column count (:func:`_rejoined_decimal_commas`), or None if
+    `head` is not that.
+
+    Returns
+    -------
+    tuple or None
+        As :func:`titled_track`, the rows tab-separated.
+    """
+    if "," in head[0]:
+        return None
+    header = next(csv.reader([head[1]]))
+    width = _header_width(header)
+    words = [h.strip() for h in header[1:width]]
+    if (width < 2 or header[0].strip().lower() not in _TIME_NAMES or not all(words)
+            or np.any(_is_number(words, "."))):
+        return None
+    first = next(k for k, line in enumerate(lines) if line.strip())
+    rows, note = _rejoined_decimal_commas(lines[first + 2:], width)
+    if not note:
+        return None  # no decimal comma: the rows are ragged for another reason
+    text = "\n".join(["\t".join(h.strip() for h in header[:width])] + rows)
+    below = [line for line in text.splitlines() if line.strip()][:len(head) - 1]
+    return "\t", head[0].strip(), text, below, note
+
+
+def _header_width(header):
+    """The number of columns of a split header, less the empty field of a delimiter that
+    Tracker writes after the last column name."""
+    width = len(header)
+    while width > 1 and not header[width - 1].strip():
+        width -= 1
+    return width
 
 
 def stacked_tracks(text, separator):
@@ -126,9 +172,7 @@ def multi_track_layout(lines):
         if (not named or header[0].strip().lower() not in _TIME_NAMES or not words
                 or np.any(_is_number(named + words, "."))):
             continue
-        width = len(header)
-        while width > 1 and not header[width - 1].strip():
-            width -= 1  # the delimiter Tracker writes after the last column name
+        width = _header_width(header)
         # Each column's track: the name written above it or above a column to its left.
         written = np.array([n.strip() for n in names[:width]] + [""] * (width - len(names)),
                            dtype=object)
