@@ -767,6 +767,14 @@ def test_tracker_export_with_the_comma_delimiter_and_decimal_commas(tmp_path, tr
     assert "from column 'y'" in notes
 
 
+def _undecidable_commas(path):
+    """The one-line refusal of a comma-delimited Tracker export whose first row of 3 columns
+    splits into 4 pieces, none of them telling a decimal comma."""
+    return (f"{path}, row 1: comma-delimited with decimal commas, and its 4 comma-separated "
+            f"pieces do not tell which comma is a decimal mark in 3 columns: export it again "
+            f"with the Tab or Semicolon delimiter")
+
+
 def test_tracker_export_with_the_comma_delimiter_and_formatted_decimal_commas(tmp_path,
                                                                               tracked_ball):
     """Exported "Formatted" (no exponent): beside the unmarked frames' blank cells
@@ -777,10 +785,7 @@ def test_tracker_export_with_the_comma_delimiter_and_formatted_decimal_commas(tm
     tracker_export(path, time, x, height, delimiter=",", mark=",", decimals=4)
     with pytest.raises(InputError) as refused:
         read_impacts(path)
-    assert str(refused.value) == (
-        f"{path}, row 1: comma-delimited with decimal commas, and its 4 comma-separated "
-        f"pieces do not tell which comma is a decimal mark in 3 columns: export it again with "
-        f"the Tab or Semicolon delimiter")
+    assert str(refused.value) == _undecidable_commas(path)
 
 
 @pytest.mark.parametrize("speed", [0.5, 1.5, 3.0])
@@ -976,10 +981,7 @@ def test_tracker6_comma_delimiter_with_formatted_decimal_commas(tmp_path, tracke
                     mark=",", decimals=4)
     with pytest.raises(InputError) as refused:
         read_motion_sensor(path)
-    assert str(refused.value) == (
-        f"{path}, row 1: comma-delimited with decimal commas, and its 4 comma-separated "
-        f"pieces do not tell which comma is a decimal mark in 3 columns: export it again with "
-        f"the Tab or Semicolon delimiter")
+    assert str(refused.value) == _undecidable_commas(path)
 
 
 def test_tracker_track_never_marked_needs_no_choice(tmp_path, tracked_ball):

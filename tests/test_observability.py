@@ -153,20 +153,22 @@ def test_determined_beta_is_printed_as_a_number(cli_fits):
     assert (summary["beta_note"] == "").all() and (summary["k_note"] == "").all()
 
 
+def _estimate(value, stderr, low95, high95, status):
+    """A stand-in for a fit's estimate of one parameter."""
+    return SimpleNamespace(value=value, stderr=stderr, low95=low95, high95=high95,
+                           status=status)
+
+
 def test_summary_empties_beta_of_a_noise_fit_whose_omega0_is_not_determined():
     # A fit under the noise model derives ω0 = g/v*: where v* is not determined (the ping-pong
     # recording's noise:Ia, ω0 ~ 1e7 rad/s ± inf), its summary row gives β as the printed
     # summary does, empty with the reason, not 1.7e5 1/s.
-    def estimate(value, stderr, low95, high95, status):
-        return SimpleNamespace(value=value, stderr=stderr, low95=low95, high95=high95,
-                               status=status)
-
     fit = SimpleNamespace(success=True, redchi=0.986, estimates={
-        "zeta": estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
-        "v_star": estimate(1.0e-6, math.inf, 1.0e-6, 1.8e-3, "fitted"),
-        "omega0": estimate(9.58e6, math.inf, 5360.0, 9.59e6, "derived"),
-        "beta": estimate(1.66e5, math.inf, 93.0, 1.66e5, "derived"),
-        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+        "zeta": _estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
+        "v_star": _estimate(1.0e-6, math.inf, 1.0e-6, 1.8e-3, "fitted"),
+        "omega0": _estimate(9.58e6, math.inf, 5360.0, 9.59e6, "derived"),
+        "beta": _estimate(1.66e5, math.inf, 93.0, 1.66e5, "derived"),
+        "v0": _estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
     assert set(not_determined(fit.estimates)) == {"beta"}
     selection = pd.DataFrame({"model": ["Ia"], "rank": [1], "akaike_weight": [1.0],
                               "delta_aic": [0.0], "delta_bic": [0.0]})
@@ -186,20 +188,16 @@ def test_summary_empties_beta_of_a_noise_fit_whose_omega0_is_not_determined():
 def test_every_non_finite_number_of_an_undetermined_omega0_row_has_its_note():
     # The ping-pong recording's noise:Ia (ω0 ~ 1e7 rad/s ± inf, no mass): each NaN or inf in
     # β and ω0 is explained in its own row's note; k is NaN without a mass (as documented).
-    def estimate(value, stderr, low95, high95, status):
-        return SimpleNamespace(value=value, stderr=stderr, low95=low95, high95=high95,
-                               status=status)
-
     undetermined = SimpleNamespace(success=True, redchi=1.0, estimates={
-        "zeta": estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
-        "omega0": estimate(9.58e6, math.inf, 5360.0, math.inf, "fitted"),
-        "beta": estimate(1.66e5, math.inf, 93.0, math.inf, "derived"),
-        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+        "zeta": _estimate(0.01735, 2.0e-4, 0.01695, 0.01775, "fitted"),
+        "omega0": _estimate(9.58e6, math.inf, 5360.0, math.inf, "fitted"),
+        "beta": _estimate(1.66e5, math.inf, 93.0, math.inf, "derived"),
+        "v0": _estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
     determined = SimpleNamespace(success=True, redchi=1.0, estimates={
-        "zeta": estimate(0.0175, 2.0e-4, 0.0171, 0.0179, "fitted"),
-        "omega0": estimate(4500.0, 50.0, 4400.0, 4600.0, "fitted"),
-        "beta": estimate(78.75, 1.0, 76.7, 80.8, "derived"),
-        "v0": estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
+        "zeta": _estimate(0.0175, 2.0e-4, 0.0171, 0.0179, "fitted"),
+        "omega0": _estimate(4500.0, 50.0, 4400.0, 4600.0, "fitted"),
+        "beta": _estimate(78.75, 1.0, 76.7, 80.8, "derived"),
+        "v0": _estimate(0.952, 0.004, 0.944, 0.961, "fitted")})
     selection = pd.DataFrame({"model": ["Ia", "IIa"], "rank": [1, 2],
                               "akaike_weight": [0.5, 0.5], "delta_aic": [0.0, 0.0],
                               "delta_bic": [0.0, 0.0]})
