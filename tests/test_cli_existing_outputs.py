@@ -124,3 +124,36 @@ def test_an_output_replacing_an_input_is_refused_even_with_force(inputs, tmp_pat
     status, _, err = run_cli(["bounces", str(impacts), "-o", str(impacts), "--force"])
     assert status == 2 and "refusing to overwrite the input with the output" in err
     assert impacts.read_bytes() == before
+
+
+def test_analyze_with_force_leaves_no_figure_of_the_earlier_run(inputs, tmp_path):
+    # An earlier run drew a figure this one does not (a detection figure of a recording,
+    # where a table is analysed now): replaced with --force, the figures' folder holds this
+    # run's figures only.
+    out = tmp_path / "out"
+    assert run_cli(_argv("analyze", inputs, out))[0] == 0
+    drawn = sorted(path.name for path in (out / "my-ball").iterdir())
+    (out / "my-ball" / "detection.png").write_bytes(EARLIER)
+    status, _, err = run_cli([*_argv("analyze", inputs, out), "--force"])
+    assert status == 0, err
+    assert sorted(path.name for path in (out / "my-ball").iterdir()) == drawn
+    assert sorted(path.name for path in out.iterdir()) == [
+        "my-ball", "my-ball-parameters.csv", "my-ball.h5"]
+
+
+def test_analyze_with_force_puts_the_earlier_figures_back_if_it_cannot_finish(
+        inputs, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    assert run_cli(_argv("analyze", inputs, out))[0] == 0
+    earlier = {path.name: path.read_bytes() for path in (out / "my-ball").iterdir()}
+    import dashpot.cli
+
+    def full_disk(staging, out):
+        raise dashpot.cli._cannot_write(out, OSError(28, "No space left on device"))
+
+    monkeypatch.setattr(dashpot.cli, "_move_into_place", full_disk)
+    status, _, err = run_cli([*_argv("analyze", inputs, out), "--force"])
+    assert status != 0 and "No space left on device" in err
+    assert {path.name: path.read_bytes() for path in (out / "my-ball").iterdir()} == earlier
+    assert sorted(path.name for path in out.iterdir()) == [
+        "my-ball", "my-ball-parameters.csv", "my-ball.h5"]

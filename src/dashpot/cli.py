@@ -331,7 +331,7 @@ def _analyze(args, console):
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / name, error) from None
             bar.update(1)
-            _move_into_place(staging, out)
+            _replace_figures(staging, out, name)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
             if created:
@@ -463,6 +463,34 @@ def _move_into_place(staging, out):
             os.replace(source, target)
     except OSError as error:
         raise _cannot_write(out, error) from None
+
+
+def _replace_figures(staging, out, name):
+    """Move the staged results into `out`, the figures' folder `name` as a whole.
+
+    An earlier run's figures folder (there only with ``--force``) is set aside first and
+    deleted once the new results are in place, so that no figure of that run the new one does
+    not draw (a detection figure of a recording, where a table is analysed now) is left
+    beside them as if it were theirs; if moving the new results fails, it is put back.
+    """
+    import shutil
+    import tempfile
+
+    figures = out / name
+    aside = None
+    if figures.is_dir() and not figures.is_symlink():
+        aside = Path(tempfile.mkdtemp(prefix=".dashpot-replaced-", dir=out))
+        os.replace(figures, aside / name)
+    try:
+        _move_into_place(staging, out)
+    except BaseException:
+        if aside is not None:
+            shutil.rmtree(figures, ignore_errors=True)
+            os.replace(aside / name, figures)
+        raise
+    finally:
+        if aside is not None:
+            shutil.rmtree(aside, ignore_errors=True)
 
 
 def _remove_if_empty(folder):
