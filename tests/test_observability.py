@@ -212,6 +212,13 @@ def test_every_non_finite_number_of_an_undetermined_omega0_row_has_its_note():
         if not (math.isfinite(row[key]) and math.isfinite(row[f"{key}_stderr"])):
             assert row[f"{key}_note"].startswith("not determined"), key
     assert rows.loc["IIa", "omega0_note"] == ""
+    # Without a mass no k is derived: its empty cells say so.
+    for model in ("Ia", "IIa"):
+        assert math.isnan(rows.loc[model, "k"]) and math.isnan(rows.loc[model, "k_stderr"])
+        assert rows.loc[model, "k_note"].startswith("no mass given")
+    # With one, the note is empty where k is determined.
+    determined.estimates["k"] = _estimate(405.0, 9.0, 387.0, 423.0, "derived")
+    assert summary_table({"scene": scene_fit}).set_index("model").loc["IIa", "k_note"] == ""
 
 
 def test_a_prior_the_fit_disagrees_with_is_named_with_its_unit():

@@ -158,11 +158,12 @@ def summary_table(scene_fits):
     pandas.DataFrame
         Columns ``scene``, ``model``, ``success``, ``selected``, ``akaike_weight``,
         ``delta_aic``, ``delta_qaic`` (ΔAIC/ĉ, the Δ the Akaike weight is computed from: equal
-        to ΔAIC where the fits describe the data, ĉ = 1), ``delta_bic``, ``redchi``, and for each of ``beta`` (1/s), ``k`` (N/m),
-        ``omega0`` (rad/s), ``zeta``, ``v0`` (m/s) its value and ``*_stderr`` (NaN where the
-        scene does not give it, e.g. k without a mass), ``beta_note`` and ``k_note`` (empty,
-        or why β or k is NaN although fitted: "not determined (<the data's 95 % bound>;
-        <why>)" where the data do not determine ω0, see
+        to ΔAIC where the fits describe the data, ĉ = 1), ``delta_bic``, ``redchi``, and for
+        each of ``beta`` (1/s), ``k`` (N/m), ``omega0`` (rad/s), ``zeta``, ``v0`` (m/s) its
+        value and ``*_stderr`` (NaN where the scene does not give it, e.g. k without a mass),
+        ``beta_note`` and ``k_note`` (empty, or why β or k is NaN: "no mass given: ..." for k
+        without the ball's mass; "not determined (<the data's 95 % bound>; <why>)" where the
+        data do not determine ω0, see
         :func:`dashpot.fit.observability.not_determined`), ``omega0_note`` (empty, or the same
         words on ω0 itself where the data do not determine it: its value is where the fit
         ended and its error often infinite, see
@@ -206,6 +207,9 @@ def _delta_qaic(selection, model):
     return selection.loc[model, column]
 
 
+_NO_MASS = "no mass given: k = m omega0^2 needs the ball's mass (the scene's mass)"
+
+
 def _contact_columns(fit, not_determined):
     """β, k, ω0, ζ, v0 of one fit with their errors, why β or k is empty where it is, and why
     ω0 is not determined where it is not."""
@@ -214,7 +218,10 @@ def _contact_columns(fit, not_determined):
     undetermined = not_determined(fit.estimates) if fit.success else {}
     # β and k have no number where ω0 is not determined; ω0 keeps the one the fit ended at
     # (often ± inf), and its note says that it is no measurement.
-    notes = {"beta": undetermined.get("beta", ""), "k": undetermined.get("k", ""),
+    # k = m ω0² is derived only where the scene gives the ball's mass.
+    no_mass = fit.success and "k" not in fit.estimates
+    notes = {"beta": undetermined.get("beta", ""),
+             "k": _NO_MASS if no_mass else undetermined.get("k", ""),
              "omega0": omega0_note(fit.estimates.get("omega0")) if fit.success else ""}
     columns = {}
     for key in ("beta", "k", "omega0", "zeta", "v0"):
