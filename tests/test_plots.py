@@ -293,6 +293,18 @@ def test_restitution_limits_follow_the_data_and_the_curves():
     assert ax.get_ylim()[0] <= shown.min() < eps.min()
 
 
+def test_restitution_speeds_all_fast_are_not_squeezed_against_zero():
+    """A train of a few fast bounces (0.85-1.5 m/s, a phyphox or timestamp scene): the speed
+    axis starts just below the slowest, not at 0, where the points filled the right 45 %."""
+    speed = np.linspace(0.85, 1.5, 14)
+    eps = 0.969 + 1e-4 * np.sin(5.0 * speed)
+    flat = {"Ia": (speed, np.full(speed.size, 0.969))}
+    left, right = plots.restitution_speed_figure(speed, eps, np.full(14, 0.01), None,
+                                                 flat).axes[0].get_xlim()
+    assert 0.7 < left < 0.85 - 0.01 and 1.5 + 0.01 < right < 1.65
+    assert (speed.max() - speed.min()) / (right - left) > 0.8
+
+
 def test_restitution_speed_curve_hides_captured_speeds():
     speed = np.linspace(0.1, 2.0, 20)
     eps = np.where(speed < 0.5, 0.0, 0.8)

@@ -880,10 +880,20 @@ def _time_unit(values):
 
 
 def _speed_limits(speed, speed_error):
-    """x range of the restitution figure: from 0 to past the fastest measured bounce."""
-    upper = speed + (0.0 if speed_error is None else np.nan_to_num(speed_error))
-    upper = upper[np.isfinite(upper)]
-    return 0.0, (1.05 * float(upper.max()) if upper.size and upper.max() > 0 else 1.0)
+    """x range of the restitution figure: from 0 to past the fastest measured bounce, or,
+    where every bounce is faster than half the fastest (a phyphox or timestamp train of a
+    few fast bounces: 0.85-1.5 m/s), from just below the slowest: from 0 the points and
+    curves would fill less than half the axes."""
+    error = 0.0 if speed_error is None else np.nan_to_num(speed_error)
+    upper, lower = speed + error, speed - error
+    upper, lower = upper[np.isfinite(upper)], lower[np.isfinite(lower)]
+    if not upper.size or upper.max() <= 0:
+        return 0.0, 1.0
+    high = 1.05 * float(upper.max())
+    low = float(lower.min()) if lower.size else 0.0
+    if low <= 0.5 * float(upper.max()):
+        return 0.0, high
+    return low - 0.05 * (high - low), high
 
 
 def _restitution_limits(speed_range, eps, eps_error, lines):
