@@ -294,5 +294,7 @@ def test_a_scene_without_drag_stores_and_draws_what_it_did(tmp_path):
     record = load_record(tmp_path / "plain.h5")
     assert drag_corrected_points(record) is None
     ax = scene_figures(record)["restitution"].axes[0]
-    assert [container.get_label() for container in ax.containers] == ["measured"]
+    # The points are named for what they are: ratios of successive intervals.
+    assert [container.get_label() for container in ax.containers] == [
+        r"interval ratios $T_{n+1}/T_n$"]
     assert json.loads(json.dumps(list(record["bounces"].attrs))) == []

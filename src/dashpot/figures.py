@@ -247,10 +247,15 @@ def _scene_figures(record):
     index, observed, uncertainty, predictions, failed = interval_series(record)
     speed, eps, speed_sigma, eps_sigma = restitution_points(record)
     corrected = drag_corrected_points(record)
-    measured_label = None
+    # The points say what they are: the sensor's speeds, or ratios of successive intervals
+    # (whose flights include the contacts: not ε itself where the contact time matters).
+    speeds = _has_measured_speeds(record)
     if corrected is not None:
-        measured_label = ("measured speeds (no drag correction)" if _has_measured_speeds(record)
+        measured_label = ("measured speeds (no drag correction)" if speeds
                           else "interval ratios (no drag correction)")
+    else:
+        measured_label = ("measured: rebound / impact speed" if speeds
+                          else r"interval ratios $T_{n+1}/T_n$")
     selection = record["selection"]
     return {
         "intervals": plots.intervals_figure(index, observed, uncertainty, predictions,
