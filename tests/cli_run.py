@@ -6,6 +6,7 @@ import io
 import numpy as np
 
 from dashpot.cli import main
+from dashpot.synth.scene import write_scene
 
 
 def run_cli(argv):
@@ -15,3 +16,14 @@ def run_cli(argv):
             np.errstate(over="raise", divide="raise", invalid="raise", under="ignore"):
         status = main(argv)
     return status, out.getvalue(), err.getvalue()
+
+
+def timestamp_impacts(folder, seed, **ball):
+    """A synthetic timestamp recording of `ball` (:func:`dashpot.synth.scene.write_scene`
+    arguments) in ``folder/ball`` and the impact table ``dashpot impacts`` writes of it
+    (``folder/impacts.csv``): their paths."""
+    recording = write_scene(folder / "ball", "timestamps", seed=seed, **ball)
+    impacts = folder / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(recording), "-o", str(impacts)])
+    assert status == 0, err
+    return recording, impacts

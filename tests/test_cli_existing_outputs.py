@@ -6,9 +6,8 @@ that carried the output's name) without a word before.
 
 import numpy as np
 import pytest
-from cli_run import run_cli
+from cli_run import run_cli, timestamp_impacts
 
-from dashpot.synth.scene import write_scene
 
 BALL = dict(beta=20.0, omega0=2 * np.pi * 500, g=9.81, v0=2.0, n_max=12)
 EARLIER = b"an earlier result"
@@ -18,9 +17,7 @@ EARLIER = b"an earlier result"
 def inputs(tmp_path_factory):
     """A timestamp table, the impact table of it, and a scene naming the outputs."""
     folder = tmp_path_factory.mktemp("existing")
-    recording = write_scene(folder / "ball", "timestamps", seed=1201, **BALL)
-    impacts = folder / "impacts.csv"
-    assert run_cli(["impacts", str(recording), "-o", str(impacts)])[0] == 0
+    recording, impacts = timestamp_impacts(folder, 1201, **BALL)
     scene = folder / "scene.yaml"
     scene.write_text("name: my-ball\nsensor: timestamps\nmodels: [Ia]\n")
     return recording, impacts, scene

@@ -7,11 +7,10 @@ import subprocess
 import sys
 
 import pytest
-from cli_run import run_cli
+from cli_run import run_cli, timestamp_impacts
 from measurement_text import check_measurement, measurement_of
 
 from dashpot.store import read_fit
-from dashpot.synth.scene import write_scene
 
 BALL = dict(model="IIb", beta=30.0, omega0=3000.0, g=9.81, v0=1.5, n_max=15)
 
@@ -20,9 +19,7 @@ BALL = dict(model="IIb", beta=30.0, omega0=3000.0, g=9.81, v0=1.5, n_max=15)
 def fitted(tmp_path_factory):
     """A recording, its impact table from `dashpot impacts`, and `dashpot fit` on the table."""
     folder = tmp_path_factory.mktemp("cli_fit")
-    recording = write_scene(folder / "ball", "timestamps", seed=1, **BALL)
-    table = folder / "impacts.csv"
-    assert run_cli(["impacts", str(recording), "-o", str(table)])[0] == 0
+    recording, table = timestamp_impacts(folder, 1, **BALL)
     scene = folder / "ball" / "scene.yaml"
     scene.write_text("apparatus:\n  gravity: 9.81\n  mass: {value: 0.05, uncertainty: 0.001}\n")
     output = folder / "results" / "ball.h5"

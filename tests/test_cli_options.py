@@ -10,11 +10,10 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
-from cli_run import run_cli
+from cli_run import run_cli, timestamp_impacts
 
 import dashpot
 from dashpot.cli import COMMANDS, build_parser
-from dashpot.synth.scene import write_scene
 
 BALL = dict(beta=20.0, omega0=2 * np.pi * 500, g=9.80665, v0=2.0, n_max=12)
 
@@ -22,11 +21,7 @@ BALL = dict(beta=20.0, omega0=2 * np.pi * 500, g=9.80665, v0=2.0, n_max=12)
 @pytest.fixture(scope="module")
 def table(tmp_path_factory):
     """A timestamp table and the impact table `dashpot impacts` writes of it."""
-    folder = tmp_path_factory.mktemp("options")
-    recording = write_scene(folder / "ball", "timestamps", seed=1126, **BALL)
-    impacts = folder / "impacts.csv"
-    assert run_cli(["impacts", str(recording), "-o", str(impacts)])[0] == 0
-    return recording, impacts
+    return timestamp_impacts(tmp_path_factory.mktemp("options"), 1126, **BALL)
 
 
 @pytest.mark.parametrize("command", ["impacts", "bounces"])

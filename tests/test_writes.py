@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from cli_run import run_cli
+from cli_run import run_cli, timestamp_impacts
 
 import dashpot
 from dashpot.atomic import atomic_path
@@ -21,7 +21,6 @@ from dashpot.ingest import read_impacts
 from dashpot.plots import save_figure
 from dashpot.store import read_fit, write_summary
 from dashpot.synth.audio import impact_sound, write_audio
-from dashpot.synth.scene import write_scene
 from dashpot.synth.tables import write_timestamps
 
 THEORY = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "theory.py"
@@ -285,11 +284,7 @@ def _old_result(path):
 @pytest.fixture(scope="module")
 def ball(tmp_path_factory):
     """A timestamp recording of a train and its impact table."""
-    folder = tmp_path_factory.mktemp("ball")
-    recording = write_scene(folder / "ball", "timestamps", seed=808, n_max=15, **BALL)
-    table = folder / "impacts.csv"
-    assert run_cli(["impacts", str(recording), "-o", str(table)])[0] == 0
-    return recording, table
+    return timestamp_impacts(tmp_path_factory.mktemp("ball"), 808, n_max=15, **BALL)
 
 
 def _one_line_no_space(err, command, output):
