@@ -59,8 +59,9 @@ def score_train(onsets, found, sigma, match=1e-3):
     -------
     dict
         ``found``: true impacts timed, ``timed`` which (one per detection: the first true
-        onset it is nearest to); ``false``: detections that are no impact, ``after`` of them
-        past the last true onset; ``z``: |error| / 1σ of each impact timed.
+        onset it is nearest to); ``false``: detections that are no impact, ``false_times``
+        theirs (s), ``after`` of them past the last true onset; ``z``: |error| / 1σ of each
+        impact timed.
     """
     distance = np.abs(onsets[:, None] - found[None, :])
     nearest = distance.argmin(axis=1)
@@ -70,5 +71,6 @@ def score_train(onsets, found, sigma, match=1e-3):
     timed = np.zeros(onsets.size, dtype=bool)
     timed[np.flatnonzero(hit)[np.unique(nearest[hit], return_index=True)[1]]] = True
     return dict(found=int(timed.sum()), timed=timed, false=int((~owned).sum()),
+                false_times=found[~owned],
                 after=int((~owned & (found > onsets[-1] + match)).sum()),
                 z=np.abs(found[nearest[hit]] - onsets[hit]) / sigma[nearest[hit]])
