@@ -155,6 +155,7 @@ _PRE_ECHO_LOUDNESS = 10.0
 _BLOCK_SECONDS = 30.0
 _FILL_PASSES = 3  # passes of the search for impacts the trend predicts, at most
 _END_IMPACTS = 4  # the last impacts, whose change lets a further pass go on past them
+_SHORT_CHOICE = 0.5  # a passing choice with fewer than this share of the first's members
 _SECONDARY_MEMBERS_SHARE = 0.1  # of a chain chosen without an echo that may be secondaries
 # Several drops in one recording (_other_drop): another train holds this many impacts at least,
 _MIN_RUN_IMPACTS = 6
@@ -672,7 +673,13 @@ def _train_table(path, stream, sample_rate, duration):
             if passes(alternative):
                 choices.append(alternative)
     later = []
-    if not passes(choices[-1]):
+    # A choice that passes with fewer than half the first one's members may have set aside
+    # impacts with the secondaries (an echo's delay that sums of the train's intervals
+    # match): the choices below are made too, and one that passes with more members is
+    # taken instead.
+    short = (passes(choices[-1]) and not passes(choices[0])
+             and choices[-1][1][0].size < _SHORT_CHOICE * first_chain.size)
+    if not passes(choices[-1]) or short:
         if len(choices) == 2:
             # The delays measured after the second choice's impacts instead.
             explained = _explained_secondaries(rough, amplitude, choices[1][1][0])
@@ -689,7 +696,7 @@ def _train_table(path, stream, sample_rate, duration):
                 later.append(np.flatnonzero(~echoing))
     for selectable in later:
         choice = choose(selectable)
-        if passes(choice):
+        if passes(choice) and (not short or choice[1][0].size > choices[-1][1][0].size):
             # Taken only if it passes; else the last of the first two is judged again
             # below, once the impacts its bursts hide are found.
             choices.append(choice)
