@@ -245,11 +245,12 @@ def test_restitution_figure_shows_corrected_points_and_every_fitted_rung(drag_sc
     np.testing.assert_allclose(half, np.hypot(rows["restitution_corrected_uncertainty"],
                                               rows["restitution_corrected_drag_uncertainty"]),
                                rtol=1e-9)
-    # One curve per fitted rung of the ladder and per model, each named in the legend.
+    # One curve per fitted rung of the ladder and per model, each named in the legend; the
+    # model's predicted ratios beside the uncorrected interval ratios they were fitted to.
     fitted = [name for name, fit in record["noise_fits"].items() if fit["attrs"]["success"]]
     assert {"constant", "constant+drag", "linear", "Ia"} <= set(fitted)
     curves = [line.get_gid() for line in ax.get_lines() if line.get_gid()]
-    assert sorted(curves) == sorted(["Ia", *(f"noise:{name}" for name in fitted)])
+    assert sorted(curves) == sorted(["Ia", "ratio:Ia", *(f"noise:{name}" for name in fitted)])
     legend = [text.get_text() for text in figure.legends[0].get_texts()]
     assert legend[:2] == [uncorrected, corrected]
     assert {f"noise: {name}" for name in ("constant", "constant+drag", "linear")} <= set(legend)

@@ -142,8 +142,10 @@ def test_restitution_figure_draws_each_noise_fit_curve(scene_files):
     _, noisy_path, _ = scene_files
     record = load_record(noisy_path)
     lines = _lines_by_gid(scene_figures(record)["restitution"])
-    # The noise fits' curves in the noise selection table's order, after the model's.
-    assert list(lines) == ["Ia", *(f"noise:{m}" for m in record["noise_selection"]["model"])]
+    # The noise fits' curves in the noise selection table's order, after the model's (and
+    # its predicted interval ratios, the points being interval ratios).
+    assert list(lines) == ["Ia", "ratio:Ia",
+                           *(f"noise:{m}" for m in record["noise_selection"]["model"])]
     for law in ("constant", "Ia"):
         line = lines[f"noise:{law}"]
         assert line.get_label() == {"constant": "noise: constant", "Ia": "noise: Ia (A)"}[law]
@@ -244,7 +246,7 @@ def test_figures_of_a_scene_without_noise_have_no_noise_curves_or_panel(scene_fi
     plain_path, _, _ = scene_files
     figures = scene_figures(load_record(plain_path))
     assert set(figures) == {"intervals", "restitution", "selection"}
-    assert set(_lines_by_gid(figures["restitution"])) == {"Ia"}
+    assert set(_lines_by_gid(figures["restitution"])) == {"Ia", "ratio:Ia"}
     assert len(figures["selection"].axes) == 1
     assert figures["selection"].axes[0].get_legend() is None
     assert _effects_legend(figures["selection"]) is None

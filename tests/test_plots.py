@@ -533,3 +533,29 @@ def test_capture_onsets_on_the_axes_edge_are_whole_circles():
                if np.asarray(line.get_ydata(), float)[0] <= fig.axes[0].get_ylim()[0] + 1e-3]
     assert at_edge
     assert not any(line.get_clip_on() for line in onsets)
+
+
+def test_restitution_figure_draws_each_models_predicted_interval_ratios():
+    """Beside a model's ε(v), its own predicted T_{n+1}/T_n at the measured speeds: its
+    markers, open, in its colour, in the order of speed, inside the y range; the two are told
+    apart in the legend."""
+    speed = np.array([1.4, 1.0, 0.6])
+    ratio = np.array([0.9514, 0.9518, 0.9526])  # above ε(v): each interval holds a contact
+    grid = np.linspace(0.5, 1.5, 20)
+    fig = plots.restitution_speed_figure(speed, ratio + 1e-5, None, None,
+                                         {"Ib": (grid, np.full(20, 0.95))},
+                                         predicted_ratios={"Ib": (speed, ratio)})
+    ax = fig.axes[0]
+    line = next(line for line in ax.get_lines() if line.get_gid() == "ratio:Ib")
+    np.testing.assert_array_equal(line.get_xdata(), speed[::-1])
+    np.testing.assert_array_equal(line.get_ydata(), ratio[::-1])
+    assert line.get_color() == plots.MODEL_STYLES["Ib"]["color"]
+    assert line.get_marker() == plots.MODEL_STYLES["Ib"]["marker"]
+    assert line.get_markerfacecolor() == "none"
+    assert ax.get_ylim()[0] < 0.95 and ratio.max() < ax.get_ylim()[1]
+    assert {r"Ib (B): $\varepsilon(v)$", r"Ib (B): predicted $T_{n+1}/T_n$"} <= set(
+        _legend_texts(fig))
+    with pytest.raises(ValueError, match="lengths differ"):
+        plots.restitution_speed_figure(speed, ratio, None, None,
+                                       {"Ib": (grid, np.full(20, 0.95))},
+                                       predicted_ratios={"Ib": (speed, ratio[:2])})

@@ -8,6 +8,7 @@ scene file (``results/<scene>.h5``, read with :func:`load_record`):
 - ``restitution``: measured ε against impact speed with every fitted model's ε(v) curve, and
   where the scene was also fitted under the noise model, each of those fits' ε(v) (its law at
   the fitted parameters, over the observed speed range, as stored in ``noise_fits/<law>``);
+  where the points are interval ratios, beside each model's ε(v) its predicted ratios;
 - ``selection``: the Akaike weights and ΔAIC of the models, with a second panel of the fits
   under the noise model where the scene has them, below it the effects the data required
   (:func:`noise_effect_steps`: each effect's best ΔBIC against its simpler rung) and the bars of
@@ -19,6 +20,14 @@ Measured ε and impact speed (:func:`restitution_points`): where the sensor meas
 times, ε of the impact ending interval n is T_{n+1}/T_n and its impact speed the landing speed
 of flight n, g_eff·T_n/2 (the ``rebound_speed`` of row n of the bounce table, the flight being
 symmetric).
+
+Predicted interval ratios (:func:`predicted_interval_ratios`): an interval T_n holds the
+contact of impact n as well as the flight, so the ratio T_{n+1}/T_n is not ε: on a train of
+1.5 ms contacts and 0.3 s flights a model's own ratios lie about 2e-4 above its ε(v). Where the
+points are interval ratios the ``restitution`` figure draws, beside each model's ε(v), the
+ratios of its predicted intervals (those of the ``intervals`` figure) at the measured speeds:
+what the fit compared with the data. The fits under the noise model have no such counterpart
+(their predictions are the filter's, one impact ahead of the data), only their ε(v).
 
 Drag-corrected ε (:func:`drag_corrected_points`): where the scene file's bounce table was
 corrected for air drag (a fit under the noise model fitted k_d, or the scene gives the ball's
@@ -39,7 +48,8 @@ from . import plots
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
-           "drag_corrected_points", "noise_effect_steps", "scene_name",
+           "drag_corrected_points", "predicted_interval_ratios", "noise_effect_steps",
+           "scene_name",
            "scene_figures", "detection_figure_data", "detection_figure", "save_scene_figures"]
 
 SCENE_FIGURES = ("intervals", "restitution", "selection")
@@ -146,6 +156,55 @@ def _sound_ratios(bounces):
         ok = bounces["flag"].to_numpy(str) == "ok"
         keep &= ok & np.append(ok[1:], True)  # both intervals of the ratio are sound
     return keep
+
+
+def predicted_interval_ratios(record):
+    """Each fitted model's own ratios T_{n+1}/T_n at the bounces whose measured ratio the
+    ``restitution`` figure draws.
+
+    Parameters
+    ----------
+    record : dict
+        Of :func:`load_record`.
+
+    Returns
+    -------
+    dict of str -> (ndarray, ndarray)
+        Model -> (impact speed of each bounce in m/s: the measured g_eff·T_n/2 the point of
+        :func:`restitution_points` stands at; the ratio of the model's predicted intervals
+        T_{n+1}/T_n there, dimensionless), for each successful fit whose predicted times
+        ``predicted/at_data`` cover the fitted impacts, at the bounces whose three impacts
+        were all fitted. Empty where the points are the sensor's speeds (their ε is ε, to be
+        read against the curves themselves) or the file's impact and bounce tables do not
+        line up.
+    """
+    if _has_measured_speeds(record):
+        return {}
+    bounces = record["bounces"]
+    impacts = record["impacts"]
+    if "run" in impacts and len(bounces):
+        # The bounce table and the fits at the root are those of the first run.
+        impacts = impacts[impacts["run"].to_numpy() == bounces["run"].iloc[0]]
+    used = (impacts["used_in_fit"].to_numpy(bool) if "used_in_fit" in impacts
+            else np.ones(len(impacts), bool))
+    if len(bounces) != used.size - 1:
+        return {}
+    # Row n's ratio spans impacts n, n + 1 and n + 2; each fitted impact has its place in the
+    # predicted times at the data.
+    rows = np.flatnonzero(_sound_ratios(bounces))
+    rows = rows[rows + 2 < used.size]
+    rows = rows[used[rows] & used[rows + 1] & used[rows + 2]]
+    place = np.cumsum(used) - 1
+    first, middle, last = place[rows], place[rows + 1], place[rows + 2]
+    speed = bounces["rebound_speed"].to_numpy(float)[rows]
+    ratios = {}
+    for model, fit in record["fits"].items():
+        at_data = np.asarray(fit["predicted"].get("at_data", []), dtype=float)
+        if not fit["attrs"].get("success", False) or at_data.size != int(used.sum()):
+            continue
+        ratios[model] = (speed, (at_data[last] - at_data[middle])
+                         / (at_data[middle] - at_data[first]))
+    return ratios
 
 
 def drag_corrected_points(record):
@@ -268,7 +327,9 @@ def _scene_figures(record):
                                                       measured_label=measured_label,
                                                       failed=_failed(record),
                                                       failed_noise=_failed(record,
-                                                                           "noise_fits")),
+                                                                           "noise_fits"),
+                                                      predicted_ratios=(
+                                                          predicted_interval_ratios(record))),
         "selection": _selection_figure(selection, record.get("noise_selection")),
     }
 
