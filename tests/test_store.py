@@ -16,6 +16,7 @@ import dashpot.store
 from dashpot import __version__
 from dashpot.analysis import scene_impacts
 from dashpot.fit import SceneFit, fit_model, fit_scene, prepare_data
+from dashpot.provenance import source_fingerprint
 from dashpot.scene import Known, Scene
 from dashpot.select import selection_table, summary_table
 from dashpot.store import (
@@ -97,6 +98,7 @@ def test_root_attributes_and_provenance(written):
         attrs = dict(source.attrs)
     assert attrs["format"] == FORMAT == "dashpot-scene-1"
     assert attrs["dashpot_version"] == __version__
+    assert attrs["dashpot_source_sha256"] == source_fingerprint()
     assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00", attrs["created"])
     assert attrs["input_file"] == "timestamps.csv"
     digest = hashlib.sha256(written["recording"].read_bytes()).hexdigest()

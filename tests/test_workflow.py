@@ -116,8 +116,8 @@ def _type_name(dataset):
     return "bool" if dataset.dtype == bool else dataset.dtype.name
 
 
-ROOT_ATTRIBUTES = ("format", "dashpot_version", "created", "scene", "config", "input_file",
-                   "input_sha256", "verdict")
+ROOT_ATTRIBUTES = ("format", "dashpot_version", "dashpot_source_sha256", "created", "scene",
+                   "config", "input_file", "input_sha256", "verdict")
 
 
 def test_scene_files_follow_the_documented_layout(default_run):

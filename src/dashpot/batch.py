@@ -9,7 +9,7 @@ of its chunk are written, and the failed scene's earlier results are left as the
 
 Chunk membership is a hash of the scene's name, so adding a scene changes one chunk only;
 within a chunk that runs again, a scene whose result is up to date (the same inputs, the same
-settings, see :func:`scene_fingerprint`) is not fitted again.
+settings, the same dashpot source, see :func:`scene_fingerprint`) is not fitted again.
 """
 
 from __future__ import annotations
@@ -89,7 +89,8 @@ def _stat(path):
 
 
 def scene_fingerprint(task):
-    """A digest of what a scene's result depends on: its settings and its input files.
+    """A digest of what a scene's result depends on: its settings, its input files and the
+    code.
 
     Parameters
     ----------
@@ -103,14 +104,17 @@ def scene_fingerprint(task):
     str
         Hex SHA-256 over those settings, the size and modification time of the scene file
         and recording (not for a synthetic scene, whose recording this step writes from its
-        ``spec``) and the package version.
+        ``spec``), the package version and the digest of the dashpot source running
+        (:func:`dashpot.provenance.source_fingerprint`: a changed module refits the scene).
     """
     from . import __version__
+    from .provenance import source_fingerprint
 
     keys = ("name", "source", "scene_file", "recording", "mapping", "spec", "truth",
             "uncertainty", "noise")
     state = {key: task.get(key) for key in keys}
     state["version"] = __version__
+    state["source"] = source_fingerprint()
     if task.get("source") != "synthetic":
         state["files"] = [_stat(path) for path in (task.get("scene_file"), task.get("recording"))
                           if path]

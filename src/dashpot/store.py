@@ -41,6 +41,7 @@ import pandas as pd
 from . import __version__
 from .ingest import FLIGHT_CORRELATION_COLUMN, is_speed_error_column
 from .atomic import atomic_path
+from .provenance import source_fingerprint
 
 __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
            "write_summary", "csv_header", "FORMAT"]
@@ -402,6 +403,7 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
     with _new_hdf5(path, track_order=True) as out:
         out.attrs["format"] = FORMAT
         out.attrs["dashpot_version"] = __version__
+        out.attrs["dashpot_source_sha256"] = source_fingerprint()
         out.attrs["created"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
         out.attrs["scene"] = json.dumps(scene_fit.scene.as_dict(), sort_keys=True)
         out.attrs["config"] = json.dumps(config or {}, sort_keys=True, default=str)
@@ -652,6 +654,7 @@ def write_summary(path_h5, path_csv, summary):
     with _new_hdf5(path_h5) as out:
         out.attrs["format"] = "dashpot-summary-1"
         out.attrs["dashpot_version"] = __version__
+        out.attrs["dashpot_source_sha256"] = source_fingerprint()
         _table(out, "summary", summary, SUMMARY_UNITS)
     with atomic_path(path_csv) as temporary:
         # Shortest round-trip floats.

@@ -18,6 +18,7 @@ import yaml
 
 from dashpot.batch import auto_chunk_size, chunks, plots_wanted
 from dashpot.errors import InputError
+from dashpot.provenance import source_fingerprint
 
 # dashpot.pipeline (the scene schema), dashpot.summary (h5py) are imported where first used:
 # every run, a no-op one too, starts by building this module, so it imports only what the
@@ -174,6 +175,11 @@ CHUNK_OF = {name: chunk for chunk, names in CHUNKS.items() for name in names}
 # Per-scene figures: on by default up to dashpot.batch.PLOTS_LIMIT scenes.
 SCENE_PLOTS = plots_wanted(config.get("scene_plots", "auto"), len(RUNNABLE_SCENES))
 THEORY_FIGURES = ["contact_time", "restitution", "critical_speed", "restitution_vs_speed"]
+# The dashpot source the jobs compute with (a digest of its modules and scene schema): a
+# parameter of every rule that computes with the library. Snakemake sees a rule's params and
+# script, not the library it imports; a changed digest is a changed parameter, which reruns
+# those rules (and so refits and redraws the scenes) on the next run.
+DASHPOT_SOURCE = source_fingerprint()
 
 
 def _names_pattern(names):

@@ -13,6 +13,7 @@ rule fit_chunk:
     params:
         scenes=chunk_tasks,
         plots=SCENE_PLOTS,
+        dashpot_source=DASHPOT_SOURCE,
     log:
         "results/logs/fit_chunk/{chunk}.log",
     benchmark:

@@ -18,6 +18,7 @@ rule summary:
     params:
         problems=summary_problems,
         stale=stale_results,
+        dashpot_source=DASHPOT_SOURCE,
     log:
         "results/logs/summary.log",
     benchmark:

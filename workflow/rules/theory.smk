@@ -35,6 +35,7 @@ rule theory:
         speeds=config["theory"]["speeds"],
         zeta_max=config["theory"]["zeta_max"],
         points=config["theory"]["points"],
+        dashpot_source=DASHPOT_SOURCE,
     log:
         "results/logs/theory.log",
     benchmark:
