@@ -4,10 +4,13 @@ Every number is checked against ``collide(method="exact")`` (itself checked agai
 test_reference.py), never against values produced by the surrogate's own code.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import dashpot
+import dashpot.provenance
 from dashpot.physics import surrogate as sg
 
 GRAVITY = sg.SURROGATE_MODELS
@@ -157,6 +160,23 @@ def test_cache_round_trip_and_corrupt_file(cache, tmp_path, monkeypatch):
     sg.clear_memory_cache()
     assert sg._read(path, first.params) is None
     np.testing.assert_array_equal(sg.load_surrogate("Ib", "fast").coef, first.coef)
+    sg.clear_memory_cache()
+
+
+def test_a_table_built_by_other_physics_code_is_rebuilt(cache, tmp_path, monkeypatch):
+    # Between releases the solvers change under one version number: the cached table names
+    # the physics source it was built with, and a table of other code is not read.
+    monkeypatch.setenv("DASHPOT_CACHE_DIR", str(tmp_path))
+    sg.clear_memory_cache()
+    first = sg.load_surrogate("Ib", "fast")
+    assert first.params["source"] == dashpot.provenance.source_fingerprint(
+        Path(sg.__file__).parent)
+    monkeypatch.setattr(sg, "_physics_source", lambda: "0" * 64)
+    assert sg._read(Path(first.path), sg._build_params("Ib", "fast")) is None
+    sg.clear_memory_cache()
+    rebuilt = sg.load_surrogate("Ib", "fast")
+    assert rebuilt.path != first.path and rebuilt.build_seconds != first.build_seconds
+    np.testing.assert_array_equal(rebuilt.coef, first.coef)
     sg.clear_memory_cache()
 
 

@@ -65,6 +65,7 @@ References
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -361,9 +362,20 @@ def _build_params(model, level, overrides=None):
     params.update(overrides or {})
     params.update(model=model, level=level, format=FORMAT_VERSION, zeta_min=ZETA_MIN,
                   zeta_max=ZETA_MAX[model], vtilde_max=VTILDE_MAX, s_min=S_MIN,
-                  margin=_MARGIN, safety=SAFETY, exact_rtol=EXACT_RTOL)
+                  margin=_MARGIN, safety=SAFETY, exact_rtol=EXACT_RTOL,
+                  source=_physics_source())
     params.setdefault("seed", 20240601)
     return params
+
+
+@functools.lru_cache(maxsize=1)
+def _physics_source():
+    """Digest of the physics code the tables are built and certified with (this folder's
+    modules): between releases the solvers change under one version, and a table built by
+    other code is rebuilt, not trusted."""
+    from ..provenance import source_fingerprint
+
+    return source_fingerprint(Path(__file__).resolve().parent)
 
 
 def _params_hash(params):
