@@ -54,8 +54,10 @@ def session(seed):
             found, false = found + score["found"], false + score["false"]
             first = int((onsets[0] - 0.15) * RATE)
             stretch = samples[first:int((onsets[-1] + 1.0) * RATE)]
+            # One scratch file, written again for each run.
             alone = detect_impacts(write_audio(Path(folder) / "alone.wav", stretch, RATE,
-                                               subtype="FLOAT"))["time"].to_numpy()
+                                               subtype="FLOAT", overwrite=True))
+            alone = alone["time"].to_numpy()
             distance = np.abs(run[:, None] - (alone + first / RATE)[None, :])
             differing += int((distance.min(axis=1) > 1e-6).sum()
                              + (distance.min(axis=0) > 1e-6).sum())

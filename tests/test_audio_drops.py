@@ -63,7 +63,8 @@ def recordings(tmp_path_factory):
         for onsets in truth:
             first = int((onsets[0] - 0.15) * RATE)
             stretch = samples[first:int((onsets[-1] + 1.0) * RATE)]
-            path = write_audio(folder / "alone.wav", stretch, RATE, subtype="FLOAT")
+            path = write_audio(folder / "alone.wav", stretch, RATE, subtype="FLOAT",
+                               overwrite=True)  # one scratch file for every drop
             alone.append(detect_impacts(path)["time"].to_numpy() + first / RATE)
         found.append(dict(seed=seed, truth=truth, runs=runs, alone=alone, table=table))
     return found

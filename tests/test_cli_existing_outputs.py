@@ -145,7 +145,7 @@ def test_analyze_with_force_puts_the_earlier_figures_back_if_it_cannot_finish(
     earlier = {path.name: path.read_bytes() for path in (out / "my-ball").iterdir()}
     import dashpot.cli
 
-    def full_disk(staging, out):
+    def full_disk(staging, out, *, force):
         raise dashpot.cli._cannot_write(out, OSError(28, "No space left on device"))
 
     monkeypatch.setattr(dashpot.cli, "_move_into_place", full_disk)

@@ -72,7 +72,7 @@ def test_soft_cart_speeds_are_unbiased(tmp_path):
     for k in range(100):  # 100 exports, two readings each (~0.1 s)
         clean = tmp_path / "clean.csv"
         truth = write_motion_sensor(clean, train, runs=1, sample_rate=50.0, noise=0.0,
-                                    seed=SEED + 9000 + k)["runs"][0]
+                                    seed=SEED + 9000 + k, overwrite=True)["runs"][0]
         frame = pd.read_csv(clean)
         position = next(c for c in frame.columns if c.startswith("Position"))
         frame = frame[[next(c for c in frame.columns if c.startswith("Time")), position]]

@@ -337,7 +337,7 @@ def test_save_figure_writes_png_and_pdf_atomically_and_deterministically(tmp_pat
     assert sorted(os.listdir(tmp_path / "out")) == ["scene.v1.pdf", "scene.v1.png"]
     first = [p.read_bytes() for p in paths]
     assert first[0].startswith(b"\x89PNG") and first[1].startswith(b"%PDF")
-    plots.save_figure(fig, tmp_path / "out" / "scene.v1")
+    plots.save_figure(fig, tmp_path / "out" / "scene.v1", overwrite=True)
     assert [p.read_bytes() for p in paths] == first  # no dates: reruns give the same bytes
     assert sorted(os.listdir(tmp_path / "out")) == ["scene.v1.pdf", "scene.v1.png"]
 
@@ -364,7 +364,7 @@ def test_failed_save_leaves_nothing_behind(tmp_path, monkeypatch):
 
     monkeypatch.setattr(fig, "savefig", failing_savefig)
     with pytest.raises(RuntimeError, match="disk full"):
-        plots.save_figure(fig, target / "scene")
+        plots.save_figure(fig, target / "scene", overwrite=True)
     assert sorted(os.listdir(target)) == ["scene.png"]
     assert (target / "scene.png").read_bytes() == b"old png"
 

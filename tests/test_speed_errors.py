@@ -282,7 +282,8 @@ def test_the_motion_readers_stated_errors_are_those_of_its_speeds(tmp_path):
     pair, stated = [], []
     for k in range(200):
         path = tmp_path / "capstone.csv"
-        truth = write_motion_sensor(path, train, runs=3, sample_rate=50.0, seed=SEED + 100 + k)
+        truth = write_motion_sensor(path, train, runs=3, sample_rate=50.0, seed=SEED + 100 + k,
+                                    overwrite=True)
         table = read_impacts(path)
         for run, true in enumerate(truth["runs"]):
             found = table[table["run"] == run].reset_index(drop=True)

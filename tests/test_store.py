@@ -360,15 +360,15 @@ def test_failed_write_leaves_no_file_and_keeps_an_old_one(written, tmp_path, mon
         write_scene_fit(target, scene_fit, impacts)
     assert seen == [True]  # it failed midway, with the file open
     assert list(tmp_path.iterdir()) == []
-    # An existing output is left exactly as it was.
+    # An existing output that may be replaced is left exactly as it was.
     target.write_bytes(b"previous result")
     with pytest.raises(RuntimeError):
-        write_scene_fit(target, scene_fit, impacts)
+        write_scene_fit(target, scene_fit, impacts, overwrite=True)
     assert target.read_bytes() == b"previous result"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.h5"]
     # Once the fault is gone the old file is replaced by a complete one.
     monkeypatch.setattr(dashpot.store, "_write_fit", real)
-    write_scene_fit(target, scene_fit, impacts)
+    write_scene_fit(target, scene_fit, impacts, overwrite=True)
     assert read_fit(target)["attrs"]["format"] == FORMAT
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fit.h5"]
 

@@ -317,10 +317,12 @@ def digest(path):
 def test_same_seed_same_bytes_and_no_leftovers(tmp_path, writer):
     seq = dashpot.bounce_sequence(**STIFF)
     write = {
-        "motion": lambda p, s: write_motion_sensor(p, seq, seed=s, runs=2),
-        "photogate": lambda p, s: write_photogate(p, seq, flag_length=0.02, seed=s),
-        "xlsx": lambda p, s: write_phyphox_stopwatch(p, seq.impact_times, excel=True),
-        "zip": lambda p, s: write_phyphox_collision(p, seq.impact_times, zipped=True),
+        "motion": lambda p, s, **kw: write_motion_sensor(p, seq, seed=s, runs=2, **kw),
+        "photogate": lambda p, s, **kw: write_photogate(p, seq, flag_length=0.02, seed=s, **kw),
+        "xlsx": lambda p, s, **kw: write_phyphox_stopwatch(p, seq.impact_times, excel=True,
+                                                           **kw),
+        "zip": lambda p, s, **kw: write_phyphox_collision(p, seq.impact_times, zipped=True,
+                                                          **kw),
     }[writer]
     first, second, other = tmp_path / "a", tmp_path / "b", tmp_path / "c"
     write(first, 7)
@@ -329,8 +331,9 @@ def test_same_seed_same_bytes_and_no_leftovers(tmp_path, writer):
     assert digest(first) == digest(second)
     if writer in ("motion", "photogate"):
         assert digest(first) != digest(other)
-    write(first, 7)  # overwriting goes through a temporary name and os.replace
+    write(first, 7, overwrite=True)  # replacing goes through a temporary name and os.replace
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "c"]
+    assert digest(first) == digest(second)
 
 
 def test_bad_arguments_raise_value_errors(tmp_path):

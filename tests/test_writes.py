@@ -43,7 +43,8 @@ def test_temporaries_are_unique_and_get_the_usual_permissions(tmp_path):
     target = tmp_path / "out.csv"
     previous = os.umask(0o027)
     try:
-        with atomic_path(target) as first, atomic_path(target) as second:
+        with atomic_path(target, overwrite=True) as first, \
+                atomic_path(target, overwrite=True) as second:
             assert first != second and first.parent == second.parent == tmp_path
             assert first.name.startswith(".out.csv.") and first.name.endswith(".partial")
             first.write_text("first")
@@ -68,17 +69,23 @@ def _figure(variant):
 def _write_csv(path, variant):
     from dashpot.cli import _write_csv_atomically
 
-    _write_csv_atomically(pd.DataFrame({"time": np.arange(2000.0) + variant / 3}), path, [])
+    _write_csv_atomically(pd.DataFrame({"time": np.arange(2000.0) + variant / 3}), path, [],
+                          force=True)
 
 
+# Each replaces what is there (the other writer's file): with overwrite=False one of two
+# writers is refused instead (test_overwrite.py).
 WRITERS = {
     "cli_csv": _write_csv,
     "summary": lambda path, variant: write_summary(
         path, path.with_suffix(".csv"), pd.DataFrame({"scene": ["a", "b"],
-                                                      "beta": [variant + 0.1, 2000.0]})),
-    "figure": lambda path, variant: save_figure(_figure(variant), path),
-    "timestamps": lambda path, variant: write_timestamps(path, np.arange(1.0, 500.0) + variant),
-    "audio": lambda path, variant: write_audio(path, np.full(4000, 0.1 + 0.1 * variant), 8000),
+                                                      "beta": [variant + 0.1, 2000.0]}),
+        overwrite=True),
+    "figure": lambda path, variant: save_figure(_figure(variant), path, overwrite=True),
+    "timestamps": lambda path, variant: write_timestamps(path, np.arange(1.0, 500.0) + variant,
+                                                         overwrite=True),
+    "audio": lambda path, variant: write_audio(path, np.full(4000, 0.1 + 0.1 * variant), 8000,
+                                               overwrite=True),
 }
 
 
@@ -332,15 +339,19 @@ def test_analyze_on_a_full_disk(full_disk, ball):
 
 
 def test_analyze_stages_inside_the_output_folder(tmp_path, ball, monkeypatch):
-    """Every staged file is renamed within the output folder's file system, never copied."""
+    """Every staged file is renamed (or, where it must not replace a file, hard-linked) within
+    the output folder's file system, never copied."""
     renames = []
-    real_replace = os.replace
+    real_replace, real_link = os.replace, os.link
 
-    def recording_replace(source, destination):
-        renames.append((Path(source), Path(destination)))
-        real_replace(source, destination)
+    def recording(real):
+        def move(source, destination, **kwargs):
+            renames.append((Path(source), Path(destination)))
+            real(source, destination, **kwargs)
+        return move
 
-    monkeypatch.setattr(os, "replace", recording_replace)
+    monkeypatch.setattr(os, "replace", recording(real_replace))
+    monkeypatch.setattr(os, "link", recording(real_link))
     out = tmp_path / "out"
     status, _, err = run_cli(["analyze", str(ball[0]), "-o", str(out), "--models", "IIb"])
     assert status == 0, err
@@ -438,7 +449,7 @@ def test_a_workflow_job_on_a_full_disk_fails_with_one_line(full_disk, tmp_path, 
     log = tmp_path / "fit.log"
     with pytest.raises(SystemExit) as stopped:
         with job_log(log, "fit scene"):
-            write_scene_fit(output, scene_fit, impacts, input_path=table)
+            write_scene_fit(output, scene_fit, impacts, input_path=table, overwrite=True)
     assert stopped.value.code == 1
     errors = [line for line in log.read_text().splitlines() if " ERROR " in line]
     assert len(errors) == 1 and "Traceback" not in log.read_text()

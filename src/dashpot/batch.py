@@ -144,7 +144,7 @@ def _simulate(task):
             shutil.rmtree(old, ignore_errors=True)
 
 
-def fit_scene(task, output, log):
+def fit_scene(task, output, log, *, overwrite=False):
     """Fit one scene (every run, and the runs jointly) and write its HDF5 file.
 
     Parameters
@@ -155,6 +155,8 @@ def fit_scene(task, output, log):
         The HDF5 file to write (atomically).
     log : logging.Logger
         Where the steps, each model's result, the verdict and the summary go.
+    overwrite : bool, default False
+        Replace `output` if it exists (:func:`dashpot.store.write_scene_fit`).
 
     Returns
     -------
@@ -201,7 +203,7 @@ def fit_scene(task, output, log):
     write_scene_fit(output, scene_fit, impacts, input_path=scene.recording,
                     config={"models": list(scene_fit.results),
                             "scene_source": task.get("scene_input") or "config.yaml"},
-                    truth=truth, runs=runs_fit)
+                    truth=truth, runs=runs_fit, overwrite=overwrite)
     return truth
 
 
@@ -293,7 +295,9 @@ def _process_scene(task, stage, *, plots):
             if task.get("spec") is not None:
                 _simulate(task)
                 log.info("simulated %s", task["folder"])
-            outcome["truth"] = fit_scene(task, staged, log)
+            # The staging folder is the chunk's own (a file there is a leftover of an
+            # interrupted run of this chunk, never a result): replaced.
+            outcome["truth"] = fit_scene(task, staged, log, overwrite=True)
 
         error = _step(task["log"], f"fit scene {name}", fit)
         if error is not None:
@@ -331,7 +335,7 @@ def _truth_csv(record_path, truth, target, log):
         from .store import read_fit
 
         truth = read_fit(record_path)["truth"]
-    write_truth_csv(target, truth)
+    write_truth_csv(target, truth, overwrite=True)  # into the chunk's staging folder
     for row in truth.itertuples():
         log.info("%s: truth %.6g, fit %.6g ± %.2g %s, pull %.2f", row.parameter, row.truth,
                  row.value, row.stderr, row.unit, row.pull)
@@ -346,5 +350,5 @@ def _figures(task, record_path, stage, log):
     if task.get("audio"):
         figures["detection"] = detection_figure(record, _recording(task))
     for name, figure in figures.items():
-        written = save_figure(figure, stage / name)
+        written = save_figure(figure, stage / name, overwrite=True)  # staging, as above
         log.info("drew %s", ", ".join(path.name for path in written))

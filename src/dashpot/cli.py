@@ -132,13 +132,14 @@ def _check_outputs(outputs, inputs, force):
     _refuse_existing_outputs(outputs, force)
 
 
-def _write_csv_atomically(table, output, inputs):
+def _write_csv_atomically(table, output, inputs, *, force):
     """Write `table` to `output` via a unique temporary file; never over one of the inputs.
 
     ``-`` writes to standard output. Floats are written in their shortest round-trip form, so
     they read back bit for bit (a fixed number of digits would round Unix-epoch times to whole
     seconds). Whether an existing `output` may be replaced is decided before the work, by
-    :func:`_check_outputs`.
+    :func:`_check_outputs`; without `force` (``--force``) an `output` that appeared since is
+    refused all the same.
     """
     from .atomic import atomic_path
 
@@ -148,7 +149,7 @@ def _write_csv_atomically(table, output, inputs):
     output = Path(output)
     _refuse_replacing_inputs([output], inputs)
     try:
-        with atomic_path(output) as temporary:
+        with atomic_path(output, overwrite=force) as temporary:
             table.to_csv(temporary, index=False)
     except OSError as error:
         raise _cannot_write(output, error) from None
@@ -166,7 +167,7 @@ def _impacts(args, console):
     table = read_impacts(args.recording, kind=args.kind, flag_length=args.flag_length,
                          gate_distance=args.gate_distance, unit=args.unit,
                          bumper_position=args.bumper_position, track=args.track)
-    _write_csv_atomically(table, args.output, [args.recording])
+    _write_csv_atomically(table, args.output, [args.recording], force=args.force)
     notes = "; ".join(table.attrs.get("notes", []))
     console.say(f"{args.recording}: {len(table)} impacts -> {_shown(args.output)}"
                 + (f" ({notes})" if notes else ""))
@@ -189,7 +190,7 @@ def _bounces(args, console):
                              drag_constant=args.drag_constant)
     except ValueError as error:
         raise InputError(args.impacts, str(error)) from None
-    _write_csv_atomically(table, args.output, [args.impacts])
+    _write_csv_atomically(table, args.output, [args.impacts], force=args.force)
     flagged = int((table["flag"] != "ok").sum())
     console.say(f"{args.impacts}: {len(table)} bounces, {flagged} flagged -> "
                 f"{_shown(args.output)}")
@@ -238,7 +239,7 @@ def _fit(args, console):
     scene_fit = runs_fit.first
     try:
         write_scene_fit(args.output, scene_fit, impacts, input_path=args.impacts,
-                        config=_config(scene_fit), runs=runs_fit)
+                        config=_config(scene_fit), runs=runs_fit, overwrite=args.force)
     except (OSError, RuntimeError) as error:
         raise _cannot_write(args.output, error) from None
     console.say(f"{args.impacts}: {len(impacts)} impacts -> {args.output}")
@@ -331,7 +332,7 @@ def _analyze(args, console):
             except (OSError, RuntimeError) as error:
                 raise _cannot_write(out / name, error) from None
             bar.update(1)
-            _replace_figures(staging, out, name)
+            _replace_figures(staging, out, name, force=args.force)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
             if created:
@@ -450,22 +451,27 @@ def joint_text(runs_fit, verbose=False):
     return "\n".join(text)
 
 
-def _move_into_place(staging, out):
-    """Rename every file under `staging` to the same place under `out` (same file system)."""
+def _move_into_place(staging, out, *, force):
+    """Rename every file under `staging` to the same place under `out` (same file system);
+    over an existing file only with `force` (checked before the work: without it, a file that
+    appeared since is refused, :func:`dashpot.atomic.move_into_place`)."""
+    from .atomic import move_into_place, refuse_existing
+
     moves = [(source, out / source.relative_to(staging))
              for source in sorted(staging.rglob("*")) if source.is_file()]
+    refuse_existing(*(target for _, target in moves), overwrite=force)  # before moving any
     try:
         for _, target in moves:
             if target.is_dir():
                 raise IsADirectoryError(f"{target} is a folder")
             target.parent.mkdir(parents=True, exist_ok=True)
         for source, target in moves:
-            os.replace(source, target)
+            move_into_place(source, target, overwrite=force)
     except OSError as error:
         raise _cannot_write(out, error) from None
 
 
-def _replace_figures(staging, out, name):
+def _replace_figures(staging, out, name, *, force):
     """Move the staged results into `out`, the figures' folder `name` as a whole.
 
     An earlier run's figures folder (there only with ``--force``) is set aside first and
@@ -482,7 +488,7 @@ def _replace_figures(staging, out, name):
         aside = Path(tempfile.mkdtemp(prefix=".dashpot-replaced-", dir=out))
         os.replace(figures, aside / name)
     try:
-        _move_into_place(staging, out)
+        _move_into_place(staging, out, force=force)
     except BaseException:
         if aside is not None:
             shutil.rmtree(figures, ignore_errors=True)
@@ -781,6 +787,10 @@ def main(argv=None):
             try:
                 args.run(args, _Console(args))
             except InputError as error:
+                from .atomic import EXISTS_PROBLEM
+
+                if error.problem == EXISTS_PROBLEM:  # an output that appeared while we worked
+                    error = InputError(error.path, "exists; pass --force to replace it")
                 print(f"dashpot {args.command}: error: {error}", file=sys.stderr)
                 return 2
             except KeyboardInterrupt as stop:

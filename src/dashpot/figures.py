@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
+from .atomic import refuse_existing
 from .store import read_fit
 
 __all__ = ["SCENE_FIGURES", "load_record", "interval_series", "restitution_points",
@@ -453,13 +454,38 @@ def detection_figure(record, recording):
     return plots.name_scene(figure, scene_name(record))
 
 
-def save_scene_figures(record, folder, *, recording=None):
-    """Write each scene figure as ``folder/<name>.png`` and ``.pdf``; returns the PNG paths.
+def save_scene_figures(record, folder, *, recording=None, overwrite=False):
+    """Write each scene figure as ``folder/<name>.png`` and ``.pdf``.
 
-    ``recording`` (an audio file) adds the ``detection`` figure.
+    Parameters
+    ----------
+    record : dict
+        A scene file read with :func:`load_record`.
+    folder : str or os.PathLike
+        Where the figures go (created if missing).
+    recording : str or os.PathLike, optional
+        The scene's audio file: adds the ``detection`` figure.
+    overwrite : bool, default False
+        Replace figures of these names that exist. Without it, if any of them exists, none
+        is drawn or written.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The PNG of each figure.
+
+    Raises
+    ------
+    InputError
+        A figure's PNG or PDF exists and `overwrite` is false ("<path>: exists; pass
+        overwrite=True to replace it"); every file is left as it was.
     """
     folder = Path(folder)
+    names = [*SCENE_FIGURES, *(["detection"] if recording is not None else [])]
+    refuse_existing(*(folder / f"{name}.{fmt}" for name in names for fmt in ("png", "pdf")),
+                    overwrite=overwrite)  # before any figure is drawn
     figures = scene_figures(record)
     if recording is not None:
         figures["detection"] = detection_figure(record, recording)
-    return [plots.save_figure(figure, folder / name)[0] for name, figure in figures.items()]
+    return [plots.save_figure(figure, folder / name, overwrite=overwrite)[0]
+            for name, figure in figures.items()]

@@ -21,7 +21,7 @@ from .scene import load_scene, scene_from_mapping
 __all__ = ["write_synthetic_scene", "workflow_scene", "is_audio"]
 
 
-def write_synthetic_scene(directory, spec, *, name):
+def write_synthetic_scene(directory, spec, *, name, overwrite=False):
     """Write a synthetic scene folder: recording, ``truth.json`` and ``scene.yaml``.
 
     Parameters
@@ -35,6 +35,9 @@ def write_synthetic_scene(directory, spec, *, name):
         and sensor are filled in here).
     name : str
         Scene name.
+    overwrite : bool, default False
+        Replace the recording, ``truth.json`` and ``scene.yaml`` if they exist. Without it,
+        if any of them exists, none is written.
 
     Returns
     -------
@@ -44,11 +47,13 @@ def write_synthetic_scene(directory, spec, *, name):
     Raises
     ------
     InputError
-        The scene keys break the scene schema (checked before anything is written).
+        The scene keys break the scene schema, or one of the files exists and `overwrite`
+        is false ("<path>: exists; pass overwrite=True to replace it"); both checked before
+        anything is written.
     """
     import yaml
 
-    from .atomic import atomic_path
+    from .atomic import atomic_path, refuse_existing
     from .synth.scene import RECORDING_NAMES, write_scene
 
     spec = dict(spec)
@@ -58,9 +63,11 @@ def write_synthetic_scene(directory, spec, *, name):
     mapping = {"name": name, "recording": RECORDING_NAMES[kind], "sensor": kind, **known}
     directory = Path(directory)
     scene_from_mapping(mapping, source=f"synthetic scene {name}", base=directory)
-    write_scene(directory, kind, **spec, **options)
     target = directory / "scene.yaml"
-    with atomic_path(target) as temporary:
+    refuse_existing(directory / RECORDING_NAMES[kind], directory / "truth.json", target,
+                    overwrite=overwrite)
+    write_scene(directory, kind, **spec, **options, overwrite=overwrite)
+    with atomic_path(target, overwrite=overwrite) as temporary:
         temporary.write_text("# Written by the workflow's simulate rule from config/config.yaml.\n"
                              + yaml.safe_dump(mapping, sort_keys=False), encoding="utf-8")
     return target

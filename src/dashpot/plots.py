@@ -38,7 +38,7 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from ._validation import check_positive
-from .atomic import atomic_path
+from .atomic import atomic_path, refuse_existing
 from .physics import MODELS, collide, critical_velocity
 from .physics.models import GRAVITY_MODELS
 
@@ -1172,12 +1172,12 @@ def name_scene(figure, scene):
 
 # --- output ---------------------------------------------------------------------------------
 
-def save_figure(figure, stem):
+def save_figure(figure, stem, *, overwrite=False):
     """Write `figure` as ``stem.png`` (150 dpi) and ``stem.pdf``, each atomically.
 
     Both files are first written to hidden temporary names in the target directory and only
-    then renamed over the targets, so an error leaves neither a partial file nor a temporary
-    one (and existing files untouched). The parent directory is created. No dates are written,
+    then renamed into place, so an error leaves neither a partial file nor a temporary one
+    (and existing files untouched). The parent directory is created. No dates are written,
     so saving the same figure again gives the same bytes.
 
     Parameters
@@ -1187,18 +1187,29 @@ def save_figure(figure, stem):
     stem : str or os.PathLike
         Output path without extension (``results/scene`` -> ``results/scene.png`` and
         ``results/scene.pdf``; any dots in the name are kept).
+    overwrite : bool, default False
+        Replace the PNG and the PDF if they exist. Without it, if either exists, neither is
+        written.
 
     Returns
     -------
     tuple of pathlib.Path
         Paths of the PNG and the PDF.
+
+    Raises
+    ------
+    InputError
+        The PNG or the PDF exists and `overwrite` is false ("<path>: exists; pass
+        overwrite=True to replace it"); both are left as they were.
     """
     stem = Path(stem)
     if not stem.name:
         raise ValueError(f"stem must name a file; got {os.fspath(stem)!r}")
     targets = {fmt: stem.with_name(f"{stem.name}.{fmt}") for fmt in ("png", "pdf")}
+    refuse_existing(*targets.values(), overwrite=overwrite)  # before drawing either
     # Both renames happen only after both files are complete.
-    with atomic_path(targets["png"]) as png, atomic_path(targets["pdf"]) as pdf:
+    with atomic_path(targets["png"], overwrite=overwrite) as png, \
+            atomic_path(targets["pdf"], overwrite=overwrite) as pdf:
         for fmt, temporary in (("png", png), ("pdf", pdf)):
             with open(temporary, "wb") as handle:
                 figure.savefig(handle, format=fmt, dpi=PNG_DPI, metadata=_METADATA[fmt])

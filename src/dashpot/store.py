@@ -40,7 +40,7 @@ import pandas as pd
 
 from . import __version__
 from .ingest import FLIGHT_CORRELATION_COLUMN, is_speed_error_column
-from .atomic import atomic_path
+from .atomic import atomic_path, refuse_existing
 from .provenance import source_fingerprint
 
 __all__ = ["write_scene_fit", "read_table", "read_fit", "file_sha256", "atomic_path",
@@ -137,15 +137,16 @@ def file_sha256(path):
 
 
 @contextmanager
-def _new_hdf5(path, **options):
-    """Yield a new HDF5 file built in memory; write it to `path` atomically when done.
+def _new_hdf5(path, *, overwrite, **options):
+    """Yield a new HDF5 file built in memory; write it to `path` atomically when done
+    (replacing an existing `path` only with `overwrite`, see :func:`atomic_path`).
 
     HDF5 that fails to write (a full disk) cannot close its objects, and its own exit handler
     then crashes the process (SIGSEGV in H5_term_library): so the file is built in memory
     (core driver, no backing store; the same bytes as a file on disk) and written with one
     plain write, whose failure is an ordinary OSError. `options` go to :class:`h5py.File`.
     """
-    with atomic_path(path) as temporary:
+    with atomic_path(path, overwrite=overwrite) as temporary:
         # Named after the unique temporary (no file of that name is opened) so that two
         # files built at once in one process never share a name.
         with h5py.File(f"{temporary}.image", "w", driver="core", backing_store=False,
@@ -375,13 +376,14 @@ def _eps_curve(group, fit):
 
 
 def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, truth=None,
-                    runs=None):
+                    runs=None, overwrite=False):
     """Write one scene's impacts, bounces, fits and selection to an HDF5 file, atomically.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Output file (``.h5``); replaced only once the new file is complete.
+        Output file (``.h5``); with `overwrite`, an existing one is replaced only once the
+        new file is complete.
     scene_fit : dashpot.fit.SceneFit
     impacts : pandas.DataFrame
         The impact table the fits used (all rows, including any left out).
@@ -398,9 +400,18 @@ def write_scene_fit(path, scene_fit, impacts, *, input_path=None, config=None, t
         and the joint fits to ``joint/<model>`` (``scene_fit`` is then the first run's, kept
         at the root as in a single-run file); with one run (or None) the file is a
         single-run file, without these groups.
+    overwrite : bool, default False
+        Replace `path` if it exists. Without it an existing `path` is refused before
+        anything is built, and left as it was.
+
+    Raises
+    ------
+    InputError
+        `path` exists and `overwrite` is false ("<path>: exists; pass overwrite=True to
+        replace it").
     """
     several = runs is not None and len(runs.runs) > 1
-    with _new_hdf5(path, track_order=True) as out:
+    with _new_hdf5(path, overwrite=overwrite, track_order=True) as out:
         out.attrs["format"] = FORMAT
         out.attrs["dashpot_version"] = __version__
         out.attrs["dashpot_source_sha256"] = source_fingerprint()
@@ -645,17 +656,33 @@ def csv_header(column, units=None):
     return column if unit == "1" else f"{column} [{unit}]"
 
 
-def write_summary(path_h5, path_csv, summary):
+def write_summary(path_h5, path_csv, summary, *, overwrite=False):
     """Cross-scene summary (one row per scene and model) as HDF5 and CSV, each atomically.
 
     The HDF5 table's columns carry their units as attributes; the CSV's headers carry them in
     brackets (:func:`csv_header`: ``beta [1/s]``, ``k [N/m]``, ``sigma_j [s]``).
+
+    Parameters
+    ----------
+    path_h5, path_csv : str or os.PathLike
+        The HDF5 and the CSV file to write.
+    summary : pandas.DataFrame
+        The table (:func:`dashpot.summary.summary_from_files`).
+    overwrite : bool, default False
+        Replace either file if it exists. Without it, if either exists, neither is written.
+
+    Raises
+    ------
+    InputError
+        One of the files exists and `overwrite` is false ("<path>: exists; pass
+        overwrite=True to replace it").
     """
-    with _new_hdf5(path_h5) as out:
+    refuse_existing(path_h5, path_csv, overwrite=overwrite)  # before writing either
+    with _new_hdf5(path_h5, overwrite=overwrite) as out:
         out.attrs["format"] = "dashpot-summary-1"
         out.attrs["dashpot_version"] = __version__
         out.attrs["dashpot_source_sha256"] = source_fingerprint()
         _table(out, "summary", summary, SUMMARY_UNITS)
-    with atomic_path(path_csv) as temporary:
+    with atomic_path(path_csv, overwrite=overwrite) as temporary:
         # Shortest round-trip floats.
         summary.rename(columns=csv_header).to_csv(temporary, index=False)

@@ -189,7 +189,7 @@ def truth_comparison(path, scene_fit):
     return table
 
 
-def write_truth_csv(path, table):
+def write_truth_csv(path, table, *, overwrite=False):
     """Write a truth table as CSV, atomically, with the generating model as first column.
 
     Parameters
@@ -200,8 +200,16 @@ def write_truth_csv(path, table):
         A :func:`truth_table` (or the ``truth`` of :func:`dashpot.store.read_fit`), whose
         attribute ``model`` names the generating model. Each row's numbers are in its
         ``unit`` column's unit; ``pull`` is dimensionless.
+    overwrite : bool, default False
+        Replace `path` if it exists.
+
+    Raises
+    ------
+    InputError
+        `path` exists and `overwrite` is false ("<path>: exists; pass overwrite=True to
+        replace it"); the file is left as it was.
     """
     out = table.copy()
     out.insert(0, "model", str(table.attrs.get("model", "")))
-    with atomic_path(path) as temporary:
+    with atomic_path(path, overwrite=overwrite) as temporary:
         out.to_csv(temporary, index=False)  # shortest round-trip floats

@@ -19,6 +19,7 @@ with job_log(snakemake.log[0], "cross-scene summary") as log:
     marked = table[table["status"] != "ok"].drop_duplicates("scene")
     for row in marked.itertuples():
         log.warning("scene %s (%s): %s", row.scene, row.status, row.problem)
-    write_summary(snakemake.output.h5, snakemake.output.csv, table)
+    # The workflow's own outputs, which Snakemake decided to make again.
+    write_summary(snakemake.output.h5, snakemake.output.csv, table, overwrite=True)
     log.info("%d scenes (%d not up to date), %d rows", table["scene"].nunique(), len(marked),
              len(table))

@@ -19,10 +19,11 @@ params, output = snakemake.params, snakemake.output
 def write_atomically(path, header, columns):
     """Write a CSV to a unique temporary name, then rename, so no half file is left behind.
 
-    A write that fails (a full disk) ends the job with one line and status 2.
+    A write that fails (a full disk) ends the job with one line and status 2. An existing
+    file is replaced: the workflow's own output, which Snakemake decided to make again.
     """
     try:
-        with atomic_path(path) as temporary:
+        with atomic_path(path, overwrite=True) as temporary:
             np.savetxt(temporary, np.column_stack(columns), delimiter=",",
                        header=",".join(header), comments="", fmt="%.17g")
     except OSError as error:
@@ -56,5 +57,6 @@ with job_log(snakemake.log[0], "theory curves and figures") as log:
         "restitution_vs_speed": plots.restitution_vs_speed_figure(),
     }
     for name, figure in figures.items():
-        written = plots.save_figure(figure, Path(getattr(output, name)).with_suffix(""))
+        written = plots.save_figure(figure, Path(getattr(output, name)).with_suffix(""),
+                                    overwrite=True)
         log.info("wrote %s", ", ".join(map(str, written)))

@@ -538,14 +538,17 @@ def _checksum(arrays):
 
 
 def _write(table, path):
-    """Write atomically: a unique temporary file in the same directory, then os.replace."""
+    """Write atomically: a unique temporary file in the same directory, then os.replace.
+
+    Replaces a file of the same name: the cache's own, stale or damaged (:func:`_read` found
+    it unusable), or written by another process building the same table at the same time."""
     arrays = {name: getattr(table, name) for name in _ARRAYS}
     meta = {name: getattr(table, name) for name in _SCALARS}
     meta.update(model=table.model, level=table.level, errors=table.errors, params=table.params,
                 hash=_params_hash(table.params), version=_package_version(),
                 checksum=_checksum(arrays))
     # Through an open file: given a name without ".npz", np.savez would append one.
-    with atomic_path(path) as temporary, open(temporary, "wb") as stream:
+    with atomic_path(path, overwrite=True) as temporary, open(temporary, "wb") as stream:
         np.savez(stream, meta=np.array(json.dumps(meta)), **arrays)
 
 

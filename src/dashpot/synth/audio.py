@@ -315,7 +315,8 @@ def _subtype_bits(subtype):
     return int(digits) if subtype.startswith("PCM") and digits else None
 
 
-def write_audio(path, samples, sample_rate, *, subtype="PCM_16", channels=1, format=None):
+def write_audio(path, samples, sample_rate, *, subtype="PCM_16", channels=1, format=None,
+                overwrite=False):
     """Write a recording as WAV, FLAC or OGG, atomically.
 
     Parameters
@@ -337,16 +338,24 @@ def write_audio(path, samples, sample_rate, *, subtype="PCM_16", channels=1, for
         3k samples (a path about 2.3k cm longer at 44.1 kHz).
     format : {"WAV", "FLAC", "OGG"}, optional
         Container; default from the suffix of `path`.
+    overwrite : bool, default False
+        Replace `path` if it exists.
 
     Returns
     -------
     pathlib.Path
         The written file.
 
+    Raises
+    ------
+    InputError
+        `path` exists and `overwrite` is false ("<path>: exists; pass overwrite=True to
+        replace it"); the file is left as it was.
+
     Notes
     -----
     The file is written under a temporary name in the destination folder and moved into
-    place with :func:`os.replace`, so a reader never sees a half-written file. Integer
+    place (:func:`dashpot.atomic.atomic_path`), so a reader never sees a half-written file. Integer
     subtypes cannot hold values beyond full scale: they are clipped to [−1, 1] first, as a
     recorder would.
     """
@@ -386,6 +395,7 @@ def write_audio(path, samples, sample_rate, *, subtype="PCM_16", channels=1, for
     if _subtype_bits(subtype) is not None or subtype in ("VORBIS", "OPUS"):
         data = np.clip(data, -1.0, 1.0)
 
-    with atomic_path(path) as temporary:  # the format is given: the name has no suffix
+    # The format is given: the temporary's name has no suffix.
+    with atomic_path(path, overwrite=overwrite) as temporary:
         sf.write(temporary, data, int(sample_rate), subtype=subtype, format=format)
     return path

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
+from ..atomic import atomic_path, refuse_existing
 from ..physics import bounce_sequence
 from .tables import (
     write_motion_sensor,
@@ -49,7 +49,7 @@ def _jsonable(value):
 
 
 def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=60, v_min=0.0,
-                seed=0, drag=None, ball=None, **options):
+                seed=0, drag=None, ball=None, overwrite=False, **options):
     """Write one synthetic recording of a bounce train and its ``truth.json`` sidecar.
 
     Parameters
@@ -79,6 +79,9 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
         Instead of `drag`: the ball's ``mass`` (kg), ``diameter`` (m), ``drag_coefficient``
         (default 0.45) and ``air_density`` (kg/m³, default 1.204), see
         :func:`dashpot.synth.train.air_drag`.
+    overwrite : bool, default False
+        Replace the recording and ``truth.json`` if they exist. Without it, if either exists,
+        neither is written.
     **options
         Passed to the writer of `kind` (e.g. ``snr_db``, ``echo_delay`` for audio,
         ``flag_length`` for a photogate).
@@ -87,9 +90,19 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
     -------
     pathlib.Path
         The recording written.
+
+    Raises
+    ------
+    InputError
+        The recording or ``truth.json`` exists and `overwrite` is false ("<path>: exists;
+        pass overwrite=True to replace it"); both are left as they were.
     """
     if kind not in SCENE_KINDS:
         raise ValueError(f"kind must be one of {', '.join(SCENE_KINDS)}; got {kind!r}")
+    directory = Path(directory)
+    recording = directory / RECORDING_NAMES[kind]
+    sidecar = directory / "truth.json"
+    refuse_existing(recording, sidecar, overwrite=overwrite)  # before either is written
     drag_truth = air_drag(g, drag=drag, ball=ball)
     if drag_truth is None:
         sequence = bounce_sequence(model, beta=beta, omega0=omega0, g=g, v0=v0, n_max=n_max,
@@ -103,9 +116,7 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
                                    g=drag_truth["effective_gravity"],
                                    drag=drag_truth["drag_constant"], v0=v0, n_max=n_max,
                                    v_min=v_min)
-    directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    recording = directory / RECORDING_NAMES[kind]
     if kind == "audio":
         # Imported here: the sound synthesis pulls in scipy.signal, which no other kind needs.
         from .audio import impact_sound, write_audio
@@ -113,16 +124,20 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
         sample_rate = options.pop("sample_rate", 44100)
         samples, onsets = impact_sound(sequence.impact_times, sequence.impact_speeds,
                                        sample_rate=sample_rate, seed=seed, **options)
-        write_audio(recording, samples, sample_rate)
+        write_audio(recording, samples, sample_rate, overwrite=overwrite)
         written = {"kind": "audio", "impact_times": onsets, "sample_rate": sample_rate, **options}
     elif kind == "phyphox":
-        written = write_phyphox_stopwatch(recording, sequence.impact_times, **options)
+        written = write_phyphox_stopwatch(recording, sequence.impact_times, overwrite=overwrite,
+                                          **options)
     elif kind == "timestamps":
-        written = write_timestamps(recording, sequence.impact_times, seed=seed, **options)
+        written = write_timestamps(recording, sequence.impact_times, seed=seed,
+                                   overwrite=overwrite, **options)
     elif kind == "motion_sensor":
-        written = write_motion_sensor(recording, sequence, g_eff=g, seed=seed, **options)
+        written = write_motion_sensor(recording, sequence, g_eff=g, seed=seed,
+                                      overwrite=overwrite, **options)
     else:
-        written = write_photogate(recording, sequence, g_eff=g, seed=seed, **options)
+        written = write_photogate(recording, sequence, g_eff=g, seed=seed, overwrite=overwrite,
+                                  **options)
     truth = {
         "generator": {"model": model, "beta": beta, "omega0": omega0, "g": g, "v0": v0,
                       "n_max": n_max, "v_min": v_min, "seed": seed},
@@ -140,7 +155,6 @@ def write_scene(directory, kind, *, model="hybrid", beta, omega0, g, v0, n_max=6
         truth["units"].update(drag_constant="1/m", effective_gravity="m/s^2",
                               terminal_speed="m/s", gravity="m/s^2", mass="kg", diameter="m",
                               air_density="kg/m^3")
-    sidecar = directory / "truth.json"
-    with atomic_path(sidecar) as temporary:
+    with atomic_path(sidecar, overwrite=overwrite) as temporary:
         temporary.write_text(json.dumps(_jsonable(truth), indent=1, allow_nan=True))
     return recording

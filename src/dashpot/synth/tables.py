@@ -4,8 +4,9 @@ Each writer takes impact times (or a whole :class:`dashpot.BounceSequence`) with
 parameters, writes the kind of file a lab would get from phyphox, a PASCO or Vernier motion
 sensor or a photogate, and returns the truth it used as a dict of plain numbers and lists (so
 another tool can store it beside the file). Files are written atomically (a temporary name in
-the same directory, then :func:`os.replace`) and are byte-for-byte the same for the same
-arguments and seed.
+the same directory, then renamed: :func:`dashpot.atomic.atomic_path`), replace an existing
+file only with ``overwrite=True``, and are byte-for-byte the same for the same arguments and
+seed.
 
 The cart of the motion-sensor and photogate writers moves along an incline that ends at the
 bumper: free motion with constant acceleration g_eff = g·sin θ toward the bumper between
@@ -55,9 +56,10 @@ _PHYPHOX_BOUNCES = 6  # the (In)elastic collision experiment keeps bounces 0 …
 # Output helpers
 # ---------------------------------------------------------------------------------------------
 
-def _atomic_write(path, data):
-    """Write bytes to `path` through a unique temporary name beside it and os.replace."""
-    with atomic_path(path) as temporary:
+def _atomic_write(path, data, overwrite):
+    """Write bytes to `path` through a unique temporary name beside it, then rename it (over
+    an existing `path` only with `overwrite`)."""
+    with atomic_path(path, overwrite=overwrite) as temporary:
         temporary.write_bytes(data)
 
 
@@ -244,7 +246,7 @@ _PHYPHOX_DEVICE = [("version", "1.2.0"), ("build", "1020003"), ("fileFormat", "1
 _PHYPHOX_TIME = [("START", 0.0, 946684800.0, "2000-01-01 00:00:00.000 UTC+00:00")]
 
 
-def _write_phyphox(path, sets, *, delimiter, decimal, excel, zipped):
+def _write_phyphox(path, sets, *, delimiter, decimal, excel, zipped, overwrite):
     """Write phyphox export sets [(name, headers, 2-D float body)] in the chosen variant [1]_."""
     device, time = _PHYPHOX_DEVICE, _PHYPHOX_TIME
     if excel:
@@ -252,7 +254,7 @@ def _write_phyphox(path, sets, *, delimiter, decimal, excel, zipped):
         sheets.append(("Metadata Device", ["property", "value"], np.array(device, dtype=str)))
         sheets.append(("Metadata Time", ["event", "experiment time", "system time",
                                          "system time text"], np.array(time, dtype=str)))
-        _atomic_write(path, _xlsx_bytes(sheets))
+        _atomic_write(path, _xlsx_bytes(sheets), overwrite)
         return
 
     def csv_of(headers, body):
@@ -261,7 +263,7 @@ def _write_phyphox(path, sets, *, delimiter, decimal, excel, zipped):
 
     if not zipped:  # phyphox's "minimalistic" export: one set, one CSV
         name, headers, body = sets[-1]
-        _atomic_write(path, csv_of(headers, body))
+        _atomic_write(path, csv_of(headers, body), overwrite)
         return
     members = {f"{name}.csv": csv_of(headers, body) for name, headers, body in sets}
     members["meta/device.csv"] = _csv_bytes(
@@ -271,7 +273,7 @@ def _write_phyphox(path, sets, *, delimiter, decimal, excel, zipped):
         ["event", "experiment time", "system time", "system time text"],
         [np.array([time[0][0]]), _phyphox_number([time[0][1]], decimal),
          _fixed([time[0][2]], 3, decimal), np.array([time[0][3]])], delimiter, quote_headers=True)
-    _atomic_write(path, _zip_bytes(members))
+    _atomic_write(path, _zip_bytes(members), overwrite)
 
 
 def _audio_grid(impact_times, start_delay, sample_rate):
@@ -284,7 +286,8 @@ def _audio_grid(impact_times, start_delay, sample_rate):
 # ---------------------------------------------------------------------------------------------
 
 def write_phyphox_stopwatch(path, impact_times, *, layout="clicks", delimiter=",", decimal=".",
-                            excel=False, zipped=False, start_delay=0.5, sample_rate=48000.0):
+                            excel=False, zipped=False, start_delay=0.5, sample_rate=48000.0,
+                            overwrite=False):
     """Write a phyphox Acoustic Stopwatch export of clicks at the impact times.
 
     Parameters
@@ -313,6 +316,10 @@ def write_phyphox_stopwatch(path, impact_times, *, layout="clicks", delimiter=",
     sample_rate : float, default 48000
         Audio rate in Hz; phyphox times a click by a sample index, so the written times lie
         on this grid.
+    overwrite : bool, default False
+        Replace `path` if it exists; without it an existing `path` is refused
+        (:class:`~dashpot.errors.InputError`, "<path>: exists; pass overwrite=True to replace
+        it") and left as it was.
 
     Returns
     -------
@@ -338,7 +345,8 @@ def write_phyphox_stopwatch(path, impact_times, *, layout="clicks", delimiter=",
         sets = [("Simple", ["Start (s)", "Stop (s)", "Difference (s)"], simple),
                 ("Multiple", ["Start (s)"] + [f"Stop {k} (s)" for k in range(1, 6)],
                  slots[None, :])]
-    _write_phyphox(path, sets, delimiter=delimiter, decimal=decimal, excel=excel, zipped=zipped)
+    _write_phyphox(path, sets, delimiter=delimiter, decimal=decimal, excel=excel, zipped=zipped,
+                   overwrite=overwrite)
     return {"kind": "phyphox", "experiment": "Acoustic Stopwatch", "layout": layout,
             "impact_times": written.tolist(), "sample_rate": float(sample_rate),
             "start_delay": float(start_delay),
@@ -348,7 +356,7 @@ def write_phyphox_stopwatch(path, impact_times, *, layout="clicks", delimiter=",
 
 def write_phyphox_collision(path, impact_times, *, g=9.81, delimiter=",", decimal=".",
                             excel=False, zipped=False, start_delay=0.5, sample_rate=48000.0,
-                            export_delay=1.0):
+                            export_delay=1.0, overwrite=False):
     """Write a phyphox (In)elastic collision export ("Energy" set) for the first six impacts.
 
     Parameters
@@ -359,7 +367,7 @@ def write_phyphox_collision(path, impact_times, *, g=9.81, delimiter=",", decima
         Impact times in s, at least two; only the first six fit the experiment.
     g : float, default 9.81
         Gravitational acceleration in m/s² used for the heights (phyphox hard-codes 9.81).
-    delimiter, decimal, excel, zipped, start_delay, sample_rate
+    delimiter, decimal, excel, zipped, start_delay, sample_rate, overwrite
         As for :func:`write_phyphox_stopwatch`.
     export_delay : float, default 1.0
         Time in s from the last impact to the export. phyphox computes the height of the first
@@ -394,7 +402,7 @@ def write_phyphox_collision(path, impact_times, *, g=9.81, delimiter=",", decima
         headers += [f"Bounce {i} (s)", f"Height {i} (m)", f"Energy {i}"]
         values += [slots[i], heights[i - 1], energy[i - 1]]
     _write_phyphox(path, [("Energy", headers, np.array([values]))], delimiter=delimiter,
-                   decimal=decimal, excel=excel, zipped=zipped)
+                   decimal=decimal, excel=excel, zipped=zipped, overwrite=overwrite)
     return {"kind": "phyphox", "experiment": "(In)elastic collision",
             "impact_times": written.tolist(), "heights": heights.tolist(), "g": float(g),
             "sample_rate": float(sample_rate), "start_delay": float(start_delay),
@@ -408,7 +416,7 @@ def write_phyphox_collision(path, impact_times, *, g=9.81, delimiter=",", decima
 
 def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, scatter=False, seed=0,
                      start_delay=0.0, declare_unit=True, decimals=None, delimiter=",",
-                     decimal="."):
+                     decimal=".", overwrite=False):
     """Write a one-column list of impact times (optionally with uncertainties).
 
     With ``scatter=True`` the written times are the true ones plus independent Gaussian
@@ -442,6 +450,10 @@ def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, scatter=
         Digits after the decimal mark; default 6 for s and 3 for ms (1 µs).
     delimiter, decimal
         Separator and decimal mark, as for :func:`write_phyphox_stopwatch`.
+    overwrite : bool, default False
+        Replace `path` if it exists; without it an existing `path` is refused
+        (:class:`~dashpot.errors.InputError`, "<path>: exists; pass overwrite=True to replace
+        it") and left as it was.
 
     Returns
     -------
@@ -478,7 +490,7 @@ def write_timestamps(path, impact_times, *, unit="s", uncertainty=None, scatter=
     if sigma is not None:
         headers.append(f"uncertainty ({unit})" if declare_unit else "uncertainty")
         columns.append(_fixed(sigma * scale, decimals + 1, decimal))
-    _atomic_write(path, _csv_bytes(headers, columns, delimiter))
+    _atomic_write(path, _csv_bytes(headers, columns, delimiter), overwrite)
     return {"kind": "timestamps", "impact_times": (values / scale).tolist(),
             "resolution": 10.0 ** -decimals / scale, "unit": unit,
             "uncertainty": None if sigma is None else np.asarray(sigma).tolist(),
@@ -561,7 +573,7 @@ class _Cart:
 def write_motion_sensor(path, sequence, *, vendor="pasco", sample_rate=20.0, runs=1,
                         noise=1e-3, bumper_position=1.0, rest_tail=2.0, lead=0.5,
                         sensor_at="top", quantities=("position", "velocity"), g_eff=None,
-                        delimiter=",", decimal=".", seed=0):
+                        delimiter=",", decimal=".", seed=0, overwrite=False):
     """Write a PASCO Capstone or Vernier motion-sensor export of a cart bouncing on a bumper.
 
     Parameters
@@ -601,6 +613,10 @@ def write_motion_sensor(path, sequence, *, vendor="pasco", sample_rate=20.0, run
         Separator and decimal mark.
     seed : int, default 0
         Seed of the noise.
+    overwrite : bool, default False
+        Replace `path` if it exists; without it an existing `path` is refused
+        (:class:`~dashpot.errors.InputError`, "<path>: exists; pass overwrite=True to replace
+        it") and left as it was.
 
     Returns
     -------
@@ -655,7 +671,7 @@ def write_motion_sensor(path, sequence, *, vendor="pasco", sample_rate=20.0, run
         truth = cart.truth(offset)
         truth.update(label=label, release_time=start)
         truths.append(truth)
-    _atomic_write(path, _csv_bytes(headers, columns, delimiter))
+    _atomic_write(path, _csv_bytes(headers, columns, delimiter), overwrite)
     return {"kind": "motion_sensor", "vendor": vendor, "g_eff": cart.g,
             "bumper_position": float(bumper_position), "sensor_at": sensor_at,
             "noise": float(noise), "sample_rate": float(sample_rate), "runs": truths}
@@ -700,7 +716,7 @@ def _gate_blocks(cart, near, far):
 
 def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="vernier",
                     mode="events", sample_rate=1000.0, resolution=1e-6, rest_tail=1.0,
-                    lead=0.5, g_eff=None, delimiter=",", decimal=".", seed=0):
+                    lead=0.5, g_eff=None, delimiter=",", decimal=".", seed=0, overwrite=False):
     """Write a photogate state log of a cart's flag passing a gate just before the bumper.
 
     Parameters
@@ -727,6 +743,10 @@ def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="
         As for :func:`write_motion_sensor` (the cart rests out of the beam at the end).
     seed : int, default 0
         Seed of the random lead-time fraction.
+    overwrite : bool, default False
+        Replace `path` if it exists; without it an existing `path` is refused
+        (:class:`~dashpot.errors.InputError`, "<path>: exists; pass overwrite=True to replace
+        it") and left as it was.
 
     Returns
     -------
@@ -767,7 +787,7 @@ def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="
     else:
         headers = ["Time (s) Run #1", "Gate State Run #1"]
     _atomic_write(path, _csv_bytes(headers, [_fixed(time, decimals, decimal),
-                                             state.astype(str)], delimiter))
+                                             state.astype(str)], delimiter), overwrite)
     truth = cart.truth(offset)
     truth.update(kind="photogate", flag_length=flag_length, gate_distance=gate_distance,
                  g_eff=cart.g, mode=mode, vendor=vendor,
