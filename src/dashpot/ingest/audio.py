@@ -18,7 +18,11 @@ runs them over the file.
    different delays and polarities). No channel's noise is taken below the quantization
    noise of the file's samples (step/√12), and a channel that records less (a dead input:
    digital silence, save rare one-step blips) is left out of the mean and of the timing
-   while another channel records noise (:func:`.envelope._heard`). A transient is a jump of
+   while another channel records noise (:func:`.envelope._heard`). A channel whose loudest
+   sounds rise more than 10 dB less over its noise than the best channel's weighs in the mean
+   in proportion to its SNR (:func:`.envelope._shares`: a channel of noise alone, or one far
+   from the impacts, adds little of its noise), and only channels within 3 dB of the best
+   SNR time the onsets. A transient is a jump of
    this power over 0.5 ms against the 2 ms before it (an STA/LTA trigger [1]_): strong above
    9 dB, weak above 6 dB.
 2. Rough onset: the Akaike-information-criterion picker [2]_ on the 3 ms before each trigger
@@ -241,9 +245,10 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
     Notes
     -----
     Channels: detection uses all of them (mean noise-normalised power) but those that record
-    less noise than their samples resolve (a dead input, while another channel is live);
-    times come from the single channel whose onsets are the most precise (smallest median
-    uncertainty). Averaging channels would overstate the precision when their noise is
+    less noise than their samples resolve (a dead input, while another channel is live),
+    each weighed by its SNR where that is more than 10 dB under the best channel's; times
+    come from the single channel, within 3 dB of the best SNR, whose onsets are the most
+    precise (smallest median uncertainty). Averaging channels would overstate the precision when their noise is
     shared (room noise heard by both microphones, or one microphone mixed to several
     channels), and the channels of a stereo pair hear each impact at different delays.
 
@@ -390,7 +395,7 @@ def _fitted_onsets(stream):
                 pre.std(axis=2), stream.noise_floor)
             # Only among the channels the detection heard (a dead one's blip would be timed).
             onsets = np.array([candidates[i]["onset"] for i in todo]) / settings.sample_rate
-            best = np.argmax(np.where(stream.heard_at(onsets), snr, -np.inf), axis=1)
+            best = np.argmax(np.where(stream.timed_at(onsets), snr, -np.inf), axis=1)
             rows = np.arange(len(todo))
             onset, sigma, _ = _onset_posterior(windows[rows, best], settings.pre,
                                                settings.sample_rate)
@@ -911,8 +916,8 @@ def _choose(path, stream, candidates, rough, strength, amplitude, strong, precis
     post = windows[:, :, stream.settings.pre:]
     snr = np.abs(post - pre.mean(axis=2, keepdims=True)).max(axis=2) / np.maximum(
         pre.std(axis=2), stream.noise_floor)
-    heard = stream.heard_at(rough[chain])
-    timing = int(np.argmax(np.median(np.where(heard, snr, -np.inf), axis=0)))
+    timed = stream.timed_at(rough[chain])
+    timing = int(np.argmax(np.median(np.where(timed, snr, -np.inf), axis=0)))
     # Impacts already fitted on the timing channel during the selection keep that fit.
     onset, sigma = np.zeros(chain.size), np.zeros(chain.size)
     done = np.array([precise.fits.get(int(i), (0.0, 0.0, -1))[2] == timing for i in chain],

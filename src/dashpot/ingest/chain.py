@@ -1268,9 +1268,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         return None  # too close to either end of the recording
     filtered = stream.highpass_from_rest(raw)
     noise, rho = stream.noise_at(predicted)  # as the detection had it there
+    share = stream.share_at(predicted)  # each channel's share of the statistic, too
     detector = np.zeros_like(filtered)
     detector[1:] = filtered[1:] - rho * filtered[:-1]
-    power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, noise**2)
+    power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, noise**2, share)
     loudness = np.concatenate(([0.0], np.cumsum(power)))
     taps = None
     order = _predictor_order(sample_rate)
@@ -1280,7 +1281,7 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         # the whitened signal's.
         taps = _sound_predictor(filtered, centre - reach - offset, order)
         detector, floor = _prediction_error(filtered, taps, noise, rho)
-        power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, floor)
+        power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, floor, share)
     cumulative = np.concatenate(([0.0], np.cumsum(power)))
     earliest = centre - reach
     if not_before is not None:

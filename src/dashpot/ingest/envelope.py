@@ -29,6 +29,12 @@ _NOISE_PERCENTILE = 10.0  # quiet frames: below the impacts, above digital silen
 # quantization noise of the file's format (_Stream.noise_floor), save float64's.
 _NOISE_FLOOR = 1e-9
 _MAX_NOISE_CORRELATION = 0.99
+# Channel weights (_relative_snr, _shares): each channel's SNR from the loudest frames of a
+# block (the top 1 %, its loudest impacts), where they rise 3 dB over the noise at least.
+_LOUD_PERCENTILE = 99.0
+_MIN_LOUD_SNR = 1.0
+_EQUAL_SNR_RATIO = 0.1  # channels within 10 dB of the best SNR weigh the same
+_TIMING_SNR_RATIO = 0.5  # channels within 3 dB of the best SNR may time the onsets
 # Windows around a transient: the noise before it and the start of it (the data of the onset
 # fit), its peak amplitude and what marks it clipped.
 _PRE_SECONDS = 1e-3  # noise before the onset, for its level and colour
@@ -188,6 +194,8 @@ class _Stream:
     # (first sample, noise, rho) of each block's estimate: the later steps look up the one
     # of the block a moment lies in (the noise may change over a long recording).
     noise_blocks: list = field(default_factory=list)
+    relative_snr: np.ndarray | None = None  # each channel's SNR over the best's (_relative_snr)
+    snr_blocks: list = field(default_factory=list)  # relative_snr of each of noise_blocks
     raw: np.ndarray | None = None  # carried samples (frames, channels)
     filtered: np.ndarray | None = None
     start: int = 0  # absolute index of the first carried sample
@@ -216,6 +224,28 @@ class _Stream:
                                         side="right") - 1, 0, None)
         return (np.stack([noise for _, noise, _ in self.noise_blocks])[block],
                 np.stack([rho for _, _, rho in self.noise_blocks])[block])
+
+    def relative_snr_at(self, seconds):
+        """Each channel's SNR over the best channel's (:func:`_relative_snr`) at the moments
+        `seconds` (s): array of shape (..., channels), that of the block each lies in."""
+        firsts = np.array([first for first, _, _ in self.noise_blocks])
+        block = np.clip(np.searchsorted(firsts, np.asarray(seconds) * self.settings.sample_rate,
+                                        side="right") - 1, 0, None)
+        return np.stack(self.snr_blocks)[block]
+
+    def share_at(self, seconds):
+        """Each channel's share of the detection statistic (:func:`_shares`) at the moments
+        `seconds` (s): array of shape (..., channels)."""
+        return _shares(self.relative_snr_at(seconds))
+
+    def timed_at(self, seconds):
+        """Which channels may time the onsets at the moments `seconds` (s): boolean array of
+        shape (..., channels), the channels heard (:meth:`heard_at`) whose SNR is within a
+        factor 2 (3 dB) of the best channel's. A channel that carries the impacts' sound far
+        weaker than another has the less precise onsets, whatever its waveform's peaks over
+        the 1 ms before them say (a channel of white noise beside one of low-frequency noise
+        has the steeper-looking edges)."""
+        return self.heard_at(seconds) & (self.relative_snr_at(seconds) >= _TIMING_SNR_RATIO)
 
     def heard_at(self, seconds):
         """Which channels the detection used at the moments `seconds` (s): boolean array of
@@ -268,10 +298,82 @@ def _heard(noise, noise_floor):
     return heard | ~heard.any(axis=-1, keepdims=True)
 
 
-def _channel_weights(noise, noise_floor, variance):
-    """Weight of each channel's power in the detection statistic: 1/(channels heard ×
-    `variance`) for the channels heard (:func:`_heard`), 0 for the others, so that the
-    statistic is the mean power of the channels heard over the `variance` of their noise.
+def _relative_snr(frame_snr, heard):
+    """Each channel's signal-to-noise power ratio in the loudest sounds of a block, over the
+    best channel's.
+
+    Each channel's SNR is its mean excess power over its noise in the block's loudest frames:
+    the top 1 % of the mean of the channels' powers, its loudest impacts. Where those do not
+    rise 3 dB over the noise (a block of noise), or fewer than two channels are heard,
+    nothing tells the channels apart and every ratio is 1.
+
+    Parameters
+    ----------
+    frame_snr : ndarray, shape (frames, channels)
+        Whitened power of each channel in each frame over its noise variance (1 for noise
+        alone).
+    heard : ndarray of bool, shape (channels,)
+        The channels that recorded noise (:func:`_heard`); the others' ratios are 1 (their
+        weights are 0 all the same).
+
+    Returns
+    -------
+    ndarray, shape (channels,)
+        Ratios in [0, 1], 1 for the best channel.
+    """
+    ratio = np.ones(frame_snr.shape[1])
+    if heard.sum() < 2:
+        return ratio
+    loudness = frame_snr[:, heard].mean(axis=1)
+    loud = loudness >= np.percentile(loudness, _LOUD_PERCENTILE)
+    snr = (frame_snr[loud] - 1.0).mean(axis=0)
+    best = snr[heard].max()
+    if best >= _MIN_LOUD_SNR:
+        ratio[heard] = np.clip(snr[heard] / best, 0.0, 1.0)
+    return ratio
+
+
+def _shares(relative_snr):
+    """Share of each channel in the detection statistic, from its SNR relative to the best
+    channel's (:func:`_relative_snr`): 1 within a factor 10 (10 dB) of the best, in proportion
+    to the SNR below.
+
+    For a signal of known shape in independent noises, the combination of the channels'
+    noise-normalised powers that best tells it from the noise weighs each channel by its
+    signal-to-noise power ratio (maximal-ratio combining [3]_). A channel that carries little
+    of the impacts' sound (a second microphone far from them, or one not connected, picking
+    up hum and hiss) then adds little of its noise to the statistic; with equal weights it
+    halves the impacts' power over the noise of a stereo recording (a copy of the ping-pong
+    recording with a second channel of noise alone lost up to 5 of its 52 impacts and gained
+    up to 5 false ones). Channels whose SNRs are within 10 dB weigh the same, as before:
+    where both microphones hear the impacts well the choice of weights changes nothing the
+    impacts need, only which triggers the noise of either sets off, and the recordings
+    analysed so far keep their impact tables.
+
+    Parameters
+    ----------
+    relative_snr : ndarray, shape (..., channels)
+        Each channel's SNR over the best channel's.
+
+    Returns
+    -------
+    ndarray, shape (..., channels)
+        Shares in [0, 1].
+
+    References
+    ----------
+    .. [3] D. G. Brennan, "Linear diversity combining techniques", Proc. IRE 47(6),
+       1075-1102 (1959).
+    """
+    return np.minimum(relative_snr / _EQUAL_SNR_RATIO, 1.0)
+
+
+def _channel_weights(noise, noise_floor, variance, share=None):
+    """Weight of each channel's power in the detection statistic: its `share` over (the sum
+    of the shares of the channels heard × `variance`) for the channels heard
+    (:func:`_heard`), 0 for the others, so that the statistic is the share-weighted mean
+    power of the channels heard over the `variance` of their noise (the plain mean where
+    every share is 1).
 
     Parameters
     ----------
@@ -281,6 +383,8 @@ def _channel_weights(noise, noise_floor, variance):
         Quantization noise RMS of the file's format (full scale).
     variance : ndarray, shape (..., channels)
         Variance of the noise of the power that is weighted (full scale²).
+    share : ndarray, shape (..., channels), optional
+        Each channel's share (:func:`_shares`); 1 for all by default.
 
     Returns
     -------
@@ -288,7 +392,8 @@ def _channel_weights(noise, noise_floor, variance):
         Weights (1/full scale²).
     """
     heard = _heard(noise, noise_floor)
-    return np.where(heard, 1.0 / (heard.sum(axis=-1, keepdims=True) * variance), 0.0)
+    share = np.where(heard, 1.0 if share is None else share, 0.0)
+    return np.where(heard, share / (share.sum(axis=-1, keepdims=True) * variance), 0.0)
 
 
 def _sosfilt(sos, block, initial, scale=1.0):
@@ -383,20 +488,29 @@ def _process(stream, block, final):
         innovation = np.maximum(quiet_energy * (1 - stream.rho**2) / (quiet.sum(axis=0) * frame),
                                 0.0)
         stream.noise = np.maximum(np.sqrt(innovation), stream.noise_floor)
+        # Each frame's whitened power, Σ(y[n] − ρ·y[n−1])² ≈ (1 + ρ²)·Σy² − 2ρ·Σy[n]y[n−1],
+        # over the noise's: how far the loudest sounds rise over each channel's noise.
+        whitened = energy * (1.0 + stream.rho**2) - 2.0 * stream.rho * lagged
+        stream.relative_snr = _relative_snr(whitened / (frame * stream.noise**2),
+                                            _heard(stream.noise, stream.noise_floor))
     elif stream.noise is None:
         stream.rho = np.zeros(stream.channels)
         stream.noise = np.maximum(np.sqrt((filtered**2).mean(axis=0)),
                                   stream.noise_floor)
+        stream.relative_snr = np.ones(stream.channels)
     if not stream.noise_blocks or stream.noise_blocks[-1][1] is not stream.noise:
         # A new estimate (a block too short keeps the previous one, the same array) holds
         # from the first sample whose triggers this block judges.
         stream.noise_blocks.append((stream.done_until, stream.noise, stream.rho))
+        stream.snr_blocks.append(stream.relative_snr)
     # Detection runs on the noise whitened by its own lag-1 prediction, y[n] − ρ·y[n−1]:
     # for white noise (ρ ≈ 0) that is the signal itself; for noise dominated by low
     # frequencies it removes the slow swells of power that would otherwise look like onsets
     # in a half-millisecond window.
-    # The statistic is the mean noise-normalised power over the channels that recorded noise.
-    weights = _channel_weights(stream.noise, stream.noise_floor, stream.noise**2)
+    # The statistic is the mean noise-normalised power over the channels that recorded noise,
+    # each weighed by its share of the impacts' sound.
+    weights = _channel_weights(stream.noise, stream.noise_floor, stream.noise**2,
+                               _shares(stream.relative_snr))
     limit = frames - settings.lookahead + 1  # triggers need this much recording after them
     lo, hi = settings.history, max(limit, settings.history)
     # Triggers down to a lower jump are kept as weak candidates: the selection looks among
