@@ -178,9 +178,10 @@ def test_the_snr_of_each_channel_is_read_from_the_loudest_frames():
     ratio = _relative_snr(frame_snr, np.array([True, True]))
     assert ratio[0] == 1.0
     assert ratio[1] == pytest.approx(10.0 / 1000.0, rel=0.01)
-    # The statistic weighs it by that share; a channel within 10 dB of the best weighs the same.
-    assert _shares(ratio).tolist() == pytest.approx([1.0, 0.1], rel=0.01)
+    # A channel more than 10 dB under the best is left out; within 10 dB it weighs the same.
+    assert _shares(ratio).tolist() == [1.0, 0.0]
     assert _shares(np.array([1.0, 0.2])).tolist() == [1.0, 1.0]
+    assert _shares(np.array([0.05, 1.0])).tolist() == [0.0, 1.0]
     weights = _channel_weights(np.array([1e-3, 2e-3]), 1e-6, np.array([1e-6, 4e-6]),
                                np.array([1.0, 0.25]))
     assert weights.tolist() == pytest.approx([0.8 / 1e-6, 0.2 / 4e-6], rel=1e-12)
