@@ -252,8 +252,9 @@ def test_a_weak_or_noise_only_second_channel_costs_a_synthetic_train_nothing(tmp
         clean, _ = impact_sound(times, speeds, sample_rate=rate, seed=seed, snr_db=300.0,
                                 **options)
         noise_rms = 0.5 * 10 ** (-snr_db / 20)  # impact_sound's peak_level over the SNR
-        mono = detect_impacts(write_audio(tmp_path / "mono.wav", samples, rate, subtype="FLOAT"))
+        mono = detect_impacts(write_audio(tmp_path / f"mono{seed}.wav", samples, rate,
+                                          subtype="FLOAT"))
         pair = np.stack([samples, _second_channel(clean, noise_rms, gain, seed)], axis=1)
-        table = detect_impacts(write_audio(tmp_path / "pair.wav", pair, rate, subtype="FLOAT",
-                                           channels=2))
+        table = detect_impacts(write_audio(tmp_path / f"pair{seed}.wav", pair, rate,
+                                           subtype="FLOAT", channels=2))
         assert _same_within_sigma(mono, table), seed

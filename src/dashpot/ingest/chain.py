@@ -1986,9 +1986,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impact itself. An impact's onset before its predicted time, less than 2 ms after a ring,
     burst or echo of an earlier impact started (from 3 ms on), may be on that sound's own
     rise: it is probed again past that start, and an onset of its own rising out of it, at
-    least 0.3 ms later and closer to the predicted time, is taken instead; so is a probed onset
-    more than 0.3 ms early there (a swell of that sound), or else an impulse in the error of a
-    predictor of that sound closer to the predicted time. Where the whitened power
+    least 0.3 ms later and closer to the predicted time, is taken instead; so is, between
+    impacts, a probed onset more than 0.3 ms early there (a swell of that sound), or else an
+    impulse in the error of a predictor of that sound closer to the predicted time. Where the
+    whitened power
     shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
     before), past the start of that burst or ring where the first impulse found there is at
@@ -2206,11 +2207,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             continue
         result = probe(predicted, tolerance)
         if (result is not None and result[0] < predicted - _PROBE_SECONDARY_SECONDS
-                and (start := rising_secondary(result[0], i)) is not None):
-            # An onset early, less than 2 ms after a ring, burst or echo of an earlier
-            # impact began, may be a swell of that sound: the impact's own onset rising out
-            # of it, or its impulse in the error of a predictor of it, closer to the
-            # predicted time, is taken instead.
+                and not beyond() and (start := rising_secondary(result[0], i)) is not None):
+            # Between impacts, an onset early, less than 2 ms after a ring, burst or echo of
+            # an earlier impact began, may be a swell of that sound: the impact's own onset
+            # rising out of it, or its impulse in the error of a predictor of it, closer to
+            # the predicted time, is taken instead. Not past the last impact: there the
+            # later onset may be that of a ring of the last impact, taken for one more.
             own_onset = peel(predicted, tolerance, start)
             if own_onset is None:
                 own_onset = on_secondary(predicted, tolerance, start, None)
