@@ -22,10 +22,9 @@ runs them over the file.
    sounds rise more than 10 dB less over its noise than the best channel's is left out of
    the mean in that block (:func:`.envelope._shares`: a channel of noise alone, or one far
    from the impacts, would add its noise and little of their sound), and only channels
-   within 3 dB of the best
-   SNR time the onsets. A transient is a jump of
-   this power over 0.5 ms against the 2 ms before it (an STA/LTA trigger [1]_): strong above
-   9 dB, weak above 6 dB.
+   within 3 dB of the best SNR time the onsets. A transient is a jump of this power over
+   0.5 ms against the 2 ms before it (an STA/LTA trigger [1]_): strong above 9 dB, weak
+   above 6 dB.
 2. Rough onset: the Akaike-information-criterion picker [2]_ on the 3 ms before each trigger
    (but not into the transient triggered before it) finds where the power leaves the level
    before it, which catches a weak first arrival preceding the loud part of a transient;
@@ -247,9 +246,9 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
     -----
     Channels: detection uses all of them (mean noise-normalised power) but those that record
     less noise than their samples resolve (a dead input, while another channel is live),
-    and those whose SNR is more than 10 dB under the best channel's; times
-    come from the single channel, within 3 dB of the best SNR, whose onsets are the most
-    precise (smallest median uncertainty). Averaging channels would overstate the precision when their noise is
+    and those whose SNR is more than 10 dB under the best channel's; times come from the
+    single channel, within 3 dB of the best SNR, whose onsets are the most precise (smallest
+    median uncertainty). Averaging channels would overstate the precision when their noise is
     shared (room noise heard by both microphones, or one microphone mixed to several
     channels), and the channels of a stereo pair hear each impact at different delays.
 
