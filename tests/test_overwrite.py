@@ -10,13 +10,13 @@ appeared while the output was being written either.
 
 import errno
 import os
-import threading
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from cli_run import run_cli, timestamp_impacts
+from write_races import race
 
 import dashpot
 from dashpot.analysis import analyze
@@ -252,32 +252,11 @@ def test_two_writers_without_overwrite_one_wins_the_other_is_refused(tmp_path, m
     """Both are held just before their final step with all their bytes written: one file ends
     up in place whole, the other writer is told it exists (never a mix, never a clobber)."""
     target = tmp_path / "out.csv"
-    barrier = threading.Barrier(2, timeout=60)
-    real_link = os.link
-
-    def link_together(source, destination, **kwargs):
-        barrier.wait()
-        real_link(source, destination, **kwargs)
-
-    monkeypatch.setattr(os, "link", link_together)
-    outcomes = {}
-
-    def run(variant):
-        try:
-            write_timestamps(target, TIMES + variant)
-            outcomes[variant] = "written"
-        except InputError as error:
-            outcomes[variant] = str(error)
-        except BaseException as error:  # reported below
-            outcomes[variant] = repr(error)
-            barrier.abort()
-
-    threads = [threading.Thread(target=run, args=(variant,)) for variant in (0, 1)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(120)
-    monkeypatch.setattr(os, "link", real_link)
+    outcomes = {variant: "written" if error is None
+                else str(error) if isinstance(error, InputError) else repr(error)
+                for variant, error in race(
+                    monkeypatch, "link",
+                    lambda variant: write_timestamps(target, TIMES + variant)).items()}
     assert sorted(outcomes.values()) == sorted(
         ["written", f"{target}: exists; pass overwrite=True to replace it"]), outcomes
     winner = next(variant for variant, outcome in outcomes.items() if outcome == "written")

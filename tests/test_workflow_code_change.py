@@ -10,16 +10,15 @@ from pathlib import Path
 
 import h5py
 import pytest
-import yaml
 
 import dashpot
 from dashpot.provenance import source_fingerprint
 from test_workflow import _job_counts
 from workflow_run import snakemake as _snakemake
+from workflow_run import workflow_copy
 
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[1]
 # One small synthetic scene (two models), its figures, and few theory points.
 CONFIG = {"scenes_dir": "scenes", "real_data": False, "scene_plots": True,
           "synthetic": {"tiny": {
@@ -51,11 +50,7 @@ def _stored_fingerprints(workdir):
 def test_a_change_to_dashpots_code_reruns_what_it_computed(tmp_path, monkeypatch):
     workdir = tmp_path / "repo"
     workdir.mkdir()
-    shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
-    shutil.copytree(REPO / "workflow", workdir / "workflow",
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    (workdir / "config").mkdir()
-    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG))
+    workflow_copy(workdir, CONFIG)
     package = tmp_path / "code" / "dashpot"
     shutil.copytree(Path(dashpot.__file__).parent, package,
                     ignore=shutil.ignore_patterns("__pycache__"))

@@ -7,7 +7,6 @@ about.
 
 import hashlib
 import os
-import shutil
 import signal
 import subprocess
 import time
@@ -20,7 +19,7 @@ import yaml
 
 from dashpot.store import csv_header
 from dashpot.synth.scene import write_scene
-from workflow_run import SNAKEMAKE, copy_run, run_once
+from workflow_run import SNAKEMAKE, copy_run, run_once, workflow_copy
 from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
@@ -56,11 +55,7 @@ def _folder_scene(workdir, name, seed):
 def small_run(tmp_path_factory):
     """The small workflow run once (under a file lock shared by pytest-xdist workers)."""
     def run(workdir):
-        shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
-        shutil.copytree(REPO / "workflow", workdir / "workflow",
-                        ignore=shutil.ignore_patterns("__pycache__"))
-        (workdir / "config").mkdir()
-        (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG))
+        workflow_copy(workdir, CONFIG)
         _folder_scene(workdir, "folder-b", seed=913)
         return _snakemake(workdir)
 

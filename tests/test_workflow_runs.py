@@ -1,24 +1,19 @@
 """The workflow on a multi-run recording: one scene file holding every run's fits and the
 joint fit, summary rows per run (column `run`), and the config's uncertainty methods reached."""
 
-import shutil
-from pathlib import Path
-
 import h5py
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from dashpot.physics.sequence import bounce_sequence
 from dashpot.store import csv_header, read_fit
 from dashpot.summary import SUMMARY_COLUMNS
-from workflow_run import run_once
+from workflow_run import run_once, workflow_copy
 from workflow_run import snakemake as _snakemake
 
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[1]
 SPEEDS = {1: 1.2, 2: 1.5, 3: 1.8}  # m/s, each run's first impact speed
 SEED = 20261125  # the date this test was written
 CONFIG = {"scenes_dir": "scenes", "real_data": False, "synthetic": {}, "scene_plots": False,
@@ -31,11 +26,7 @@ def runs_run(tmp_path_factory):
     """A folder scene whose impact table holds three runs (as `dashpot impacts` writes a
     Capstone export's), run through the workflow up to the summary."""
     def run(workdir):
-        shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
-        shutil.copytree(REPO / "workflow", workdir / "workflow",
-                        ignore=shutil.ignore_patterns("__pycache__"))
-        (workdir / "config").mkdir()
-        (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG))
+        workflow_copy(workdir, CONFIG)
         folder = workdir / "scenes" / "three-runs"
         folder.mkdir(parents=True)
         rng = np.random.default_rng(SEED)

@@ -6,7 +6,6 @@ import os
 import runpy
 import subprocess
 import sys
-import threading
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -14,6 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from cli_run import run_cli, timestamp_impacts
+from write_races import race
 
 import dashpot
 from dashpot.atomic import atomic_path
@@ -114,30 +114,8 @@ def test_two_writers_of_one_output_never_mix(tmp_path, monkeypatch, name):
     shared = tmp_path / "shared"
     shared.mkdir()
     target = shared / f"out{suffix}"
-    barrier = threading.Barrier(2, timeout=60)
-    real_replace = os.replace
-
-    def replace_together(source, destination):
-        barrier.wait()
-        real_replace(source, destination)
-
-    monkeypatch.setattr(os, "replace", replace_together)
-    errors = []
-
-    def run(variant):
-        try:
-            write(target, variant)
-        except BaseException as error:  # reported below
-            errors.append(error)
-            barrier.abort()
-
-    threads = [threading.Thread(target=run, args=(variant,)) for variant in (0, 1)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(120)
-    monkeypatch.setattr(os, "replace", real_replace)
-    assert errors == []
+    outcomes = race(monkeypatch, "replace", lambda variant: write(target, variant))
+    assert outcomes == {0: None, 1: None}, outcomes
     for index, output in enumerate(_outputs(target, name)):
         assert output.read_bytes() in (alone[0][index], alone[1][index]), output.name
     assert _temporaries(shared) == []

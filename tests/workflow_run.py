@@ -7,7 +7,20 @@ import subprocess
 import sys
 from pathlib import Path
 
+import yaml
+
 SNAKEMAKE = Path(sys.executable).with_name("snakemake")
+REPO = Path(__file__).resolve().parents[1]
+
+
+def workflow_copy(workdir, config):
+    """Put the repository's Snakefile and workflow folder (without caches) in `workdir`, with
+    `config` (a dict) as its config/config.yaml."""
+    shutil.copy2(REPO / "Snakefile", workdir / "Snakefile")
+    shutil.copytree(REPO / "workflow", workdir / "workflow",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    (workdir / "config").mkdir()
+    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
 
 
 def snakemake(workdir, *args, timeout=300):
