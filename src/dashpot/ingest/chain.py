@@ -82,6 +82,8 @@ _MASK_SECONDS = 5e-3  # a sound hides an impact that starts at most this long af
 _FITTED_SECONDARY_SECONDS = 0.1e-3  # a fitted onset this close to the time of a secondary
 # of a fitted impact is that secondary's start (fitted onsets err by some 10-50 µs)
 _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every impact
+_LAST_SECONDARY_SECONDS = 1e-3  # the faint last impact's secondary, starting on the louder
+# ones of the impacts before it, is timed up to 0.8 ms off its delay
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
 _HALVING_RUN = 5  # successive intervals of a chain that hold a stepped-over bounce: it took
 # every other bounce
@@ -1612,15 +1614,17 @@ def _drop_trailing_secondaries(times, amplitudes, delays, levels, impact=None):
     return keep
 
 
-def _shows_secondary(probe, moment, amplitude, delay, level, expected=False):
+def _shows_secondary(probe, moment, amplitude, delay, level, expected=False,
+                     timing=_CAUSE_SEARCH_SECONDS):
     """Whether a sound at `moment` (s) of `amplitude` (full scale) is followed, `delay` (s)
-    later to within 0.5 ms, by a sound at least a quarter as loud as the secondary of usual
-    loudness `level` (relative) there, looked for in the error of a predictor of the sound
-    (``probe(moment, tolerance, predicted_sound=True, expected=expected)``: `expected`
-    confirms it with a weak trigger's jump, else a strong one's)."""
+    later, by a sound at least a quarter as loud as the secondary of usual loudness `level`
+    (relative) there, looked for in the error of a predictor of the sound (``probe(moment,
+    tolerance, predicted_sound=True, expected=expected)``: `expected` confirms it with a
+    weak trigger's jump, else a strong one's) within 0.5 ms of that time, and its onset
+    timed within `timing` (s) of it."""
     result = probe(moment + delay, _CAUSE_SEARCH_SECONDS, predicted_sound=True,
                    expected=expected)
-    return (result is not None and abs(result[0] - moment - delay) <= _CAUSE_SEARCH_SECONDS
+    return (result is not None and abs(result[0] - moment - delay) <= timing
             and result[2] >= _OWN_SECONDARY_LEVEL * level * amplitude)
 
 
@@ -1667,8 +1671,9 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
     the usual level; those whose secondary another impact starts on are not asked,
     :func:`_lands_on_impact`), the last impact is kept only if it shows one too, or if the
     recording (`end`, s) stops before that secondary's time is over. Its own need only jump
-    as much as a weak trigger's: the last impact is the faintest, and its secondary lands
-    among the louder ones of the impacts before it. At most two are dropped.
+    as much as a weak trigger's, and its onset may be timed up to 1 ms off: the last impact
+    is the faintest, and its secondary starts on the decaying sound of the louder ones of
+    the impacts before it. At most two are dropped.
     """
     keep = times.size
     # From 3 ms on: closer sounds are the impact's own first arrivals, not a secondary.
@@ -1677,7 +1682,8 @@ def _drop_unechoed_end(times, amplitudes, delays, levels, probe, end):
 
     def shows(position, delay, level, expected=False):
         return _shows_secondary(probe, times[position], amplitudes[position], delay, level,
-                                expected)
+                                expected, _LAST_SECONDARY_SECONDS if expected
+                                else _CAUSE_SEARCH_SECONDS)
 
     for delay, level in zip(delays[usable], levels[usable]):
         while keep > max(5, times.size - 2) and times[keep - 1] + delay + _MASK_SECONDS < end:
