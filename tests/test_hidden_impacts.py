@@ -168,7 +168,8 @@ def test_the_last_impact_keeps_its_place_where_its_secondary_shows_only_weakly()
     impacts = 1.0 + np.cumsum(0.05 * 0.9 ** np.arange(12))
     echoes = impacts + delay
 
-    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         # A strong jump for the echoes of all impacts but the last, a weak one for its own.
         shown = echoes if expected else echoes[:-1]
         return onset_near(shown, moment, tolerance)
@@ -194,7 +195,8 @@ def test_the_last_impacts_secondary_timed_off_on_the_louder_ones_before_it_still
     echoes = impacts + delay
 
     def probe_fitting(lead):
-        def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False):
+        def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
+                  impulse=False):
             found = onset_near(echoes, moment, tolerance)
             if found is None or found[0] != echoes[-1]:
                 return found
@@ -295,7 +297,8 @@ def test_an_impact_an_echo_falls_on_is_kept_where_the_ball_must_have_bounced():
     level = 0.4
 
     def probe_with(amplitude):
-        def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+        def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+                  impulse=False):
             if not_before is None and abs(impacts[15] - predicted) <= tolerance:
                 return impacts[15], 1e-5, amplitude, False
             return None
@@ -315,7 +318,8 @@ def test_an_impact_the_trend_predicts_is_looked_for_in_the_prediction_error_too(
     timed = impacts[:-3]
     coefficients, scatter = _robust_trend(timed)
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         nearest = impacts[np.abs(impacts - predicted).argmin()]
         if not predicted_sound or abs(nearest - predicted) > tolerance:
             return None
@@ -388,7 +392,8 @@ def test_an_impact_timed_at_a_burst_just_before_it_is_found_in_the_prediction_er
     # impact is timed there, not left at the burst's start.
     impacts, delay, timed, (coefficients, scatter) = timed_at_a_secondary(11, 1.5e-3)
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         if not_before is not None:
             return None  # nothing rises 1.8 dB over the burst
         # Plain power: the burst's start stands for the impact; prediction error: the impact.
@@ -411,7 +416,8 @@ def test_a_missing_impact_past_a_burst_in_the_prediction_error_is_found():
     timed = np.delete(impacts, 12)
     coefficients, scatter = _robust_trend(impacts)
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         if not predicted_sound:
             sounds = timed[timed > (not_before if not_before is not None else -np.inf)]
             nearest = sounds[np.abs(sounds - predicted).argmin()]

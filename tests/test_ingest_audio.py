@@ -327,7 +327,8 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
     impacts = np.cumsum(0.3 * 0.9 ** np.arange(30))
     kept = np.delete(impacts, [20, 29])  # one missed among the last impacts, one at the end
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         return onset_near(impacts, predicted, tolerance)
 
     coefficients, scatter = chaining._robust_trend(kept)
@@ -341,7 +342,8 @@ def test_missed_impacts_are_probed_where_the_trend_predicts_them():
     delay = impacts[25] - impacts[23]
     rings = times + delay
 
-    def ringing(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def ringing(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+                impulse=False):
         return (float(rings[np.abs(rings - predicted).argmin()]), 1e-5, 1.0, False)
 
     coefficients, scatter = chaining._robust_trend(times)
@@ -357,7 +359,8 @@ def test_probed_impacts_stay_in_time_order_where_the_tolerance_exceeds_the_inter
     impact before; taking it as the next one made an interval negative (math domain error)."""
     impacts = np.cumsum(0.3 * 0.9 ** np.arange(8))
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         return (predicted - 0.9 * tolerance, 1e-5, 1.0, False)
 
     coefficients, _ = chaining._robust_trend(impacts)
@@ -378,7 +381,8 @@ def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
     coefficients, scatter = chaining._robust_trend(np.delete(timed, 27))
     probed = []
 
-    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def probe(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+              impulse=False):
         probed.append(not_before)
         # Past the ring's start the impact's own onset is found where it rises out of it.
         return (impacts[27], 1e-5, 1.0, False) if not_before == captured else None
@@ -388,7 +392,8 @@ def test_impact_timed_at_an_earlier_impacts_ring_is_timed_again_past_it():
     assert list(retimed) == [27] and retimed[27][0] == impacts[27]
     assert captured in probed
 
-    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False):
+    def silent(predicted, tolerance, not_before=None, predicted_sound=False, expected=False,
+               impulse=False):
         return None
 
     # No onset rises out of the ring: the impact is reported missing (None: left out, a gap),

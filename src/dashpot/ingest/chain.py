@@ -1240,9 +1240,10 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
         which the predictor continues, is an impulse into the same modes: in the error its
         power sits in its first samples, whatever the rate, and averaged over 0.5 ms it is
         diluted by the samples that holds (3.4 dB more at 48 kHz than at 22.05 kHz, where
-        the thresholds were set). Only for that search (:func:`_hidden_causes`): in the
-        probes of quieter stretches the shorter window lets more of the noise's spikes
-        through.
+        the thresholds were set). Only for the searches on a burst (:func:`_hidden_causes`,
+        and an impact between two others whose onset was found on a burst's swell,
+        :func:`_fill_impacts`): in the probes of quieter stretches the shorter window lets
+        more of the noise's spikes through.
 
     Returns
     -------
@@ -1993,10 +1994,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     burst or echo of an earlier impact started (from 3 ms on), may be on that sound's own
     rise: it is probed again past that start, and an onset of its own rising out of it, at
     least 0.3 ms later and closer to the predicted time, is taken instead; so is, between
-    impacts, a probed onset more than 0.3 ms early there (a swell of that sound), or else an
-    impulse in the error of a predictor of that sound closer to the predicted time. Where the
-    whitened power
-    shows no onset on time, the error of a predictor of the sound is probed too
+    impacts, a probed onset more than 0.3 ms early there (a swell of that sound), or else,
+    where no onset of its own is closer, an impulse in the error of a predictor of that sound
+    closer to the predicted time (in its first samples a weak trigger's jump, as in
+    :func:`_hidden_causes`). Where the whitened power shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
     before), past the start of that burst or ring where the first impulse found there is at
     a secondary's delay; between two impacts timed (the ball bounced there) the impulse need
@@ -2092,7 +2093,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             onset = result[0]
         return None
 
-    def on_secondary(predicted, tolerance, onset, before):
+    def on_secondary(predicted, tolerance, onset, before, expected=False, impulse=False):
         # An impact starting on a ring's burst (the impact's own modes, excited again) or an
         # echo barely raises the power, but the predictor of the sound continues that
         # sound's modes and the impact is an impulse in its error: looked for there, past
@@ -2101,7 +2102,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
         hi = predicted + tolerance
         if hi <= lo:
             return None
-        result = probe(0.5 * (lo + hi), 0.5 * (hi - lo), predicted_sound=True)
+        result = probe(0.5 * (lo + hi), 0.5 * (hi - lo), predicted_sound=True,
+                       expected=expected, impulse=impulse)
         if result is None or result[0] < lo:
             return None
         return result if accept(result, predicted, tolerance, before) else None
@@ -2216,14 +2218,19 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 and not beyond() and (start := rising_secondary(result[0], i)) is not None):
             # Between impacts, an onset early, less than 2 ms after a ring, burst or echo of
             # an earlier impact began, may be a swell of that sound: the impact's own onset
-            # rising out of it, or its impulse in the error of a predictor of it, closer to
+            # rising out of it, or else its impulse in the error of a predictor of it (in
+            # its first samples, a weak trigger's jump: the ball bounced there), closer to
             # the predicted time, is taken instead. Not past the last impact: there the
             # later onset may be that of a ring of the last impact, taken for one more.
+            def closer(found):
+                return (found is not None
+                        and abs(found[0] - predicted) < abs(result[0] - predicted))
+
             own_onset = peel(predicted, tolerance, start)
-            if own_onset is None:
-                own_onset = on_secondary(predicted, tolerance, start, None)
-            if (own_onset is not None
-                    and abs(own_onset[0] - predicted) < abs(result[0] - predicted)):
+            if not closer(own_onset):
+                own_onset = on_secondary(predicted, tolerance, start, None, expected=True,
+                                         impulse=True)
+            if closer(own_onset):
                 result = own_onset
         bounded = i + 1 < len(anchors) and origin[i + 1] >= 0
         impact = False
