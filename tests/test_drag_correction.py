@@ -251,9 +251,14 @@ def test_restitution_figure_shows_corrected_points_and_every_fitted_rung(drag_sc
     assert {"constant", "constant+drag", "linear", "Ia"} <= set(fitted)
     curves = [line.get_gid() for line in ax.get_lines() if line.get_gid()]
     assert sorted(curves) == sorted(["Ia", "ratio:Ia", *(f"noise:{name}" for name in fitted)])
-    legend = [text.get_text() for text in figure.legends[0].get_texts()]
+    beside, below = figure.legends  # the points and the models; the fits under the noise model
+    # Wrapped beside the axes, the labels read as the points' own.
+    legend = [" ".join(text.get_text().split()) for text in beside.get_texts()]
     assert legend[:2] == [uncorrected, corrected]
-    assert {f"noise: {name}" for name in ("constant", "constant+drag", "linear")} <= set(legend)
+    assert "Ia (A)" in legend
+    assert "noise model" in below.get_title().get_text()
+    assert {"constant", "constant+drag", "linear"} <= {text.get_text()
+                                                       for text in below.get_texts()}
     # The y range shows the corrected points with their error bars.
     bottom, top = ax.get_ylim()
     assert bottom < np.min(y) and np.max(y) < top

@@ -121,7 +121,10 @@ def test_the_points_sit_on_the_generating_models_predicted_ratios_not_on_its_eps
     assert abs(np.mean(eps - drawn_ratio)) < 1e-8
     assert np.max(np.abs(eps - drawn_ratio)) < 1e-8  # the times are written to 1e-10 s
     figure = scene_figures(noise_free_record)["restitution"]
-    texts = [text.get_text() for legend in figure.legends for text in legend.get_texts()]
-    assert r"Ib (B): predicted $T_{n+1}/T_n$" in texts
-    assert r"Ib (B): $\varepsilon(v)$" in texts
-    assert r"interval ratios $T_{n+1}/T_n$" in texts
+    (legend,) = figure.legends
+    texts = [text.get_text() for text in legend.get_texts()]
+    assert texts == [r"interval ratios $T_{n+1}/T_n$",
+                     *(plots.MODEL_LABELS[model] for model in dashpot.MODELS)]
+    title = legend.get_title().get_text()
+    assert r"$\varepsilon(v)$ (line)" in title
+    assert r"predicted $T_{n+1}/T_n$ (open markers)" in title

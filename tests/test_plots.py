@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.lines import _get_dash_pattern
+from matplotlib.lines import Line2D, _get_dash_pattern
+from matplotlib.transforms import Bbox
 
 import dashpot
 from dashpot import plots
@@ -26,8 +27,15 @@ def _model_lines(ax):
 
 
 def _legend_texts(fig):
-    return [text.get_text() for legend in fig.legends + [ax.get_legend() for ax in fig.axes]
+    """Every legend entry's text, a wrapped one joined back into one line."""
+    return [" ".join(text.get_text().split())
+            for legend in fig.legends + [ax.get_legend() for ax in fig.axes]
             if legend is not None for text in legend.get_texts()]
+
+
+def _legend(fig, gid):
+    (legend,) = [legend for legend in fig.legends if legend.get_gid() == gid]
+    return legend
 
 
 def _scene():
@@ -395,8 +403,11 @@ def test_restitution_figure_with_drag_corrected_points():
     assert ax.containers[0].lines[0].get_markerfacecolor() == "none"
     assert {line.get_gid() for line in ax.get_lines() if line.get_gid()} == {
         "Ia", "noise:constant+drag", "noise:linear"}
-    assert _legend_texts(fig)[:2] == labels
-    assert {"Ia (A)", "noise: constant+drag", "noise: linear"} <= set(_legend_texts(fig))
+    assert _legend_texts(fig)[:2] == labels  # the k_d and its source named in full
+    assert [text.get_text() for text in _legend(fig, "noise").get_texts()] == [
+        "constant+drag", "linear"]
+    assert "dash-dot" in _legend(fig, "noise").get_title().get_text()
+    assert "Ia (A)" in [text.get_text() for text in _legend(fig, "models").get_texts()]
     bottom, top = ax.get_ylim()
     assert bottom < 0.95 - 0.012 * 2.5 - 0.001 and 0.95 + 0.004 < top < 0.97
     _render(fig)
@@ -418,9 +429,9 @@ def test_restitution_figure_names_failed_fits_in_its_legend():
     ax = fig.axes[0]
     assert {line.get_gid() for line in ax.get_lines() if line.get_gid()} == {
         "Ia", "noise:constant"}
-    texts = _legend_texts(fig)
-    assert "Ib (B): fit failed, not drawn" in texts
-    assert "noise: hunt-crossley: fit failed, not drawn" in texts
+    assert "Ib (B): fit failed, not drawn" in _legend_texts(fig)
+    assert "hunt-crossley: fit failed, not drawn" in [
+        text.get_text() for text in _legend(fig, "noise").get_texts()]
 
 
 @pytest.mark.parametrize("entries", [5, 17, 40])
@@ -553,9 +564,104 @@ def test_restitution_figure_draws_each_models_predicted_interval_ratios():
     assert line.get_marker() == plots.MODEL_STYLES["Ib"]["marker"]
     assert line.get_markerfacecolor() == "none"
     assert ax.get_ylim()[0] < 0.95 and ratio.max() < ax.get_ylim()[1]
-    assert {r"Ib (B): $\varepsilon(v)$", r"Ib (B): predicted $T_{n+1}/T_n$"} <= set(
-        _legend_texts(fig))
+    # One legend entry for both, its title telling them apart.
+    legend = _legend(fig, "models")
+    assert [text.get_text() for text in legend.get_texts()].count("Ib (B)") == 1
+    title = legend.get_title().get_text()
+    assert r"$\varepsilon(v)$ (line)" in title
+    assert r"predicted $T_{n+1}/T_n$ (open markers)" in title
     with pytest.raises(ValueError, match="lengths differ"):
         plots.restitution_speed_figure(speed, ratio, None, None,
                                        {"Ib": (grid, np.full(20, 0.95))},
                                        predicted_ratios={"Ib": (speed, ratio[:2])})
+
+
+def _full_restitution_scene():
+    """Every layer of a scene's restitution figure: 40 interval ratios with their drag-corrected
+    points, the five contact models' ε(v) and predicted ratios, and fits under the noise model
+    of the seven laws and the five models (as a real recording's file holds them)."""
+    rng = np.random.default_rng(20260518)
+    speed = np.sort(rng.uniform(0.05, 3.7, 40))
+    apparent = 0.93 - 0.02 * speed + rng.normal(0.0, 0.004, speed.size)
+    corrected = {"speed": speed, "eps": apparent + 0.02 * speed,
+                 "speed_uncertainty": np.full(speed.size, 0.01),
+                 "eps_uncertainty": np.full(speed.size, 0.005),
+                 "label": "drag-corrected ($k_d$ = 0.156 1/m, noise fit constant+drag)"}
+    grid = np.linspace(0.04, 3.8, 120)
+    curves = {model: (grid, 0.92 + 0.002 * k - 0.01 * np.exp(-grid / (0.1 + 0.1 * k)))
+              for k, model in enumerate(dashpot.MODELS)}
+    ratios = {model: (speed, np.interp(speed, *curves[model]) + 2e-4) for model in curves}
+    laws = ["constant", "constant+drag", "linear", "quadratic", "power", "viscoelastic-hertz",
+            "hunt-crossley"]
+    noise = {law: (grid, 0.93 - 0.003 * k * grid) for k, law in enumerate(laws)}
+    noise.update({model: (grid, curve + 0.001) for model, (_, curve) in curves.items()})
+    fig = plots.restitution_speed_figure(
+        speed, apparent, np.full(speed.size, 0.01), np.full(speed.size, 0.004), curves, noise,
+        corrected=corrected, measured_label="interval ratios (no drag correction)",
+        predicted_ratios=ratios)
+    return fig, corrected["label"], laws
+
+
+def test_full_restitution_legend_names_each_model_once_beside_its_layers():
+    """Five models with their predicted ratios and noise fits, seven laws and two sets of
+    points (27 drawn layers): one entry per model whose handle holds its curve and its
+    ratios' open markers, both in its colour, one per law, one for the models under the noise
+    model; no model named twice; the k_d of the corrected points named."""
+    fig, drag_label, laws = _full_restitution_scene()
+    ax = fig.axes[0]
+    layers = len([line for line in ax.get_lines() if line.get_gid()]) + len(ax.containers)
+    assert layers == 2 + 5 + 5 + 7 + 5
+    texts = _legend_texts(fig)
+    assert len(texts) <= 15 < layers
+    for model in dashpot.MODELS:
+        label = plots.MODEL_LABELS[model]
+        assert sum(label in text for text in texts) == 1, (label, texts)
+    models = _legend(fig, "models")
+    assert [" ".join(text.get_text().split()) for text in models.get_texts()] == [
+        "interval ratios (no drag correction)", drag_label,
+        *(plots.MODEL_LABELS[model] for model in dashpot.MODELS)]
+    noise = _legend(fig, "noise")
+    assert [text.get_text() for text in noise.get_texts()][:len(laws)] == laws
+    assert len(noise.get_texts()) == len(laws) + 1
+    legend_lines = models.findobj(Line2D)
+    for model in dashpot.MODELS:
+        style = plots.MODEL_STYLES[model]
+        lines = {line.get_gid(): line for line in ax.get_lines()}
+        curve, ratio = lines[model], lines[f"ratio:{model}"]
+        # The markers are open: their edge is what shows.
+        assert curve.get_color() == ratio.get_markeredgecolor() == style["color"]
+        assert ratio.get_marker() == style["marker"] and ratio.get_markerfacecolor() == "none"
+        assert lines[f"noise:{model}"].get_color() == style["color"]
+        # In the legend: the model's curve and its open markers, in the one colour.
+        drawn = [line for line in legend_lines if line.get_color() == style["color"]]
+        assert any(line.get_linestyle() == curve.get_linestyle() for line in drawn), model
+        assert any(line.get_marker() == style["marker"] and line.get_markerfacecolor() == "none"
+                   for line in drawn), model
+
+
+def test_full_restitution_legends_cover_neither_the_points_nor_the_axes():
+    """Drawn, the two legends lie inside the figure, outside the axes and away from the
+    points with their error bars; the axes keep at least 60 % of the figure's width and
+    height."""
+    fig, _, _ = _full_restitution_scene()
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    ax = fig.axes[0]
+    # The points and the caps of their error bars (a LineCollection of bars has no extent).
+    points = Bbox.union([artist.get_window_extent(renderer)
+                         for container in ax.containers for artist in container.get_children()
+                         if isinstance(artist, Line2D)])
+    axes_box = ax.get_window_extent(renderer)
+    figure_box = fig.bbox
+    assert len(fig.legends) == 2
+    for legend in fig.legends:
+        box = legend.get_window_extent(renderer)
+        assert not box.overlaps(points), legend.get_gid()
+        assert not box.overlaps(axes_box), legend.get_gid()
+        assert figure_box.x0 - 1 <= box.x0 and box.x1 <= figure_box.x1 + 1
+        assert figure_box.y0 - 1 <= box.y0 and box.y1 <= figure_box.y1 + 1
+    assert _legend(fig, "models").get_window_extent(renderer).x0 >= axes_box.x1
+    assert _legend(fig, "noise").get_window_extent(renderer).y1 <= axes_box.y0
+    assert axes_box.width >= 0.6 * figure_box.width
+    assert axes_box.height >= 0.6 * figure_box.height

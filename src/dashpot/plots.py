@@ -29,6 +29,7 @@ References
 from __future__ import annotations
 
 import os
+import re
 import textwrap
 from pathlib import Path
 
@@ -775,11 +776,13 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
         ball there) are not drawn.
     noise_curves : dict of str to (array_like, array_like), optional
         Law or model name -> (impact speed in m/s, ε) of each fit under the noise model, drawn
-        dash-dotted, labelled "noise: <name>" (the Line2D's gid is "noise:<name>").
+        dash-dotted (the Line2D's label is "noise: <name>", its gid "noise:<name>"): a law in
+        its own colour, a contact model in that model's.
     corrected : dict, optional
         Drag-corrected points drawn beside the measured ones (filled diamonds): ``speed``
         (impact speeds in m/s), ``eps``, ``speed_uncertainty`` and ``eps_uncertainty`` (1σ,
-        or None) and ``label`` (the legend's text, saying which k_d corrected them).
+        or None) and ``label`` (the legend's text, saying which k_d corrected them; wrapped
+        in the legend).
     measured_label : str, optional
         Legend text of the measured points; default "measured", or with `corrected`
         "uncorrected (interval ratios)", drawn as open circles.
@@ -790,16 +793,22 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
         Model name -> (impact speed in m/s, T_{n+1}/T_n): where the points are interval
         ratios, each model's own predicted ratios at the measured speeds (what its fit
         compared with the data; :func:`dashpot.figures.predicted_interval_ratios`). Drawn
-        as the model's open markers on a thin dotted line of its colour, labelled "<model>:
-        predicted T(n+1)/T(n)" (the Line2D's gid is "ratio:<model>"); that model's curve is
-        then labelled "<model>: ε(v)".
+        as the model's open markers on a thin dotted line of its colour (the Line2D's label is
+        "<model>: predicted T(n+1)/T(n)", its gid "ratio:<model>"; that model's curve is then
+        labelled "<model>: ε(v)"), and in the legend beside the curve in the model's handle.
 
     Returns
     -------
     matplotlib.figure.Figure
         One axes: ε (dimensionless) against impact speed (m/s). The points are
         :class:`~matplotlib.container.ErrorbarContainer` objects of ``ax.containers``
-        labelled as in the legend.
+        labelled as in the legend. Two figure legends, neither over the axes: beside them
+        (gid "models") the points and one entry per contact model, its handle showing its
+        curve and its predicted ratios side by side (the title says which is which); below
+        them (gid "noise", where there are fits under the noise model) one entry per law,
+        one for the contact models, each in its own colour, and each failed fit, under a
+        title saying that dash-dot means the noise model. The figure is as much wider as
+        the legend beside the axes is wide, and as much taller as the one below is high.
 
     Notes
     -----
@@ -815,38 +824,34 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     xerr = None if speed_uncertainty is None else np.asarray(speed_uncertainty, float).ravel()
     yerr = None if restitution_uncertainty is None else np.asarray(restitution_uncertainty,
                                                                    float).ravel()
-    fig = Figure(figsize=(8.5, 5.0), layout="constrained")
+    fig = Figure(figsize=(_RESTITUTION_AXES_WIDTH, 5.0), layout="constrained")
     ax = fig.add_subplot()
-    handles = []
+    # Each model's layers (its ε(v), its predicted ratios) share one legend entry.
+    model_layers = {}
     predicted_ratios = predicted_ratios or {}
     for model in _ordered(curves):
         curve_speed, shown = _sorted_curve(model, curves[model])
-        handles.append(_model_line(ax, model, curve_speed, shown, linewidth=1.5))
+        model_layers[model] = [_model_line(ax, model, curve_speed, shown, linewidth=1.5)]
         if model in predicted_ratios:
-            handles[-1].set_label(rf"{_label(model)}: $\varepsilon(v)$")
-            handles.append(_predicted_ratio_line(ax, model, predicted_ratios[model]))
+            model_layers[model][0].set_label(rf"{_label(model)}: $\varepsilon(v)$")
+            model_layers[model].append(_predicted_ratio_line(ax, model, predicted_ratios[model]))
+    noise_lines = {}
     for name, curve in (noise_curves or {}).items():
         curve_speed, shown = _sorted_curve(name, curve)
-        handles.append(ax.plot(curve_speed, shown, color=_noise_color(name), linestyle="-.",
-                               linewidth=1.2, label=_noise_label(name), gid=f"noise:{name}")[0])
-    # Fits without a curve are named in the legend, so that every fitted one is accounted for.
-    absent = [(_style(model)["color"], _label(model)) for model in _ordered(failed)]
-    absent += [(_noise_color(name), _noise_label(name)) for name in failed_noise]
-    handles += [Line2D([], [], color=color, linestyle="none", marker="x", alpha=0.6,
-                       label=f"{label}: fit failed, not drawn") for color, label in absent]
+        noise_lines[name] = ax.plot(curve_speed, shown, color=_noise_color(name),
+                                    linestyle=_NOISE_LINESTYLE, linewidth=1.2,
+                                    label=_noise_label(name), gid=f"noise:{name}")[0]
     points = [(speed, eps, xerr, yerr)]
     if corrected is None:
-        handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o",
-                                      markersize=3.5, color=_DATA_COLOR, elinewidth=0.8,
-                                      capsize=2, label=measured_label or "measured",
-                                      zorder=3))
+        data = [ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
+                            color=_DATA_COLOR, elinewidth=0.8, capsize=2,
+                            label=measured_label or "measured", zorder=3)]
     else:
         # Beside the corrected points the uncorrected ones step back: open and grey.
-        handles.insert(0, ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o",
-                                      markersize=3.5, color=_UNCORRECTED_COLOR,
-                                      markerfacecolor="none", elinewidth=0.7, capsize=2,
-                                      label=measured_label or "uncorrected (interval ratios)",
-                                      zorder=3))
+        data = [ax.errorbar(speed, eps, xerr=xerr, yerr=yerr, fmt="o", markersize=3.5,
+                            color=_UNCORRECTED_COLOR, markerfacecolor="none", elinewidth=0.7,
+                            capsize=2, label=measured_label or "uncorrected (interval ratios)",
+                            zorder=3)]
         fixed = [np.asarray(corrected[key], dtype=float).ravel() for key in ("speed", "eps")]
         errors = [None if corrected.get(key) is None else
                   np.asarray(corrected[key], dtype=float).ravel()
@@ -854,12 +859,13 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
         if fixed[0].shape != fixed[1].shape:
             raise ValueError(f"corrected speed and eps must have the same length; got "
                              f"{fixed[0].size} and {fixed[1].size}")
-        handles.insert(1, ax.errorbar(*fixed, xerr=errors[0], yerr=errors[1], fmt="D",
-                                      markersize=3.5, color=_CORRECTED_COLOR, elinewidth=0.8,
-                                      capsize=2, label=corrected.get("label", "drag-corrected"),
-                                      zorder=4))
+        data.append(ax.errorbar(*fixed, xerr=errors[0], yerr=errors[1], fmt="D",
+                                markersize=3.5, color=_CORRECTED_COLOR, elinewidth=0.8,
+                                capsize=2, label=corrected.get("label", "drag-corrected"),
+                                zorder=4))
         points.append((*fixed, *errors))
-    drawn = [handle for handle in handles if isinstance(handle, Line2D) and handle.axes is ax]
+    drawn = [line for layers in model_layers.values() for line in layers]
+    drawn += list(noise_lines.values())
     ax.set_xlim(*_speed_limits(np.concatenate([p[0] for p in points]), _joined(points, 2)))
     ax.set_ylim(*_restitution_limits(ax.get_xlim(), np.concatenate([p[1] for p in points]),
                                      _joined(points, 3), drawn))
@@ -870,8 +876,80 @@ def restitution_speed_figure(impact_speed, restitution, speed_uncertainty,
     ax.set_ylabel(EPS_LABEL)
     ax.set_title("Restitution against impact speed")
     ax.grid(alpha=0.3)
-    _figure_legend(fig, handles)
+    _restitution_legends(fig, data, model_layers, _ordered(failed), noise_lines,
+                         list(failed_noise))
     return fig
+
+
+_RESTITUTION_AXES_WIDTH = 8.0  # inches of figure beside the legend: the axes and their labels
+_NOISE_LINESTYLE = "-."  # every fit under the noise model, law or contact model
+_BESIDE_CHARACTERS = 30  # a label beside the axes is wrapped at this many characters
+
+
+def _failed_entry(color, label):
+    return Line2D([], [], color=color, linestyle="none", marker="x", alpha=0.6,
+                  label=f"{label}: fit failed, not drawn")
+
+
+def _restitution_legends(fig, data, model_layers, failed, noise_lines, failed_noise):
+    """The restitution figure's legends, neither over the axes.
+
+    Beside the axes: the points, then one entry per contact model whose handle shows each of
+    its layers side by side (its ε(v), then its predicted ratios where drawn), the title
+    saying which is which. Below the axes, where the scene has fits under the noise model:
+    one entry per restitution law, one for the contact models (each dash-dotted in its own
+    colour, already named beside the axes), each failed fit, the title saying that dash-dot
+    means the noise model. Labels beside the axes are wrapped, so that the axes keep most of
+    the figure's width.
+    """
+    from matplotlib.legend_handler import HandlerTuple
+
+    def wrapped(label):
+        # A value stays on one line with its name and unit ("$k_d$ = 0.156 1/m").
+        label = label.replace(" = ", "\u00a0=\u00a0")
+        label = re.sub(r"(?<=\d) (?=1/m\b|m/s\b)", "\u00a0", label)
+        return textwrap.fill(label, _BESIDE_CHARACTERS, break_long_words=False)
+
+    layered = any(len(layers) > 1 for layers in model_layers.values())
+    handles = list(data) + [tuple(layers) if len(layers) > 1 else layers[0]
+                            for layers in model_layers.values()]
+    labels = [wrapped(handle.get_label()) for handle in data]
+    labels += [_label(model) for model in model_layers]
+    for model in failed:
+        handles.append(_failed_entry(_style(model)["color"], _label(model)))
+        labels.append(wrapped(handles[-1].get_label()))
+    beside = fig.legend(handles, labels, loc="outside right upper", frameon=False,
+                        fontsize="small", title_fontsize="small", alignment="left",
+                        handlelength=4.0 if layered else 2.0,
+                        handler_map={tuple: HandlerTuple(ndivide=None, pad=0.4)},
+                        title=(r"contact models: $\varepsilon(v)$ (line)," "\n"
+                               r"predicted $T_{n+1}/T_n$ (open markers)" if layered else None))
+    beside.set_gid("models")
+    # The figure grows by the legend's width: the axes keep theirs.
+    width, height = fig.get_size_inches()
+    fig.set_size_inches(width + beside.get_window_extent().width / fig.dpi, height)
+    if not noise_lines and not failed_noise:
+        return beside, None
+    laws = {name: line for name, line in noise_lines.items() if name not in MODEL_STYLES}
+    models = [line for name, line in noise_lines.items() if name in MODEL_STYLES]
+    handles, labels = list(laws.values()), list(laws)
+    if models:
+        handles.append(tuple(models))
+        labels.append("contact model" + ("s, each" if len(models) > 1 else "") +
+                      " in its colour")
+    for name in failed_noise:
+        handles.append(_failed_entry(_noise_color(name), _label(name)))
+        labels.append(handles[-1].get_label())
+    width, height = fig.get_size_inches()
+    columns = _legend_columns(labels, _LEGEND_LINE_CHARACTERS * width)
+    fig.set_size_inches(width, height + _LEGEND_ROW_INCHES * (-(-len(labels) // columns) + 1))
+    below = fig.legend(handles, labels, loc="outside lower center", ncols=columns,
+                       frameon=False, fontsize="small", title_fontsize="small",
+                       handler_map={tuple: HandlerTuple(ndivide=None, pad=0.2)},
+                       handlelength=max(2.0, 1.0 * len(models)),
+                       title="fitted under the noise model (dash-dot)")
+    below.set_gid("noise")
+    return beside, below
 
 
 def _predicted_ratio_line(ax, model, ratios):
