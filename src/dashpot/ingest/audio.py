@@ -129,7 +129,7 @@ from scipy import signal
 from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
-from .audio_file import _blocks, _open, _quantization_noise, read_audio
+from .audio_file import _blocks, _open, _quantization_noise, _Recording, read_audio
 from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
                     _echoing_members, _explained_secondaries, _fill_impacts, _first_pass,
                     _fixed_delays, _hidden_causes, _loudest_before, _louder_between,
@@ -149,7 +149,6 @@ __all__ = ["read_audio", "detect_impacts"]
 # A rise this long after a ring or echo of an earlier impact starts may be that sound's.
 _SECONDARY_REACH_SECONDS = 2e-3
 _RESETTLE_SECONDS = 0.02  # s of the file read before a stretch, for the high-pass to settle
-_JOIN_READS_SECONDS = 0.05
 # A transient this long (s) before one this many times louder is that one's pre-echo
 # (_without_pre_echoes).
 _PRE_ECHO_SECONDS = 6e-3
@@ -314,10 +313,11 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         # 16-bit samples are kept as read (a quarter of float64's memory, which costs as much
         # to touch the first time as to filter); the kernels scale them by 2⁻¹⁵, exactly.
         sixteen_bit = handle.subtype == "PCM_16"
-        stream = _Stream(settings=settings, channels=handle.channels, sos=sos,
-                         scale=2.0**-15 if sixteen_bit else 1.0,
+        scale = 2.0**-15 if sixteen_bit else 1.0
+        stream = _Stream(settings=settings, channels=handle.channels, sos=sos, scale=scale,
                          lossy_codec=handle.lossy_codec,
-                         noise_floor=max(_quantization_noise(handle.subtype), _NOISE_FLOOR))
+                         noise_floor=max(_quantization_noise(handle.subtype), _NOISE_FLOOR),
+                         recording=_Recording(path, handle.frames, scale))
         block_frames = max(int(round(_BLOCK_SECONDS * sample_rate)), settings.carry)
         pending = None
         # One block of look-ahead, so that the last one is processed as final. A last block
@@ -325,6 +325,7 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         # bounce train fills have too few quiet stretches for a noise estimate of their own.
         for block in _blocks(handle, path, block_frames,
                              dtype="int16" if sixteen_bit else "float64"):
+            stream.recording.keep(block)
             if pending is not None:
                 if block.shape[0] < block_frames // 2:
                     pending = np.concatenate([pending, block])
@@ -332,6 +333,7 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
                 _process(stream, pending, final=False)
             pending = block
         _process(stream, pending, final=True)
+        stream.recording.close()
         duration = handle.frames / sample_rate
         repair_note = handle.repair_note
     stream.candidates = _without_pre_echoes(stream.candidates, sample_rate)
@@ -1016,22 +1018,8 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     noise_rms = noise[:, timing] / np.sqrt(np.maximum(1.0 - rho[:, timing] ** 2, 1e-6))
     starts = np.round(times * sample_rate).astype(np.int64) - lead
     length = lead + tail
-    with _open(path) as handle:
-        inside = np.flatnonzero((starts >= 0) & (starts + length <= handle.frames))
-        raw = np.empty((inside.size, length))
-        # Stretches less than half a second apart are read in one piece (a read costs about
-        # as much as decoding that long a stretch).
-        gap = int(_JOIN_READS_SECONDS * sample_rate)
-        breaks = np.flatnonzero(np.diff(starts[inside]) > length + gap) + 1
-        for group in np.split(np.arange(inside.size), breaks):
-            if group.size == 0:
-                continue
-            first = int(starts[inside[group[0]]])
-            handle.seek(first)
-            piece = handle.read(int(starts[inside[group[-1]]]) + length - first,
-                                dtype="float64", always_2d=True)[:, timing]
-            offsets_in_piece = starts[inside[group]] - first
-            raw[group] = piece[offsets_in_piece[:, None] + np.arange(length)[None, :]]
+    inside = np.flatnonzero((starts >= 0) & (starts + length <= stream.recording.frames))
+    raw = stream.recording.stretches(starts[inside], length, timing)
     # All stretches filtered at once (as the channels of one block), each from the filter at
     # rest on its first sample.
     filtered = stream.highpass_from_rest(raw.T).T

@@ -283,6 +283,95 @@ def _blocks(handle, path, block_frames, dtype="float64"):
                                f"{seen} could be read")
 
 
+
+# Largest recording (bytes of its samples as read) whose samples the detection keeps in memory
+# for the stretches its later steps read again: 64 MiB, about 5.8 min of 16-bit stereo at
+# 48 kHz (a file's 30 s blocks of float64 take 23 MB in the stream at any length).
+_KEPT_BYTES = 64 * 2**20
+_JOIN_READS_SECONDS = 0.05  # stretches of the file closer than this (s) are read as one
+
+
+class _Recording:
+    """The samples of a recording that the later steps of the detection read again.
+
+    The probes of predicted impacts and the retiming of onsets read stretches of a few ms
+    around each impact. Where the whole recording's samples as read by :func:`_blocks` take
+    at most :data:`_KEPT_BYTES`, they are kept (:meth:`keep`, then :meth:`close`) and the
+    stretches are taken from memory: opening the file and seeking in it costs more than the
+    stretch itself. Longer recordings are read again from the file, so that memory stays
+    bounded. Either way the values are the same: libsndfile converts a 16-bit sample to float
+    as the sample times 2⁻¹⁵ (exact), as here, and the other formats are kept as the float64
+    it decoded.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The recording (opened with :func:`_open`).
+    frames : int
+        Its length (frames).
+    scale : float
+        Full scale per unit of the blocks kept (2⁻¹⁵ for int16, else 1).
+    """
+
+    def __init__(self, path, frames, scale=1.0):
+        self.path, self.frames, self.scale = path, int(frames), float(scale)
+        self.samples = None  # (frames, channels), read-only, once kept
+        self._blocks, self._bytes = [], 0
+
+    def keep(self, block):
+        """Keep the next `block` (frames, channels) of the file as read, while the recording
+        fits :data:`_KEPT_BYTES`."""
+        if self._blocks is None:
+            return
+        self._bytes += block.nbytes
+        self._blocks = self._blocks + [block] if self._bytes <= _KEPT_BYTES else None
+
+    def close(self):
+        """Join the blocks kept, if the whole recording was kept."""
+        if self._blocks:
+            self.samples = (self._blocks[0] if len(self._blocks) == 1
+                            else np.concatenate(self._blocks))
+            if self.samples.shape[0] != self.frames:  # not the whole file: read it again
+                self.samples = None
+            else:
+                self.samples.flags.writeable = False
+        self._blocks = None
+
+    def stretch(self, start, stop):
+        """Frames `start` to `stop` (clipped to the recording): (first frame, samples as
+        float64 full scale, shape (frames, channels))."""
+        start, stop = max(0, int(start)), min(self.frames, int(stop))
+        if self.samples is not None:
+            part = self.samples[start:max(stop, start)]
+            return start, (part.astype(np.float64) * self.scale if self.scale != 1.0
+                           else part)
+        with _open(self.path) as handle:
+            handle.seek(start)
+            return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
+
+    def stretches(self, starts, length, channel):
+        """Channel `channel` of the stretches of `length` frames from each of `starts`
+        (frames, all within the recording), as float64 full scale: shape (starts, length)."""
+        starts = np.asarray(starts, dtype=np.int64)
+        if self.samples is not None:
+            part = self.samples[starts[:, None] + np.arange(length)[None, :], channel]
+            return part.astype(np.float64) * self.scale if self.scale != 1.0 else part
+        out = np.empty((starts.size, length))
+        with _open(self.path) as handle:
+            # Stretches less than 50 ms apart are read in one piece (a read costs about as
+            # much as decoding that long a stretch).
+            gap = int(_JOIN_READS_SECONDS * handle.samplerate)
+            breaks = np.flatnonzero(np.diff(starts) > length + gap) + 1
+            for group in np.split(np.arange(starts.size), breaks):
+                if group.size == 0:
+                    continue
+                first = int(starts[group[0]])
+                handle.seek(first)
+                piece = handle.read(int(starts[group[-1]]) + length - first, dtype="float64",
+                                    always_2d=True)[:, channel]
+                out[group] = piece[(starts[group] - first)[:, None] + np.arange(length)[None, :]]
+        return out
+
 # Subtypes stored as integers of the width their name ends with.
 _INTEGER_SUBTYPE = re.compile(r"(?:PCM|ALAC|DWVW|DPCM)_[SU]?(\d+)")
 # Float subtypes: the spacing of their values just below full scale (1), eps/2 of the type.

@@ -22,7 +22,6 @@ from scipy import signal
 
 from ..plausibility import ratio_trend
 from . import envelope as _envelope
-from .audio_file import _open
 from .envelope import (_AIC_MARGIN, _BACK_SEARCH_SECONDS, _CLIP_RUN, _CLIP_TOLERANCE,
                        _MERGE_SECONDS, _NOISE_FLOOR, _RING_GAP_SECONDS, _STA_SECONDS,
                        _WEAK_JUMP_FACTOR, _channel_weights, _onset_picks)
@@ -1029,14 +1028,6 @@ def _fixed_delays(times, chain):
 # Impacts the trend predicts where no transient was chosen
 
 
-def _read_segment(path, start, stop):
-    """Samples `start` to `stop` (frames, clipped to the file) as float64 (frames, channels)."""
-    with _open(path) as handle:
-        start, stop = max(0, int(start)), min(handle.frames, int(stop))
-        handle.seek(start)
-        return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
-
-
 _PREDICTOR_ORDER = 12  # poles: two per mode, for a few modes of the impact, its ring, an echo
 # The rate at which the predictor's order and the jumps in its error were set: 12 samples
 # there span 0.54 ms, a few periods of the modes, and the 0.5 ms short-term window holds 11.
@@ -1264,8 +1255,8 @@ def _probe(path, stream, predicted, tolerance, timing, not_before=None,
     settings, sample_rate = stream.settings, stream.settings.sample_rate
     centre, reach = int(round(predicted * sample_rate)), int(np.ceil(tolerance * sample_rate))
     lead = settings.history + settings.background + int(_PROBE_WARMUP_SECONDS * sample_rate)
-    offset, raw = _read_segment(path, centre - reach - lead,
-                                centre + reach + settings.lookahead + 1)
+    offset, raw = stream.recording.stretch(centre - reach - lead,
+                                           centre + reach + settings.lookahead + 1)
     if offset + raw.shape[0] < centre + reach + settings.lookahead or offset > centre - reach \
             - settings.history - settings.background:
         return None  # too close to either end of the recording

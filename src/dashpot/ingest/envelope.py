@@ -210,6 +210,9 @@ class _Stream:
     # silence with rare one-step blips) measures less; against that, its blips would be
     # enormous transients.
     noise_floor: float = _NOISE_FLOOR
+    # The recording's samples for the later steps that read stretches of it again
+    # (:class:`.audio_file._Recording`).
+    recording: object = None
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
