@@ -623,17 +623,23 @@ def edge_fits(onsets, sample_index, prior_omega, rho, rows, innovation_var, peak
 
 
 @_jit
-def _chain_deviations(log_gap, centre_t, spread_t, jitter, last, k_from, k_to, out):
-    """Half the squared, scaled deviation from the trend of every step of columns
-    k_from <= k < k_to, in the order :func:`_chain_steps` uses them; returns their count."""
+def _chain_deviations(log_gap, log_gap_t, centre_t, spread_t, jitter, last, log_lo, k_from,
+                      k_to, out):
+    """Half the squared, scaled deviation from the trend of the steps of columns
+    k_from <= k < k_to, in the order :func:`_chain_steps` uses them; returns their count.
+    Steps whose interval ratio is under the lower bound are left out: they score −∞ whatever
+    they cost (most steps from early events are)."""
     count = 0
     for k in range(k_from, k_to):
         stop = last[k - 1]
         if stop <= k + 1:
             continue
-        for j in range(k):
-            for l in range(k + 1, stop):
-                deviation = log_gap[k, l] - centre_t[k, j]
+        for l in range(k + 1, stop):
+            following = log_gap[k, l]
+            for j in range(k):
+                if following - log_gap_t[k, j] < log_lo:
+                    continue
+                deviation = following - centre_t[k, j]
                 deviation = deviation * deviation
                 deviation = deviation / (spread_t[k, j] + jitter[k, l])
                 out[count] = 0.5 * deviation
@@ -645,25 +651,35 @@ def _chain_deviations(log_gap, centre_t, spread_t, jitter, last, k_from, k_to, o
 def _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, costs, has_trend,
                  log_lo, log_hi, log_growth, k_from, k_to):
     """Relax the states ending at k, k_from <= k < k_to (see :func:`.chain._best_chain`)."""
+    n = log_gap.shape[0]
+    # Column k of the scores and of the jitter, read once per l: contiguous copies (the
+    # column is final, since the states relaxed at k are those of row k).
+    column, jitter_column = np.empty(n), np.empty(n)
     count = 0
     for k in range(k_from, k_to):
         stop = last[k - 1]
         if stop <= k + 1:
             continue
+        for j in range(k):
+            column[j], jitter_column[j] = score[j, k], jitter[j, k]
         for l in range(k + 1, stop):
             best, best_value = 0, -np.inf
             found_nan = False
             following = log_gap[k, l]
             for j in range(k):
-                total = score[j, k] + weights[l]
-                if has_trend:
-                    total -= costs[count + j * (stop - k - 1) + (l - k - 1)]
                 log_ratio = following - log_gap_t[k, j]
-                growth = log_growth + 3.0 * math.sqrt(jitter[j, k] + jitter[k, l])
-                if growth > log_hi:  # np.minimum: NaN stays NaN
-                    growth = log_hi
-                if log_ratio < log_lo or log_ratio > growth:
-                    total = -np.inf
+                if log_ratio < log_lo:
+                    total = -np.inf  # out of bounds whatever the cost and the growth allowed
+                else:
+                    total = column[j] + weights[l]
+                    if has_trend:
+                        total -= costs[count]  # in the order _chain_deviations wrote them
+                        count += 1
+                    growth = log_growth + 3.0 * math.sqrt(jitter_column[j] + jitter[k, l])
+                    if growth > log_hi:  # np.minimum: NaN stays NaN
+                        growth = log_hi
+                    if log_ratio > growth:
+                        total = -np.inf
                 if not found_nan:
                     if np.isnan(total):
                         best, found_nan = j, True
@@ -673,7 +689,6 @@ def _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, cost
             if value > score[k, l]:
                 score[k, l] = value
                 pointer[k, l] = best
-        count += k * (stop - k - 1)
     return count
 
 
@@ -721,8 +736,8 @@ def chain_scores(log_gap, jitter, weights, last, score, pointer, trend_centre=No
         while k_to < n - 1 and (k_to == k_from or total + sizes[k_to - 1] <= buffer.size):
             total += sizes[k_to - 1]
             k_to += 1
-        count = _chain_deviations(log_gap, trend_centre, trend_spread, jitter, last, k_from,
-                                  k_to, buffer)
+        count = _chain_deviations(log_gap, log_gap_t, trend_centre, trend_spread, jitter, last,
+                                  log_lo, k_from, k_to, buffer)
         costs = np.log1p(buffer[:count])
         _chain_steps(log_gap, log_gap_t, jitter, weights, last, score, pointer, costs, True,
                      log_lo, log_hi, log_growth, k_from, k_to)
