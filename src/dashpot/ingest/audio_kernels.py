@@ -192,12 +192,17 @@ def _envelope_triggers(filtered, rho, weights, sta_length, background, lo, hi, m
         # channel order onto zero as numpy adds the columns.
         for q in range(stop - start):
             power[q] = 0.0
+        first = max(start, 1)
         for c in range(channels):
-            for n in range(max(start, 1), stop):
-                whitened = filtered[n, c] - rho[c] * filtered[n - 1, c]
+            # The channel's constants in locals and its samples as slices: with the stores into
+            # `power` possibly aliasing rho[c] and weights[c], the loop was not vectorized.
+            factor, weight = rho[c], weights[c]
+            current, previous = filtered.T[c, first:stop], filtered.T[c, first - 1:stop - 1]
+            for q in range(current.size):
+                whitened = current[q] - factor * previous[q]
                 whitened = whitened * whitened
-                whitened = whitened * weights[c]
-                power[n - start] += whitened
+                whitened = whitened * weight
+                power[first - start + q] += whitened
         for n in range(start, stop):
             m = n + 1
             total += power[n - start]
