@@ -389,7 +389,7 @@ def _fitted_onsets(stream):
     known, fits = {}, {}
 
     def fitted(indices):
-        todo = [int(i) for i in np.unique(indices) if int(i) not in known]
+        todo = [int(i) for i in np.unique(indices).tolist() if i not in known]
         if todo:
             windows = np.stack([candidates[i]["windows"] for i in todo])  # (K, C, W)
             pre, post = windows[:, :, : settings.pre], windows[:, :, settings.pre:]
@@ -404,7 +404,7 @@ def _fitted_onsets(stream):
             starts = np.array([candidates[i]["window_starts"][c] for i, c in zip(todo, best)])
             known.update(zip(todo, ((starts + onset) / settings.sample_rate).tolist()))
             fits.update(zip(todo, zip(onset.tolist(), sigma.tolist(), best.tolist())))
-        return np.array([known[int(i)] for i in np.atleast_1d(indices)])
+        return np.array([known[i] for i in np.atleast_1d(indices).tolist()])
 
     fitted.fits = fits
     return fitted
