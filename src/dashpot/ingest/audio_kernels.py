@@ -455,10 +455,15 @@ def _aic_argmin(log_head, log_tail, first, margin, length):
     return picks
 
 
-def _aic_picks(power, first, margin):
-    """:func:`.envelope._aic_picks` (the AIC change point of each row), compiled."""
+def _aic_picks(power, first, margin, log_tail=None):
+    """:func:`.envelope._aic_picks` (the AIC change point of each row), compiled: the picks,
+    and the logarithms of the criterion's tail terms, which do not depend on `first`
+    (`log_tail`, where given, holds them already: the rows' from an earlier pick)."""
     head_ratio, tail_ratio = _aic_arguments(power, first, margin)
-    return _aic_argmin(np.log(head_ratio), np.log(tail_ratio), first, margin, power.shape[1])
+    if log_tail is None:
+        log_tail = np.log(tail_ratio)
+    return (_aic_argmin(np.log(head_ratio), log_tail, first, margin, power.shape[1]),
+            log_tail)
 
 
 @_jit
@@ -506,12 +511,13 @@ def onset_picks(power, first, min_gap, min_tail, margin, ring_jump):
     power = np.ascontiguousarray(power, dtype=float)
     first = np.ascontiguousarray(first, dtype=np.int64)
     length = power.shape[1]
-    picks = _aic_picks(power, first, margin)
+    picks, log_tail = _aic_picks(power, first, margin)
     later = picks + 2 * margin < length - margin
     if not later.any():
         return picks
     second = picks.copy()
-    second[later] = _aic_picks(np.ascontiguousarray(power[later]), picks[later], margin)
+    second[later] = _aic_picks(np.ascontiguousarray(power[later]), picks[later], margin,
+                               log_tail[later])[0]
     return _separate_sounds(power, picks, second, later, int(min_gap), int(min_tail),
                             float(ring_jump))
 
