@@ -1073,8 +1073,9 @@ def _retime_on_first_burst(path, stream, times, sigmas, timing, secondaries, lou
     for k, offset, refit, spread, check in zip(moved, offsets, onset, sigma, checks):
         # A sound within the merge window of another row is that row's (an impact, or an
         # echo or ring the table holds as one): an onset is never moved onto it.
-        others = np.delete(timed, k)
-        if np.any(np.abs(others - (offset + refit) / sample_rate) < _MERGE_SECONDS):
+        near = np.abs(timed - (offset + refit) / sample_rate) < _MERGE_SECONDS
+        near[k] = False  # its own onset
+        if near.any():
             continue
         if check is not None:
             row, fitted, background = check
