@@ -17,7 +17,7 @@ import dashpot
 from audio_trains import onset_near
 from dashpot.errors import InputError
 from dashpot.ingest import IMPACT_COLUMNS
-from dashpot.ingest import audio, envelope, onset
+from dashpot.ingest import audio, audio_file, envelope, onset
 from dashpot.ingest import chain as chaining
 from dashpot.ingest.audio import detect_impacts, read_audio
 from dashpot.plausibility import MAX_RATIO_SCATTER, ratio_trend
@@ -132,6 +132,55 @@ def test_read_audio_returns_frames_by_channels(tmp_path):
     path = write_audio(tmp_path / "two.flac", samples, 44100, channels=2)
     data, rate = read_audio(path, block_seconds=0.01)
     assert rate == 44100 and data.shape == (samples.size, 2) and data.dtype == np.float64
+
+
+@pytest.mark.parametrize(("subtype", "dtype", "scale"), [("PCM_16", "int16", 2.0**-15),
+                                                         ("PCM_24", "float64", 1.0),
+                                                         ("FLOAT", "float64", 1.0)])
+@pytest.mark.parametrize("block_frames", [30000, 200000])
+def test_stretches_of_the_samples_kept_are_those_read_from_the_file(tmp_path, subtype, dtype,
+                                                                   scale, block_frames):
+    # The probes and the retiming take their stretches from the blocks the stream read, kept
+    # in memory: the same values as libsndfile's float64 reads after a seek, within a block
+    # and across blocks.
+    rng = np.random.default_rng(20471101)
+    path = tmp_path / f"noise_{subtype}.wav"
+    sf.write(str(path), rng.uniform(-0.9, 0.9, (100003, 2)), 8000, subtype=subtype)
+    with audio_file._open(path) as handle:
+        kept = audio_file._Recording(path, handle.frames, scale)
+        for block in audio_file._blocks(handle, path, block_frames, dtype=dtype):
+            kept.keep(block)
+        kept.close()
+    assert kept.kept
+    for start, stop in [(0, 10), (29990, 30010), (-5, 40), (59990, 90020), (99990, 100010)]:
+        first, samples = kept.stretch(start, stop)
+        with sf.SoundFile(str(path)) as handle:
+            handle.seek(max(start, 0))
+            read = handle.read(min(stop, 100003) - max(start, 0), dtype="float64",
+                               always_2d=True)
+        assert first == max(start, 0)
+        np.testing.assert_array_equal(samples, read)
+    starts = np.array([0, 29995, 30000, 59000, 89990, 99000])
+    read, _ = sf.read(str(path), dtype="float64", always_2d=True)
+    np.testing.assert_array_equal(kept.stretches(starts, 1003, 1),
+                                  read[starts[:, None] + np.arange(1003), 1])
+
+
+def test_a_recording_too_long_to_keep_is_read_again_from_the_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(audio_file, "_KEPT_BYTES", 1000)
+    path = tmp_path / "noise.wav"
+    sf.write(str(path), np.random.default_rng(20471102).uniform(-0.5, 0.5, (5000, 2)), 8000,
+             subtype="PCM_16")
+    with audio_file._open(path) as handle:
+        kept = audio_file._Recording(path, handle.frames, 2.0**-15)
+        for block in audio_file._blocks(handle, path, 300, dtype="int16"):
+            kept.keep(block)
+        kept.close()
+    read, _ = sf.read(str(path), dtype="float64", always_2d=True)
+    assert not kept.kept
+    np.testing.assert_array_equal(kept.stretch(100, 4000)[1], read[100:4000])
+    np.testing.assert_array_equal(kept.stretches(np.array([0, 10, 4000]), 900, 0),
+                                  read[np.array([0, 10, 4000])[:, None] + np.arange(900), 0])
 
 
 # ---------------------------------------------------------------------------------- bad input

@@ -286,7 +286,7 @@ def _blocks(handle, path, block_frames, dtype="float64"):
 
 # Largest recording (bytes of its samples as read) whose samples the detection keeps in memory
 # for the stretches its later steps read again: 64 MiB, about 5.8 min of 16-bit stereo at
-# 48 kHz (a file's 30 s blocks of float64 take 23 MB in the stream at any length).
+# 48 kHz (the stream holds 23 MB of float64 for a 30 s block at any length).
 _KEPT_BYTES = 64 * 2**20
 _JOIN_READS_SECONDS = 0.05  # stretches of the file closer than this (s) are read as one
 
@@ -296,8 +296,8 @@ class _Recording:
 
     The probes of predicted impacts and the retiming of onsets read stretches of a few ms
     around each impact. Where the whole recording's samples as read by :func:`_blocks` take
-    at most :data:`_KEPT_BYTES`, they are kept (:meth:`keep`, then :meth:`close`) and the
-    stretches are taken from memory: opening the file and seeking in it costs more than the
+    at most :data:`_KEPT_BYTES`, those blocks are kept (:meth:`keep`, then :meth:`close`) and
+    the stretches are taken from them: opening the file and seeking in it costs more than the
     stretch itself. Longer recordings are read again from the file, so that memory stays
     bounded. Either way the values are the same: libsndfile converts a 16-bit sample to float
     as the sample times 2⁻¹⁵ (exact), as here, and the other formats are kept as the float64
@@ -315,8 +315,8 @@ class _Recording:
 
     def __init__(self, path, frames, scale=1.0):
         self.path, self.frames, self.scale = path, int(frames), float(scale)
-        self.samples = None  # (frames, channels), read-only, once kept
         self._blocks, self._bytes = [], 0
+        self._firsts = None  # first frame of each block kept, once all are
 
     def keep(self, block):
         """Keep the next `block` (frames, channels) of the file as read, while the recording
@@ -327,24 +327,47 @@ class _Recording:
         self._blocks = self._blocks + [block] if self._bytes <= _KEPT_BYTES else None
 
     def close(self):
-        """Join the blocks kept, if the whole recording was kept."""
+        """End of the file: the blocks kept are used if they hold the whole recording."""
         if self._blocks:
-            self.samples = (self._blocks[0] if len(self._blocks) == 1
-                            else np.concatenate(self._blocks))
-            if self.samples.shape[0] != self.frames:  # not the whole file: read it again
-                self.samples = None
-            else:
-                self.samples.flags.writeable = False
+            lengths = [block.shape[0] for block in self._blocks]
+            if sum(lengths) == self.frames:
+                self._firsts = np.cumsum([0] + lengths[:-1])
+                for block in self._blocks:
+                    block.flags.writeable = False
+                return
         self._blocks = None
+
+    @property
+    def kept(self):
+        """Whether the stretches come from the samples kept in memory."""
+        return self._firsts is not None
+
+    def _kept_frames(self, start, stop):
+        """Frames `start` to `stop` (within the recording) of the blocks kept, as read: a view
+        where they lie in one block."""
+        first = int(np.searchsorted(self._firsts, start, side="right")) - 1
+        offset = start - int(self._firsts[first])
+        block = self._blocks[first]
+        if stop - start <= block.shape[0] - offset:
+            return block[offset:offset + stop - start]
+        pieces, remaining = [], stop - start
+        while remaining > 0:
+            piece = self._blocks[first][offset:offset + remaining]
+            pieces.append(piece)
+            remaining -= piece.shape[0]
+            first, offset = first + 1, 0
+        return np.concatenate(pieces)
+
+    def _as_read(self, samples):
+        """Kept samples as float64 full scale, as ``read(dtype="float64")`` gives them."""
+        return samples.astype(np.float64) * self.scale if self.scale != 1.0 else samples
 
     def stretch(self, start, stop):
         """Frames `start` to `stop` (clipped to the recording): (first frame, samples as
-        float64 full scale, shape (frames, channels))."""
+        float64 full scale, shape (frames, channels); read-only where kept)."""
         start, stop = max(0, int(start)), min(self.frames, int(stop))
-        if self.samples is not None:
-            part = self.samples[start:max(stop, start)]
-            return start, (part.astype(np.float64) * self.scale if self.scale != 1.0
-                           else part)
+        if self.kept and start < self.frames:
+            return start, self._as_read(self._kept_frames(start, max(stop, start)))
         with _open(self.path) as handle:
             handle.seek(start)
             return start, handle.read(max(stop - start, 0), dtype="float64", always_2d=True)
@@ -353,10 +376,14 @@ class _Recording:
         """Channel `channel` of the stretches of `length` frames from each of `starts`
         (frames, all within the recording), as float64 full scale: shape (starts, length)."""
         starts = np.asarray(starts, dtype=np.int64)
-        if self.samples is not None:
-            part = self.samples[starts[:, None] + np.arange(length)[None, :], channel]
-            return part.astype(np.float64) * self.scale if self.scale != 1.0 else part
+        if self.kept and len(self._blocks) == 1:
+            return np.array(self._as_read(
+                self._blocks[0][starts[:, None] + np.arange(length)[None, :], channel]))
         out = np.empty((starts.size, length))
+        if self.kept:
+            for row, start in enumerate(starts.tolist()):
+                out[row] = self._as_read(self._kept_frames(start, start + length)[:, channel])
+            return out
         with _open(self.path) as handle:
             # Stretches less than 50 ms apart are read in one piece (a read costs about as
             # much as decoding that long a stretch).
@@ -371,6 +398,7 @@ class _Recording:
                                     always_2d=True)[:, channel]
                 out[group] = piece[(starts[group] - first)[:, None] + np.arange(length)[None, :]]
         return out
+
 
 # Subtypes stored as integers of the width their name ends with.
 _INTEGER_SUBTYPE = re.compile(r"(?:PCM|ALAC|DWVW|DPCM)_[SU]?(\d+)")
