@@ -285,8 +285,9 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
     0.07 ms.
 
     Speed: the work per sample is a few vectorized passes (high-pass, running sums); the fits
-    run on the selected impacts only, and the probes of predicted impacts read a few tens of
-    ms of the file each.
+    run on the selected impacts only, and the probes of predicted impacts take a few tens of
+    ms of the recording each (from the samples kept in memory, for recordings up to 64 MiB
+    of samples; from the file, for longer ones).
     """
     if block_seconds is not None:
         warnings.warn("detect_impacts: block_seconds is deprecated and has no effect; the "
