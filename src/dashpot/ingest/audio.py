@@ -727,7 +727,7 @@ def _train_table(path, stream, sample_rate, duration):
 
     def probe(moment, tolerance, not_before=None, predicted_sound=False, expected=False,
               any_jump=False, impulse=False):
-        return _probe(path, stream, moment, tolerance, timing, not_before, predicted_sound,
+        return _probe(stream, moment, tolerance, timing, not_before, predicted_sound,
                       expected, any_jump, impulse)
 
     delays = _secondary_delays(rough, chain)

@@ -1192,16 +1192,15 @@ def _hidden_causes(times, amplitudes, delays, levels, sounds, loudness, probe):
     return times, sigmas, amplitudes, clipped
 
 
-def _probe(path, stream, predicted, tolerance, timing, not_before=None,
-           predicted_sound=False, expected=False, any_jump=False, impulse=False):
-    """The onset nearest an impact the bounce trend predicts, looked for in the file itself.
+def _probe(stream, predicted, tolerance, timing, not_before=None, predicted_sound=False,
+           expected=False, any_jump=False, impulse=False):
+    """The onset nearest an impact the bounce trend predicts, looked for in the recording.
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The recording.
     stream : _Stream
-        State of the detection run (filter, noise level and colour of each channel).
+        State of the detection run (the recording, filter, noise level and colour of each
+        channel).
     predicted : float
         Predicted onset (s).
     tolerance : float
