@@ -10,6 +10,9 @@ the times the writer returns. Audio in AIFF, CAF, AU and MP3 is written by libsn
 
 from __future__ import annotations
 
+import re
+import shlex
+
 import numpy as np
 import openpyxl
 import pandas as pd
@@ -147,3 +150,14 @@ def test_media_libsndfile_cannot_read_get_the_conversion_command(tmp_path, suffi
     assert "readable: WAV, FLAC, OGG, MP3," in lines[0]
     with pytest.raises(InputError, match="convert its sound to WAV"):
         read_impacts(path, kind="audio")
+
+
+def test_the_conversion_command_runs_as_given_on_a_name_with_spaces(tmp_path):
+    # Phones name their recordings "New Recording 3.m4a": the command must quote the names.
+    path = tmp_path / "New Recording 3.m4a"
+    path.write_bytes(b"\x00\x00\x00\x20ftypM4A \x00\x00\x00\x00" + bytes(200))
+    status, _, err = run_cli(["impacts", str(path), "-o", str(tmp_path / "impacts.csv")])
+    assert status == 2
+    command = re.search(r"`(ffmpeg [^`]*)`", err).group(1)
+    assert shlex.split(command) == ["ffmpeg", "-i", "New Recording 3.m4a", "-vn", "-c:a",
+                                    "pcm_s16le", "New Recording 3.wav"]

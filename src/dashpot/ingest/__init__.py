@@ -73,6 +73,7 @@ def is_speed_error_column(name):
     return (name in SPEED_OWN_COLUMNS or name == FLIGHT_CORRELATION_COLUMN
             or re.fullmatch(SHARED_SPEED_COLUMN, name) is not None)
 
+import shlex
 from pathlib import Path
 
 from ..errors import InputError, require_file
@@ -150,10 +151,11 @@ def unreadable_media_problem(path):
     path = Path(path)
     kind = "video" if path.suffix.lower() in (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm",
                                               ".3gp", ".wmv") else "audio"
-    target = path.with_suffix(".wav").name
+    # Quoted for the shell: phone recordings are often named with spaces ("New Recording 3").
+    source, target = shlex.quote(path.name), shlex.quote(path.with_suffix(".wav").name)
     return (f"{path.suffix.lower()} {kind} cannot be decoded here (readable: WAV, FLAC, OGG, "
             f"MP3, AIFF, CAF, ...); convert its "
-            f"sound to WAV first, e.g. `ffmpeg -i {path.name} -vn -c:a pcm_s16le {target}`")
+            f"sound to WAV first, e.g. `ffmpeg -i {source} -vn -c:a pcm_s16le {target}`")
 
 
 # The reader each option is for: an option given for another reader would be ignored, and
