@@ -1990,7 +1990,9 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     :func:`_hidden_causes`). Where the whitened power shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
     before), past the start of that burst or ring where the first impulse found there is at
-    a secondary's delay; between two impacts timed (the ball bounced there) the impulse need
+    a secondary's delay and no more than twice as loud as that secondary usually is (a
+    louder impulse there is no ring or echo of the earlier impact: an impact whose onset
+    happens to fall on the delay of a faint ring); between two impacts timed (the ball bounced there) the impulse need
     only jump as much as a weak trigger's (``expected=True``), past the last impact as much
     as a strong one's. An impact
     that is not found stays in the sequence as a predicted anchor, so that the predictions
@@ -2237,11 +2239,12 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             # An impact starting on the loud burst or ring of the one before barely raises the
             # power; in the error of a predictor of that sound it is an impulse (but so is
             # the start of that burst or ring: at a secondary's delay, it is one, and the
-            # impact is looked for past it). Between two impacts the ball bounced: a weak
-            # trigger's jump suffices there.
+            # impact is looked for past it, unless it is louder than that secondary can be:
+            # an impact that falls on the delay of a faint ring of an earlier one). Between
+            # two impacts the ball bounced: a weak trigger's jump suffices there.
             result = probe(predicted, tolerance, predicted_sound=True, expected=bounded)
             bounded = impact = False
-            if result is not None and secondary(result[0], i):
+            if result is not None and secondary(result[0], i, result[2], _SECONDARY_MARGIN):
                 result = on_secondary(predicted, tolerance, result[0], None)
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
