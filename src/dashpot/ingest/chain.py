@@ -635,7 +635,8 @@ def _polish_chain(times, chain, trend):
         ends = np.cumsum(counts)
         for position, count, end in zip(positions.tolist(), counts.tolist(), ends.tolist()):
             if count:
-                choice[position] = int(option[end - count + int(np.argmin(total[end - count:end]))])
+                best = int(np.argmin(total[end - count:end]))
+                choice[position] = int(option[end - count + best])
     for position in range(1, size):
         if chain[position - 1] == original[position - 1] and (
                 position < 2 or chain[position - 2] == original[position - 2]):
@@ -1979,24 +1980,24 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     the last intervals span the recurring delays closely, and the last impacts are about as
     loud as the ones before them; the check the end of the train gets,
     :func:`_drop_trailing_secondaries`); one delay after the last impact timed it stays that
-    impact's ring burst or echo, however loud, unless it sets off the secondaries of an
-    impact itself. An impact's onset before its predicted time, less than 2 ms after a ring,
-    burst or echo of an earlier impact started (from 3 ms on), may be on that sound's own
-    rise: it is probed again past that start, and an onset of its own rising out of it, at
-    least 0.3 ms later and closer to the predicted time, is taken instead; so is, between
-    impacts, a probed onset more than 0.3 ms early there (a swell of that sound), or else,
-    where no onset of its own is closer, an impulse in the error of a predictor of that sound
-    closer to the predicted time (in its first samples a weak trigger's jump, as in
-    :func:`_hidden_causes`). Where the whitened power shows no onset on time, the error of a predictor of the sound is probed too
-    (``predicted_sound=True``: an impact starting on the loud burst or ring of the one
-    before), past the start of that burst or ring where the first impulse found there is at
-    a secondary's delay and no more than twice as loud as that secondary usually is (a
-    louder impulse there is no ring or echo of the earlier impact: an impact whose onset
-    happens to fall on the delay of a faint ring); between two impacts timed (the ball bounced there) the impulse need
-    only jump as much as a weak trigger's (``expected=True``), past the last impact as much
-    as a strong one's. An impact
-    that is not found stays in the sequence as a predicted anchor, so that the predictions
-    after it step over it; past the last impact two in a row end the search.
+    impact's ring burst or echo, however loud, unless it sets off the secondaries of an impact
+    itself. An impact's onset before its predicted time, less than 2 ms after a ring, burst or
+    echo of an earlier impact started (from 3 ms on), may be on that sound's own rise: it is
+    probed again past that start, and an onset of its own rising out of it, at least 0.3 ms
+    later and closer to the predicted time, is taken instead; so is, between impacts, a probed
+    onset more than 0.3 ms early there (a swell of that sound), or else, where no onset of its
+    own is closer, an impulse in the error of a predictor of that sound closer to the predicted
+    time (in its first samples a weak trigger's jump, as in :func:`_hidden_causes`). Where the
+    whitened power shows no onset on time, the error of a predictor of the sound is probed too
+    (``predicted_sound=True``: an impact starting on the loud burst or ring of the one before),
+    past the start of that burst or ring where the first impulse found there is at a
+    secondary's delay and no more than twice as loud as that secondary usually is (a louder
+    impulse there is no ring or echo of the earlier impact: an impact whose onset happens to
+    fall on the delay of a faint ring); between two impacts timed (the ball bounced there) the
+    impulse need only jump as much as a weak trigger's (``expected=True``), past the last
+    impact as much as a strong one's. An impact that is not found stays in the sequence as a
+    predicted anchor, so that the predictions after it step over it; past the last impact two
+    in a row end the search.
 
     Inside the train, a prediction shorter than the merge window (from anchors jammed
     together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
