@@ -36,20 +36,20 @@ RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faste
 MATCH = 1e-3  # s: a detection within this of a true onset is that impact
 # The recall and false-impact targets are not met yet; the figures the expected failures state:
 MEASURED = (
-    "measured on this block: recall 0.9885 (3939 of 3985 impacts timed within 1 ms), 12 false "
+    "measured on this block: recall 0.989 (3941 of 3985 impacts timed within 1 ms), 12 false "
     "impacts (1.5 per 500; 7 of them after the last impact), no train refused, 1σ / 2σ "
-    "coverage 0.691 / 0.955 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9885 / "
-    "0.9885, 17 / 18 false (9 / 8 after the last impact). Fresh blocks: seeds 20471001 and "
-    "20481001 on (600 trains each, at 22.05 kHz) recall 0.9907 / 0.9890 and 84 / 122 false (38"
-    " / 52 after the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9917 / "
-    "0.9896 and 32 / 31 false (21 / 15 after the last impact); seeds 20508001-20508300 at 48 "
-    "kHz recall 0.9894 and 53 false (36 after the last impact); seeds 20509001-20509200 at "
-    "22.05 / 48 kHz recall 0.9876 / 0.9878 and 35 / 39 false (14 / 26 after the last impact)."
+    "coverage 0.691 / 0.955 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9887 / "
+    "0.9890, 17 / 18 false (9 / 8 after the last impact). Fresh blocks: seeds 20471001 and "
+    "20481001 on (600 trains each, at 22.05 kHz) recall 0.9917 / 0.9897 and 85 / 114 false (39"
+    " / 45 after the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9927 / "
+    "0.9896 and 32 / 31 false (22 / 15 after the last impact); seeds 20508001-20508300 at 48 "
+    "kHz recall 0.9895 and 53 false (36 after the last impact); seeds 20509001-20509200 at "
+    "22.05 / 48 kHz recall 0.9893 / 0.9879 and 36 / 39 false (14 / 26 after the last impact)."
     " Every false impact is a ring, ring burst or echo of "
     "an impact, or an impact timed more than 1 ms off (none is a quiet click: see "
     "test_no_quiet_click_is_reported). They and the misses are in the trains with a ring burst "
     "5-8 ms after each impact at least 0.7 as loud as it: impacts starting within 1.5 ms of an "
-    "earlier impact's burst are found at 0.86, the others at 0.993-0.995. There the last "
+    "earlier impact's burst are found at 0.88-0.89, the others at 0.993-0.995. There the last "
     "intervals come down to the burst's delay, so the last impacts start on the burst of the one"
     " before and are timed on it or lost under it (timed 0.3-0.7 ms off, the last impact leaves"
     " its own burst more than the 0.3 ms the end's check allows off the burst's delay after it"
@@ -1310,6 +1310,19 @@ def test_a_choice_that_set_impacts_aside_with_the_secondaries_is_not_taken(tmp_p
     assert score["found"] == onsets.size
     assert score["false"] == 0
 
+
+
+def test_an_impact_just_into_a_burst_is_searched_for_past_the_bursts_start(tmp_path):
+    # A development train at 22.05 kHz (found while measuring seeds 20509001-20509200): a
+    # ring burst 7.9 ms after each impact, 1.08 times as loud. Impacts 41 and 42 start 0.78
+    # and 0.28 ms into the burst of the one before; the search of the predictor's error
+    # from 0.3 ms past the burst's start had its onset picked on that start (the picker
+    # looks back 0.36 ms before its window) and found nothing, and both were missed. The
+    # error is now searched once more from 0.6 ms past the start.
+    score, onsets = detected_score(tmp_path, 20_509_062)
+    assert onsets.size == 48
+    assert score["found"] == onsets.size
+    assert score["false"] == 0
 
 @pytest.mark.parametrize("seed, count", [
     # Seeds 20507001-20507200: a ring burst 7.1 ms after each impact, 0.7 as loud. Between the

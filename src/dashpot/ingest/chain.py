@@ -1993,11 +1993,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     past the start of that burst or ring where the first impulse found there is at a
     secondary's delay and no more than twice as loud as that secondary usually is (a louder
     impulse there is no ring or echo of the earlier impact: an impact whose onset happens to
-    fall on the delay of a faint ring); between two impacts timed (the ball bounced there) the
+    fall on the delay of a faint ring). Between two impacts timed (the ball bounced there) the
     impulse need only jump as much as a weak trigger's (``expected=True``), past the last
-    impact as much as a strong one's. An impact that is not found stays in the sequence as a
-    predicted anchor, so that the predictions after it step over it; past the last impact two
-    in a row end the search.
+    impact as much as a strong one's; where nothing is found past that start between two
+    impacts, the error is searched once more from 0.6 ms past it, for a sound of its own over
+    the power since (the probe's picker may look back onto the start itself). An impact that is
+    not found stays in the sequence as a predicted anchor, so that the predictions after it
+    step over it; past the last impact two in a row end the search.
 
     Inside the train, a prediction shorter than the merge window (from anchors jammed
     together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
@@ -2086,7 +2088,8 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             onset = result[0]
         return None
 
-    def on_secondary(predicted, tolerance, onset, before, expected=False, impulse=False):
+    def on_secondary(predicted, tolerance, onset, before, expected=False, impulse=False,
+                     again=False):
         # An impact starting on a ring's burst (the impact's own modes, excited again) or an
         # echo barely raises the power, but the predictor of the sound continues that
         # sound's modes and the impact is an impulse in its error: looked for there, past
@@ -2097,6 +2100,17 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             return None
         result = probe(0.5 * (lo + hi), 0.5 * (hi - lo), predicted_sound=True,
                        expected=expected, impulse=impulse)
+        later = max(lo, onset + 2 * _PROBE_SECONDARY_SECONDS)
+        if (again and (result is None or result[0] < lo) and later < hi
+                and not beyond()):
+            # The probe's picker looks back up to two AIC margins (0.36 ms at 22.05 kHz)
+            # before its window, onto the secondary's own start where the window opens
+            # 0.3 ms into it. Between impacts (the ball bounced there) the error is searched
+            # once more from 0.6 ms past that start, for a sound of its own over the power
+            # since 0.3 ms past it.
+            result = probe(0.5 * (later + hi), 0.5 * (hi - later),
+                           onset + _PROBE_SECONDARY_SECONDS, predicted_sound=True,
+                           expected=expected, impulse=impulse)
         if result is None or result[0] < lo:
             return None
         return result if accept(result, predicted, tolerance, before) else None
@@ -2246,7 +2260,7 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             result = probe(predicted, tolerance, predicted_sound=True, expected=bounded)
             bounded = impact = False
             if result is not None and secondary(result[0], i, result[2], _SECONDARY_MARGIN):
-                result = on_secondary(predicted, tolerance, result[0], None)
+                result = on_secondary(predicted, tolerance, result[0], None, again=True)
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
