@@ -14,7 +14,7 @@ that impact (where the last intervals come down to the burst's delay: the impact
 burst start together, about as loud) and the others.
 
 The rate matters: most recordings are made at 44.1 or 48 kHz, where the held-out block of
-the test gives recall 0.9887 / 0.9890 and 17 / 18 false impacts against 0.989 and 12 at
+the test gives recall 0.9890 / 0.9892 and 17 / 17 false impacts against 0.990 and 14 at
 22.05 kHz (``--rate 48000`` measures a block there).
 
 Run with ``python benchmarks/bench_audio_blocks.py [--start SEED] [--count N] [--rate HZ]

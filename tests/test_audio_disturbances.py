@@ -36,15 +36,15 @@ RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faste
 MATCH = 1e-3  # s: a detection within this of a true onset is that impact
 # The recall and false-impact targets are not met yet; the figures the expected failures state:
 MEASURED = (
-    "measured on this block: recall 0.989 (3941 of 3985 impacts timed within 1 ms), 12 false "
-    "impacts (1.5 per 500; 7 of them after the last impact), no train refused, 1σ / 2σ "
-    "coverage 0.691 / 0.955 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9887 / "
-    "0.9890, 17 / 18 false (9 / 8 after the last impact). Fresh blocks: seeds 20471001 and "
-    "20481001 on (600 trains each, at 22.05 kHz) recall 0.9917 / 0.9897 and 85 / 114 false (39"
-    " / 45 after the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9927 / "
-    "0.9896 and 32 / 31 false (22 / 15 after the last impact); seeds 20508001-20508300 at 48 "
-    "kHz recall 0.9895 and 53 false (36 after the last impact); seeds 20509001-20509200 at "
-    "22.05 / 48 kHz recall 0.9893 / 0.9879 and 36 / 39 false (14 / 26 after the last impact)."
+    "measured on this block: recall 0.98996 (3945 of 3985 impacts timed within 1 ms), 14 "
+    "false impacts (1.8 per 500; 9 of them after the last impact), no train refused, 1σ / 2σ "
+    "coverage 0.692 / 0.957 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9890 / "
+    "0.9892, 17 / 17 false (11 / 8 after the last impact). Fresh blocks: seeds 20471001 and "
+    "20481001 on (600 trains each, at 22.05 kHz) recall 0.9919 / 0.9897 and 84 / 103 false (39"
+    " / 38 after the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9930 / "
+    "0.9896 and 31 / 31 false (22 / 15 after the last impact); seeds 20508001-20508300 at 48 "
+    "kHz recall 0.9895 and 51 false (34 after the last impact); seeds 20509001-20509200 at "
+    "22.05 / 48 kHz recall 0.9893 / 0.9881 and 35 / 39 false (14 / 26 after the last impact)."
     " Every false impact is a ring, ring burst or echo of "
     "an impact, or an impact timed more than 1 ms off (none is a quiet click: see "
     "test_no_quiet_click_is_reported). They and the misses are in the trains with a ring burst "
@@ -1322,6 +1322,19 @@ def test_an_impact_just_into_a_burst_is_searched_for_past_the_bursts_start(tmp_p
     score, onsets = detected_score(tmp_path, 20_509_062)
     assert onsets.size == 48
     assert score["found"] == onsets.size
+    assert score["false"] == 0
+
+
+def test_an_impact_timed_late_on_a_ring_it_starts_on_is_timed_on_its_impulse(tmp_path):
+    # A development train at 22.05 kHz (found while measuring seeds 20507001-20507200): a
+    # ring 17.7 ms after each impact, 0.39 as loud, and a ring burst 7.9 ms after it, 1.34
+    # times as loud. Two of the last impacts start less than 2 ms after a ring or burst of an
+    # earlier impact began; their onsets were fitted more than 1 ms late, on the trend but
+    # past its time, and two false impacts followed. Their impulses in the error of a
+    # predictor of that sound, closer to the trend's time, time them now.
+    score, onsets = detected_score(tmp_path, 20_507_078)
+    assert onsets.size == 42
+    assert score["found"] >= onsets.size - 1
     assert score["false"] == 0
 
 @pytest.mark.parametrize("seed, count", [

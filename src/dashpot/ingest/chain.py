@@ -1987,7 +1987,10 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     later and closer to the predicted time, is taken instead; so is, between impacts, a probed
     onset more than 0.3 ms early there (a swell of that sound), or else, where no onset of its
     own is closer, an impulse in the error of a predictor of that sound closer to the predicted
-    time (in its first samples a weak trigger's jump, as in :func:`_hidden_causes`). Where the
+    time (in its first samples a weak trigger's jump, as in :func:`_hidden_causes`). An impact
+    timed more than 0.3 ms after its predicted time but within the tolerance, less than 2 ms
+    after such a sound began, may have had its onset's fit pulled late by that sound: such an
+    impulse at least 0.3 ms earlier and closer to the predicted time is taken instead. Where the
     whitened power shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one before),
     past the start of that burst or ring where the first impulse found there is at a
@@ -2189,6 +2192,19 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                 # to the trend's time, rises out of that sound; kept as timed where none does.
                 result = peel(predicted, tolerance, rising_secondary(following, i), before)
                 if (result is not None and result[0] > following + _PROBE_SECONDARY_SECONDS
+                        and abs(result[0] - predicted) < abs(following - predicted)):
+                    retimed[origin[i + 1]] = result
+                    anchors[i + 1] = result[0]
+            elif (origin[i + 1] >= 0
+                    and _PROBE_SECONDARY_SECONDS < following - predicted <= tolerance
+                    and (start := rising_secondary(following, i)) is not None):
+                # Late on the trend, less than 2 ms after a ring, burst or echo of an earlier
+                # impact began: the fit of its onset may have been pulled late by that sound.
+                # Its impulse in the error of a predictor of that sound, closer to the trend's
+                # time, is taken instead (a weak trigger's jump: a sound is there).
+                result = on_secondary(predicted, tolerance, start, before, expected=True,
+                                      impulse=True)
+                if (result is not None and result[0] < following - _PROBE_SECONDARY_SECONDS
                         and abs(result[0] - predicted) < abs(following - predicted)):
                     retimed[origin[i + 1]] = result
                     anchors[i + 1] = result[0]
