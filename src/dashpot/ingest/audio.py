@@ -644,9 +644,8 @@ def _train_table(path, stream, sample_rate, duration):
     # evenly spaced delays, they form a chain of their own as long as the train's tail. Where
     # that one fails too, a third choice measures the delays after its impacts instead (a
     # first chain that took secondaries for impacts measures them wrong, and sets impacts
-    # aside), with the first choice's members selectable, and where louder sounds lie between
-    # the first choice's members a fourth sets aside those that are echoes of louder
-    # transients; each is taken only if it passes. A first choice that passes is chosen
+    # aside), with the first choice's members selectable, and a fourth sets aside the first
+    # choice's members that are echoes of louder transients; each is taken only if it passes. A first choice that passes is chosen
     # again without its members that are echoes of louder transients it left out: a chain
     # that took the first impacts and then their echo (a copy of the train's intervals that
     # outlasts it by the delay) passes the check, and the train passes without the echo.
@@ -694,14 +693,12 @@ def _train_table(path, stream, sample_rate, duration):
             explained[first_chain] = False
             if explained.any():
                 later.append(np.flatnonzero(~explained))
-        # Where louder sounds lie between its members, without the first choice's members
-        # that follow louder transients it left out at a recurring delay: it followed an
-        # echo of the train.
-        if _louder_between(rough, strength / stream.settings.min_power, amplitude, strong,
-                           first_chain):
-            echoing = _echoing_members(rough, amplitude, first_chain)
-            if echoing.any():
-                later.append(np.flatnonzero(~echoing))
+        # Without the first choice's members that follow louder transients at a recurring
+        # delay: it followed an echo or ring of the train (with louder impacts left out
+        # between its members, or stepping from one impact onto its echo).
+        echoing = _echoing_members(rough, amplitude, first_chain)
+        if echoing.any():
+            later.append(np.flatnonzero(~echoing))
     for selectable in later:
         choice = choose(selectable)
         if passes(choice) and (not short or choice[1][0].size > choices[-1][1][0].size):
