@@ -48,32 +48,34 @@ runs them over the file.
    with a trigger measured against the quietest 0.5 ms before it, or against the ring or
    echo since its start (:func:`_fill_impacts`; an impact's onset less than 2 ms after a
    ring's burst or an echo began may be on that sound's rise, and is probed again past its
-   start); an impact whose onset does not rise out of that ring or echo (nor shows in the error of a
-   linear predictor of it, below) is left out (a gap the fit flags as a missed impact), never
-   placed where the trend predicts it: that would be circular evidence for the fit that
-   follows.
+   start); an impact whose onset does not rise out of that ring or echo (nor shows in the
+   error of a linear predictor of it, below) is left out (a gap the fit flags as a missed
+   impact), never placed where the trend predicts it: that would be circular evidence for
+   the fit that follows.
    No sound after the rest time the trend gives its last impacts is one
    (:func:`_rest_time`); the train then ends before its first interval that grows and
    after which the sounds do not come back to shorter intervals, and does not end on a
    sound at the delay of a recurring ring, burst or echo after an earlier impact that is
    no louder than such a secondary, nor on one that sets off none of the secondaries every
    impact before it sets off (:func:`_train_end`). An impact that starts on the loud ring
-   of the one before barely raises the power; it is looked for in the error of a linear predictor of that
-   sound [6]_ (a ring is a sum of damped sinusoids, which the predictor continues; a new
-   impact is an impulse into the same resonances): one recurring burst delay before each
-   burst the chain took (:func:`_hidden_causes`), and wherever the trend predicts an impact
+   of the one before barely raises the power; it is looked for in the error of a linear
+   predictor of that sound [6]_ (a ring is a sum of damped sinusoids, which the predictor
+   continues; a new impact is an impulse into the same resonances): one recurring burst
+   delay before each burst the chain took (:func:`_hidden_causes`), and wherever the trend predicts an impact
    the whitened power does not show. A sound that sets off an impact's secondaries is an
    impact whatever ring or echo falls on it (:func:`_sets_off_secondaries`). A chain refused
    as no bounce train is chosen once more without the transients at a recurring secondary
    delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
    form a chain of their own), a third time with the delays measured after that second
    chain's impacts, a fourth without the first chain's members that are echoes of louder
-   transients between them (:func:`_echoing_members`; each taken only if it passes), and
-   judged again once bursts hiding impacts and missed impacts are resolved. A chain that
-   passes is chosen once more without its members that echo louder transients it left out
-   (it followed an echo of the train), and that choice taken if it passes too and at most
-   one in ten of its members is a secondary of its own impacts. There is no fixed dead
-   time.
+   transients (:func:`_echoing_members`; each taken only if it passes), and judged again
+   once bursts hiding impacts and missed impacts are resolved. A chain that passes is
+   chosen once more without its members that echo louder transients it left out (it
+   followed an echo of the train), and that choice taken if it passes too and at most one
+   in ten of its members is a secondary of its own impacts; where it is not, once more
+   without every transient at that echo's delay after a louder one, the weak transients
+   just after those counting as strong, and taken on the same terms if it holds at least
+   the impacts the first chain held besides its echoes. There is no fixed dead time.
 4. Onset time: the posterior of the onset under a Bayesian change-point model of the rising
    edge, fitted to the high-passed waveform of the channel with the best onset SNR (see
    :func:`_onset_posterior`). It gives sub-sample times and a 1σ uncertainty from the local
@@ -130,9 +132,9 @@ from ..errors import InputError
 from ..plausibility import NOT_A_BOUNCE_TRAIN, bounce_train_problem
 from . import IMPACT_COLUMNS
 from .audio_file import _blocks, _open, _quantization_noise, _Recording, read_audio
-from .chain import (_SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start, _echoed_tail,
-                    _echoing_members, _explained_secondaries, _fill_impacts, _first_pass,
-                    _fixed_delays, _hidden_causes, _loudest_before, _louder_between,
+from .chain import (_MASK_SECONDS, _SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_start,
+                    _echoed_tail, _echoing_members, _explained_secondaries, _fill_impacts,
+                    _first_pass, _fixed_delays, _hidden_causes, _loudest_before, _louder_between,
                     _one_per_impact, _periodic_members, _probe, _rest_time, _robust_trend,
                     _secondary_delays, _secondary_levels, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
@@ -645,12 +647,13 @@ def _train_table(path, stream, sample_rate, duration):
     # that one fails too, a third choice measures the delays after its impacts instead (a
     # first chain that took secondaries for impacts measures them wrong, and sets impacts
     # aside), with the first choice's members selectable, and a fourth sets aside the first
-    # choice's members that are echoes of louder transients; each is taken only if it passes. A first choice that passes is chosen
-    # again without its members that are echoes of louder transients it left out: a chain
-    # that took the first impacts and then their echo (a copy of the train's intervals that
-    # outlasts it by the delay) passes the check, and the train passes without the echo.
-    # Taken only where at most one in ten of its members is itself a ring, burst or echo of
-    # its impacts: without the echo, a chain may take those instead.
+    # choice's members that are echoes of louder transients; each is taken only if it
+    # passes. A first choice that passes is chosen again without its members that are
+    # echoes of louder transients it left out: a chain that took the first impacts and then
+    # their echo (a copy of the train's intervals that outlasts it by the delay) passes the
+    # check, and the train passes without the echo. Taken only where at most one in ten of
+    # its members is itself a ring, burst or echo of its impacts (`accepted`): without the
+    # echo, a chain may take those instead.
     def choose(selectable, weak_too=False):
         return selectable, _choose(path, stream, candidates, rough, strength, amplitude,
                                    strong | weak_too, precise, selectable)
@@ -658,15 +661,33 @@ def _train_table(path, stream, sample_rate, duration):
     def passes(choice):
         return not choice[1][-1]
 
+    def accepted(choice):
+        members = choice[1][0]
+        return passes(choice) and (_explained_secondaries(rough, amplitude, members)[
+            members].sum() <= _SECONDARY_MEMBERS_SHARE * members.size)
+
     choices = [choose(np.arange(len(candidates)))]
     first_chain = choices[0][1][0]
     if passes(choices[0]):
         echoing = _echoing_members(rough, amplitude, first_chain, causes_in_chain=False)
         if echoing.sum() >= max(3, first_chain.size / 4):
             alternative = choose(np.flatnonzero(~echoing))
-            members = alternative[1][0]
-            if passes(alternative) and (_explained_secondaries(rough, amplitude, members)[
-                    members].sum() <= _SECONDARY_MEMBERS_SHARE * members.size):
+            if not accepted(alternative):
+                # The other echoes at that delay are set aside too (an echo of an early
+                # impact the first chain skipped, else taken where the train's impacts are
+                # set aside), and the weak transients within 5 ms after any of them count
+                # as strong: an impact landing on an echo jumps less over it than a strong
+                # trigger. Taken only if it holds at least the impacts the first chain held
+                # besides its echoes.
+                impacts_held = first_chain.size - echoing[first_chain].sum()
+                echoing = _echoing_members(rough, amplitude, first_chain, causes_in_chain=False,
+                                           everywhere=True)
+                lag = rough[:, None] - rough[None, echoing]
+                alternative = choose(np.flatnonzero(~echoing), weak_too=np.any(
+                    (lag > 0) & (lag <= _MASK_SECONDS), axis=1))
+                if alternative[1][0].size < impacts_held:
+                    alternative = None
+            if alternative is not None and accepted(alternative):
                 choices.append(alternative)
     if not passes(choices[0]):
         explained = _explained_secondaries(rough, amplitude, first_chain)

@@ -972,7 +972,7 @@ def _explained_secondaries(times, amplitude, chain):
     return explained
 
 
-def _echoing_members(times, amplitude, chain, causes_in_chain=True):
+def _echoing_members(times, amplitude, chain, causes_in_chain=True, everywhere=False):
     """Which transients of `chain` are the secondaries of louder ones it left out.
 
     A chain can follow an echo of the train instead of the train (an echo copies its
@@ -982,9 +982,10 @@ def _echoing_members(times, amplitude, chain, causes_in_chain=True):
     out recurs (:func:`_recurring_delays`); the members within 0.3 ms of it after a louder
     transient are its secondaries: any louder transient where `causes_in_chain` (the first
     impact's echo follows it in the chain), else only one left out (a later impact may
-    come one echo delay after an earlier one by chance). `times` (s, increasing) and
-    `amplitude` (full scale) are those of all the transients; returns a boolean mask of
-    them.
+    come one echo delay after an earlier one by chance). With `everywhere`, every transient
+    left out of the chain within 0.3 ms of such a delay after a louder one is marked too
+    (the echoes of impacts the chain skipped). `times` (s, increasing) and `amplitude` (full
+    scale) are those of all the transients; returns a boolean mask of them.
     """
     echoing = np.zeros(times.size, dtype=bool)
     others = np.setdiff1d(np.arange(times.size), chain)
@@ -1003,9 +1004,18 @@ def _echoing_members(times, amplitude, chain, causes_in_chain=True):
     louder = amplitude[None, :] >= amplitude[chain][:, None]
     if not causes_in_chain:
         louder[:, chain] = False
-    for delay in _recurring_delays(delays[valid], counts, max(3, chain.size / 4)):
+    recurring = _recurring_delays(delays[valid], counts, max(3, chain.size / 4))
+    for delay in recurring:
         echoing[chain[np.any(louder & (np.abs(after_any - delay) <= _CAUSE_TOLERANCE),
                              axis=1)]] = True
+    if everywhere and echoing.any():
+        left_out = np.ones(times.size, dtype=bool)
+        left_out[chain] = False
+        for delay in recurring:
+            lo, hi = np.searchsorted(times, [times - delay - _CAUSE_TOLERANCE,
+                                             times - delay + _CAUSE_TOLERANCE], side="right")
+            for k in np.flatnonzero(left_out & (hi > lo)):
+                echoing[k] |= amplitude[lo[k]:hi[k]].max() >= amplitude[k]
     return echoing
 
 
