@@ -84,8 +84,8 @@ _OWN_SECONDARY_LEVEL = 0.25  # secondaries this loud (relative) show after every
 _LAST_SECONDARY_SECONDS = 1e-3  # the faint last impact's secondary, starting on the louder
 # ones of the impacts before it, is timed up to 0.8 ms off its delay
 _MIDWAY_LOUDNESS = 10.0  # an impact is not 20 dB fainter than both impacts around it
-_HALVING_RUN = 5  # successive intervals of a chain that hold a stepped-over bounce: it took
-# every other bounce
+_HALVING_RUN = 5  # of six successive intervals of a chain that hold a stepped-over bounce:
+# it took every other bounce
 _HALVING_LOUDNESS = 0.5  # a stepped-over bounce is at least this loud against the fainter of
 # the members around it (impact sounds fade by a few % per bounce)
 _HALVING_SLACK = 0.01  # of the interval (plus the rough onsets' jitter): where the bounce
@@ -495,9 +495,10 @@ def _every_bounce(times, amplitude, chain):
     flights of ratio √ρ each; [5]_). A ring, burst or echo comes at a fixed delay, which
     matches that place on two or three successive intervals of a shrinking train at most, and
     those at a delay that recurs after the members are not counted.
-    Where five successive intervals of the chain hold such a transient, the chain stepped
-    over bounces, and every such transient in its intervals is added (an interval that holds
-    none spans one bounce, or more than two: the search for the impacts the trend predicts
+    Where five of six successive intervals of the chain (or five of five) hold such a
+    transient, the chain stepped over bounces, and every such transient in its intervals is
+    added (an interval that holds none spans one bounce, or more than two, or its bounce was
+    set aside with the echoes it lands on: the search for the impacts the trend predicts
     goes on from there); else the chain is returned as it was. `times` (s, increasing) and
     `amplitude` (full scale) are those of all the transients.
     """
@@ -524,9 +525,10 @@ def _every_bounce(times, amplitude, chain):
     distance = np.where(loud & (distance <= tolerance[:, None]), distance, np.inf)
     nearest = distance.argmin(axis=1)
     found = np.isfinite(distance[np.arange(intervals.size), nearest])
-    # Longest run of successive intervals holding one.
-    run = np.diff(np.flatnonzero(np.diff(np.concatenate(([0], found.astype(int), [0])))))[::2]
-    if run.size == 0 or run.max() < _HALVING_RUN:
+    # Most intervals holding one among any six successive ones (an impact the chain's
+    # choice set aside, one an echo of an earlier impact lands on, leaves one empty).
+    span = min(found.size, _HALVING_RUN + 1)
+    if np.convolve(found, np.ones(span, dtype=int), mode="valid").max() < _HALVING_RUN:
         return chain
     return np.sort(np.concatenate([chain, left_out[nearest[found]]]))
 
