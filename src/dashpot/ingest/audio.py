@@ -61,14 +61,17 @@ runs them over the file.
    of the one before barely raises the power; it is looked for in the error of a linear
    predictor of that sound [6]_ (a ring is a sum of damped sinusoids, which the predictor
    continues; a new impact is an impulse into the same resonances): one recurring burst
-   delay before each burst the chain took (:func:`_hidden_causes`), and wherever the trend predicts an impact
-   the whitened power does not show. A sound that sets off an impact's secondaries is an
-   impact whatever ring or echo falls on it (:func:`_sets_off_secondaries`). A chain refused
-   as no bounce train is chosen once more without the transients at a recurring secondary
-   delay after louder ones (:func:`_explained_secondaries`: evenly spaced bursts and rings
-   form a chain of their own), a third time with the delays measured after that second
+   delay before each burst the chain took (:func:`_hidden_causes`), and wherever the trend
+   predicts an impact the whitened power does not show. A sound that sets off an impact's
+   secondaries is an impact whatever ring or echo falls on it
+   (:func:`_sets_off_secondaries`). A chain refused as no bounce train is chosen once more
+   without the transients at a recurring secondary delay after louder ones
+   (:func:`_explained_secondaries`: evenly spaced bursts and rings form a chain of their
+   own), a third time with the delays measured after that second
    chain's impacts, a fourth without the first chain's members that are echoes of louder
-   transients (:func:`_echoing_members`; each taken only if it passes), and judged again
+   transients (:func:`_echoing_members`; each taken only if it passes), then each again
+   with the weak transients too, and last without the transients at a recurring delay
+   after one they may outsound (a ring's burst louder than its impact), and judged again
    once bursts hiding impacts and missed impacts are resolved. A chain that passes is
    chosen once more without its members that echo louder transients it left out (it
    followed an echo of the train), and that choice taken if it passes too and at most one
@@ -737,6 +740,17 @@ def _train_table(path, stream, sample_rate, duration):
             if passes(choice):
                 choices.append(choice)
                 break
+    if not passes(choices[-1]):
+        # Last, without the transients at a recurring delay after one they may outsound
+        # (a ring's burst louder than its impact, up to twice its usual level), the first
+        # choice's members still selectable: a chain can step from an impact onto such a
+        # burst, or onto an echo and a ring in place of the impact between them.
+        explained = _explained_secondaries(rough, amplitude, first_chain, louder=True)
+        explained[first_chain] = False
+        if explained.any():
+            choice = choose(np.flatnonzero(~explained))
+            if passes(choice):
+                choices.append(choice)
     selectable, (chain, skipped, times, sigmas, amplitudes, clipped_flags, timing,
                  problem) = choices[-1]
     set_aside = len(candidates) - selectable.size

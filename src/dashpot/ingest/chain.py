@@ -954,12 +954,13 @@ def _periodic_members(times, chain):
     return periodic
 
 
-def _explained_secondaries(times, amplitude, chain):
+def _explained_secondaries(times, amplitude, chain, louder=False):
     """Which transients are secondaries of louder ones: within 0.3 ms of a delay at which
     rings, bursts or echoes recur after the impacts of `chain` (:func:`_secondary_delays`)
     after a transient at least as loud, and no louder than twice that secondary's usual
-    level (:func:`_secondary_levels`) times its amplitude. `times` (s, increasing) and
-    `amplitude` (full scale) are those of all the transients."""
+    level (:func:`_secondary_levels`) times its amplitude; with `louder`, a transient louder
+    than its cause is one too (a ring's burst can outsound its impact) within that bound.
+    `times` (s, increasing) and `amplitude` (full scale) are those of all the transients."""
     delays = _secondary_delays(times, chain)
     levels = _secondary_levels(times, amplitude, chain, delays)
     explained = np.zeros(times.size, dtype=bool)
@@ -970,7 +971,8 @@ def _explained_secondaries(times, amplitude, chain):
                                          times - delay + _CAUSE_TOLERANCE])
         for k in np.flatnonzero(hi > lo):
             cause = amplitude[lo[k]:hi[k]].max()
-            explained[k] |= amplitude[k] <= min(cause, _SECONDARY_MARGIN * level * cause)
+            explained[k] |= amplitude[k] <= (_SECONDARY_MARGIN * level * cause if louder
+                                             else min(cause, _SECONDARY_MARGIN * level * cause))
     return explained
 
 
@@ -1977,7 +1979,11 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     A sound off its prediction by more than the tolerance, followed by an impact within the
     tolerance of that prediction, is a sound besides the impacts where it comes at a
     secondary's delay after an earlier impact (that ring's burst or echo) or too close before
-    that impact for both to be bounces (an interval ratio under 0.45): it is left out.
+    that impact for both to be bounces (an interval ratio under 0.45): it is left out. So is,
+    on its prediction or not, a sound too close before the next one for both to be bounces
+    that comes at a secondary's delay after an earlier impact, no louder than twice that
+    secondary usually is, where the next one comes at no such delay after any sound before
+    it (an echo landing just before an impact, where a trend bent by such sounds puts it).
     An impact coming later than its tolerance allows, at a secondary's delay after an earlier
     impact or after the predicted time (a delay more than twice the tolerance, so that the
     prediction tells the two apart), is a ring's burst or an echo standing in for an
@@ -2147,16 +2153,23 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             # an earlier impact, its onset is that of the ring or echo: time it again.
             following = anchors[i + 1]
             before = anchors[i + 2] if i + 2 < len(anchors) else np.inf
-            if (origin[i + 1] >= 0 and i + 2 < len(anchors) and origin[i + 2] >= 0
-                    and abs(following - predicted) > tolerance
-                    and abs(before - predicted) <= tolerance and (
-                        secondary(following, i) or before - following
-                        < _RATIO_BOUNDS[0] * (following - anchors[i]))):
+            too_close = before - following < _RATIO_BOUNDS[0] * (following - anchors[i])
+            if origin[i + 1] >= 0 and i + 2 < len(anchors) and origin[i + 2] >= 0 and (
+                    (abs(following - predicted) > tolerance
+                     and abs(before - predicted) <= tolerance
+                     and (secondary(following, i) or too_close))
+                    or (too_close and abs(before - predicted) <= 1.5 * interval
+                        and secondary(following, i, loudness[i + 1], _SECONDARY_MARGIN)
+                        and not secondary(before, i + 1))):
                 # A sound off the trend with the next impact on time right after it, at a
                 # secondary's delay after an earlier impact (that ring's burst or echo) or too
                 # close before that impact for both to be bounces (their interval ratio under
-                # the bounds of successive bounces): a sound besides the impacts. It is left
-                # out, and the walk goes on.
+                # the bounds of successive bounces): a sound besides the impacts. So is, on
+                # the trend or not, a sound too close before the next one for both to be
+                # bounces that is such a secondary, no louder than twice it usually is, where
+                # the next one is no secondary of any sound before it (an echo landing just
+                # before an impact: the trend, bent by such sounds, may put the impact at the
+                # echo). It is left out, and the walk goes on.
                 retimed[origin[i + 1]] = None
                 del anchors[i + 1], loudness[i + 1], origin[i + 1]
                 continue
