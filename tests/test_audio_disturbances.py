@@ -34,33 +34,34 @@ from dashpot.synth.audio import impact_sound, write_audio
 HELD_OUT_SEEDS = range(640_211, 640_311)  # 100 trains, drawn once; never used in development
 RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faster than 44.1 kHz
 MATCH = 1e-3  # s: a detection within this of a true onset is that impact
-# The recall and false-impact targets are not met yet; the figures the expected failures state:
+# The false-impact targets are not met yet; the figures the expected failures state:
 MEASURED = (
-    "measured on this block: recall 0.9897 (3944 of 3985 impacts timed within 1 ms), 14 "
-    "false impacts (1.8 per 500; 9 of them after the last impact), no train refused, 1σ / 2σ "
-    "coverage 0.692 / 0.957 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9890 "
-    "/ 0.9892, 17 / 17 false (11 / 8 after the last impact). Fresh blocks: seeds 20471001 "
-    "and 20481001 on (600 trains each, at 22.05 kHz) recall 0.9919 / 0.9900 and 84 / 101 "
-    "false (39 / 38 after the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall "
-    "0.9930 / 0.9897 and 31 / 31 false (22 / 15 after the last impact); seeds "
-    "20508001-20508300 at 48 kHz recall 0.9895 and 50 false (34 after the last impact); "
-    "seeds 20509001-20509200 at 22.05 / 48 kHz recall 0.9896 / 0.9903 and 32 / 40 false (14 "
-    "/ 26 after the last impact); seeds 20513001-20513300 at 22.05 / 48 kHz recall 0.9910 / "
-    "0.9899 and 55 / 53 false (34 / 34 after the last impact); seeds 20514001-20514600, "
-    "20515301-20515900 and 20517001-20517600 at 22.05 kHz recall 0.9902 / 0.9934 / 0.9920 "
-    "and 113 / 93 / 78 false (53 / 51 / 42 after the last impact). Every false impact is a "
-    "ring, ring burst or echo of an impact, or an impact timed more than 1 ms off (none is a "
-    "quiet click: see test_no_quiet_click_is_reported). They and the misses are mostly (158 "
-    "of the 182 misses of seeds 20471001 on) in the trains with a ring burst 5-8 ms after "
-    "each impact at least 0.7 as loud as it: impacts starting up to 1.5 ms into an earlier "
-    "impact's burst are found at 0.87-0.90, the others at 0.993-0.994. There the last "
-    "intervals come down to the burst's delay, so the last impacts start on the burst of the "
-    "one before and are timed on it or lost under it (timed 0.3-0.7 ms off, the last impact "
-    "leaves its own burst more than the 0.3 ms the end's check allows off the burst's delay "
-    "after it), and a burst, ring or echo of the last impacts (or an echo of an early, "
-    "louder impact) that starts on the decaying sound of the impacts before it measures "
-    "louder than such a secondary usually is and passes for one more bounce. The history of "
-    "these figures is in the changelog")
+    "measured on this block: recall 0.9905 (3947 of 3985 impacts timed within 1 ms: the "
+    "target met, test_recall_at_least_99_percent), 14 false impacts (1.8 per 500; 9 of them "
+    "after the last impact), no train refused, 1σ / 2σ coverage 0.692 / 0.957 (checked "
+    "below). The same trains at 44.1 / 48 kHz: recall 0.9890 / 0.9895, 17 / 17 false (11 / 8 "
+    "after the last impact). Fresh blocks: seeds 20471001 and 20481001 on (600 trains each, "
+    "at 22.05 kHz) recall 0.9918 / 0.9901 and 84 / 101 false (39 / 38 after the last "
+    "impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9931 / 0.9897 and 31 / 31 "
+    "false (22 / 15 after the last impact); seeds 20508001-20508300 at 48 kHz recall 0.9901 "
+    "and 50 false (34 after the last impact); seeds 20509001-20509200 at 22.05 / 48 kHz "
+    "recall 0.9898 / 0.9903 and 32 / 40 false (14 / 26 after the last impact); seeds "
+    "20513001-20513300 at 22.05 / 48 kHz recall 0.9912 / 0.9899 and 56 / 53 false (34 / 34 "
+    "after the last impact); seeds 20514001-20514600, 20515301-20515900 and "
+    "20517001-20517600 at 22.05 kHz recall 0.9907 / 0.9935 / 0.9923 and 112 / 93 / 80 false "
+    "(52 / 51 / 44 after the last impact). Every false impact is a ring, ring burst or echo "
+    "of an impact, or an impact timed more than 1 ms off (none is a quiet click: see "
+    "test_no_quiet_click_is_reported). They and the misses are mostly (160 of the 184 misses "
+    "of seeds 20471001 on) in the trains with a ring burst 5-8 ms after each impact at least "
+    "0.7 as loud as it: impacts starting up to 1.5 ms into an earlier impact's burst are "
+    "found at 0.87-0.90, the others at 0.993-0.994. There the last intervals come down to "
+    "the burst's delay, so the last impacts start on the burst of the one before and are "
+    "timed on it or lost under it (timed 0.3-0.7 ms off, the last impact leaves its own "
+    "burst more than the 0.3 ms the end's check allows off the burst's delay after it), and "
+    "a burst, ring or echo of the last impacts (or an echo of an early, louder impact) that "
+    "starts on the decaying sound of the impacts before it measures louder than such a "
+    "secondary usually is and passes for one more bounce. The history of these figures is in "
+    "the changelog")
 
 
 def disturbed_train(seed, rate=RATE):
@@ -140,7 +141,6 @@ def _binomial_band(p, n):
     return 3.0 * np.sqrt(p * (1 - p) / n)
 
 
-@pytest.mark.xfail(strict=True, reason=MEASURED)
 def test_recall_at_least_99_percent(held_out):
     assert held_out["refused"] == 0
     assert held_out["recall"] >= 0.99
@@ -1157,6 +1157,12 @@ WHOLE_TRAINS = [
     # impacts, so they were never set aside as secondaries; set aside up to twice their
     # usual level, the chain is the train.
     pytest.param(20_517_532, 16, id="refused-louder-bursts-20517001"),
+    # A ring burst 5-8 ms after each impact, about as loud (1.08 times). The last four
+    # impacts, on the decaying sound of the ones before, jumped in the error of a predictor
+    # of that sound only as much as a weak trigger's, where past the last impact a strong
+    # one's was asked: the search for them ended (19 of 23 timed). A weak jump now does
+    # where the sound sets off the secondaries of an impact itself.
+    pytest.param(20_517_477, 23, id="weak-last-impacts-20517001"),
 ]
 
 

@@ -2016,11 +2016,13 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     impulse there is no ring or echo of the earlier impact: an impact whose onset happens to
     fall on the delay of a faint ring). Between two impacts timed (the ball bounced there) the
     impulse need only jump as much as a weak trigger's (``expected=True``), past the last
-    impact as much as a strong one's; where nothing is found past that start between two
-    impacts, the error is searched once more from 0.6 ms past it, for a sound of its own over
-    the power since (the probe's picker may look back onto the start itself). An impact that is
-    not found stays in the sequence as a predicted anchor, so that the predictions after it
-    step over it; past the last impact two in a row end the search.
+    impact as much as a strong one's, or a weak one's where the sound comes at no
+    secondary's delay and sets off the secondaries of an impact itself; where nothing is
+    found past that start between two impacts, the error is searched once more from 0.6 ms
+    past it, for a sound of its own over the power since (the probe's picker may look back
+    onto the start itself). An impact that is not found stays in the sequence as a predicted
+    anchor, so that the predictions after it step over it; past the last impact two in a
+    row end the search.
 
     Inside the train, a prediction shorter than the merge window (from anchors jammed
     together: a rattle among the impacts, an impact timed twice) is stepped past, not taken
@@ -2302,6 +2304,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
             bounded = impact = False
             if result is not None and secondary(result[0], i, result[2], _SECONDARY_MARGIN):
                 result = on_secondary(predicted, tolerance, result[0], None, again=True)
+            if result is None and beyond():
+                # Past the last impact a weak trigger's jump will do where the sound, at no
+                # secondary's delay, sets off the secondaries of an impact itself (the last
+                # bounces barely rise over the decaying sound of the ones before).
+                weak = probe(predicted, tolerance, predicted_sound=True, expected=True)
+                if (weak is not None and not secondary(weak[0], i)
+                        and accept(weak, predicted, tolerance) and own(weak)):
+                    result = weak
         if accept(result, predicted, tolerance, bounded=bounded, impact=impact):
             added.append(result)
             anchors.insert(i + 1, result[0])
