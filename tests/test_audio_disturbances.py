@@ -14,11 +14,12 @@ binomial standard deviations).
 """
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from audio_trains import hybrid_train, onset_near, score_train, timed_at_a_secondary
 from dashpot.errors import InputError
-from dashpot.ingest import audio
+from dashpot.ingest import audio, chain
 from dashpot.ingest.audio import detect_impacts
 from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _drop_trailing_secondaries, _drop_unexcited_end,
@@ -1172,6 +1173,34 @@ def test_every_impact_of_a_train_once_lost_or_refused_is_timed(tmp_path, seed, i
     assert onsets.size == impacts
     assert score["found"] == onsets.size
     assert score["false"] == 0
+
+
+def test_a_probe_asked_again_at_the_same_moment_reuses_its_stretch(tmp_path, monkeypatch):
+    # The search past the last impact probes a moment again with a weaker threshold: the
+    # stretch, its filtering and its predictor are kept from the first probe, and the table
+    # is the same to the last bit as with each probe computed afresh.
+    samples, _, _ = disturbed_train(20_517_477)
+    path = write_audio(tmp_path / "train.wav", samples, RATE, subtype="FLOAT")
+    computed = []
+    prepare = chain._probed_stretch
+
+    def counted(*args):
+        computed.append(args[1])
+        return prepare(*args)
+
+    monkeypatch.setattr(chain, "_probed_stretch", counted)
+    kept = detect_impacts(path)
+    reused = len(computed)
+    probe = audio._probe
+
+    def afresh(stream, *args, **kwargs):
+        stream.probe_memo = None
+        return probe(stream, *args, **kwargs)
+
+    monkeypatch.setattr(audio, "_probe", afresh)
+    computed.clear()
+    pd.testing.assert_frame_equal(detect_impacts(path), kept, check_exact=True)
+    assert reused < len(computed)
 
 
 def test_the_level_of_a_recurring_secondary_is_its_loudness_against_its_impact():

@@ -1268,28 +1268,15 @@ def _probe(stream, predicted, tolerance, timing, not_before=None, predicted_soun
     """
     settings, sample_rate = stream.settings, stream.settings.sample_rate
     centre, reach = int(round(predicted * sample_rate)), int(np.ceil(tolerance * sample_rate))
-    lead = settings.history + settings.background + int(_PROBE_WARMUP_SECONDS * sample_rate)
-    offset, raw = stream.recording.stretch(centre - reach - lead,
-                                           centre + reach + settings.lookahead + 1)
-    if offset + raw.shape[0] < centre + reach + settings.lookahead or offset > centre - reach \
-            - settings.history - settings.background:
+    # A probe asked again at the same moment (with another threshold) reuses the stretch,
+    # its filtering and its predictor.
+    key = (predicted, tolerance, predicted_sound)
+    if stream.probe_memo is None or stream.probe_memo[0] != key:
+        stream.probe_memo = (key, _probed_stretch(stream, predicted, centre, reach,
+                                                  predicted_sound))
+    if stream.probe_memo[1] is None:
         return None  # too close to either end of the recording
-    filtered = stream.highpass_from_rest(raw)
-    noise, rho = stream.noise_at(predicted)  # as the detection had it there
-    share = stream.share_at(predicted)  # each channel's share of the statistic, too
-    detector = np.zeros_like(filtered)
-    detector[1:] = filtered[1:] - rho * filtered[:-1]
-    power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, noise**2, share)
-    loudness = np.concatenate(([0.0], np.cumsum(power)))
-    taps = None
-    order = _predictor_order(sample_rate)
-    if predicted_sound and centre - reach - offset > 4 * order:
-        # Jumps are looked for in the error of a predictor of the sound before the window:
-        # an impact starting inside a loud ring is an impulse there; its loudness is still
-        # the whitened signal's.
-        taps = _sound_predictor(filtered, centre - reach - offset, order)
-        detector, floor = _prediction_error(filtered, taps, noise, rho)
-        power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, floor, share)
+    offset, raw, filtered, detector, power, loudness, taps = stream.probe_memo[1]
     cumulative = np.concatenate(([0.0], np.cumsum(power)))
     earliest = centre - reach
     if not_before is not None:
@@ -1362,6 +1349,39 @@ def _probe(stream, predicted, tolerance, timing, not_before=None, predicted_soun
                                             * (1 - _CLIP_TOLERANCE)).sum() >= _CLIP_RUN)
     return ((offset + start + float(onset[0])) / sample_rate,
             float(sigma[0]) / sample_rate, amplitude, clipped)
+
+
+def _probed_stretch(stream, predicted, centre, reach, predicted_sound):
+    """The stretch of the recording :func:`_probe` searches around `predicted` (s; sample
+    `centre`, `reach` samples either side): its first sample, raw and high-passed samples,
+    the detector's whitened signal (or, with `predicted_sound`, the error of a predictor of
+    the sound before the window) and its weighted power, the whitened power's running sum
+    from 0, and the predictor's taps (None without); None where the stretch runs past
+    either end of the recording."""
+    settings, sample_rate = stream.settings, stream.settings.sample_rate
+    lead = settings.history + settings.background + int(_PROBE_WARMUP_SECONDS * sample_rate)
+    offset, raw = stream.recording.stretch(centre - reach - lead,
+                                           centre + reach + settings.lookahead + 1)
+    if offset + raw.shape[0] < centre + reach + settings.lookahead or offset > centre - reach \
+            - settings.history - settings.background:
+        return None
+    filtered = stream.highpass_from_rest(raw)
+    noise, rho = stream.noise_at(predicted)  # as the detection had it there
+    share = stream.share_at(predicted)  # each channel's share of the statistic, too
+    detector = np.zeros_like(filtered)
+    detector[1:] = filtered[1:] - rho * filtered[:-1]
+    power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, noise**2, share)
+    loudness = np.concatenate(([0.0], np.cumsum(power)))
+    taps = None
+    order = _predictor_order(sample_rate)
+    if predicted_sound and centre - reach - offset > 4 * order:
+        # Jumps are looked for in the error of a predictor of the sound before the window:
+        # an impact starting inside a loud ring is an impulse there; its loudness is still
+        # the whitened signal's.
+        taps = _sound_predictor(filtered, centre - reach - offset, order)
+        detector, floor = _prediction_error(filtered, taps, noise, rho)
+        power = (detector * detector) @ _channel_weights(noise, stream.noise_floor, floor, share)
+    return offset, raw, filtered, detector, power, loudness, taps
 
 
 def _one_per_impact(times, sigmas):

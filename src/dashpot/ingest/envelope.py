@@ -213,6 +213,9 @@ class _Stream:
     # The recording's samples for the later steps that read stretches of it again
     # (:class:`.audio_file._Recording`).
     recording: object = None
+    # (moment, tolerance, predicted_sound) of the last stretch probed and what it holds
+    # (:func:`.chain._probed_stretch`), for a probe asked again there.
+    probe_memo: tuple | None = None
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
