@@ -48,6 +48,8 @@ _LEADING_LOUDNESS = 10.0  # the first impact is within 20 dB of the loudest
 _EXTENSION_SLACK = 0.2e-3  # s, added to the tolerance of a predicted impact time
 _TAIL_IMPACTS = 20  # the last impacts of the chain are chosen again among weak transients too
 _EXTENSION_LOUDNESS = 2.0  # a predicted impact is at most 6 dB fainter than the last ones
+_IMPULSE_POWER_SHARE = 0.25  # a last bounce's impulse, in power, against the ones before it
+_FAINT_IMPULSE_SHARE = 0.1  # ... or this (10 dB), where it jumps as much as a weak trigger's
 _PROBE_WARMUP_SECONDS = 0.05  # high-pass settling before a probed stretch of the file
 _PROBE_RING_JUMP = 1.5  # a probed impact's power rises this much (1.8 dB) over a ring or echo
 # it starts inside: an impact about as loud as the sound it lands on adds as much again (3 dB),
@@ -1727,35 +1729,39 @@ def _drop_unexcited_end(times, probe, probed=None, at_most=2):
     """Number of impacts to keep: the train does not end on a sound that excites nothing.
 
     An impact excites the ball's modes anew: in the error of a linear predictor of the sound
-    before it [6]_ [7]_ it is an impulse (``probe(moment, tolerance, predicted_sound=True,
-    expected=True)``, a weak trigger's jump within 0.5 ms of its onset). Past the last bounce
-    the decaying sound of the last impacts, their rings and echoes still beat (modes drifting
-    in and out of phase): a swell of that beating jumps over the quietest stretch before it
-    like an onset, and is probed as one where the trend puts a next bounce, but the predictor
-    continues it. In a faint train the impulses of all impacts barely clear the error's
-    floor: there the last sound's is compared with those of the three impacts before it
-    (the error's power over its first 0.5 ms, ``probe(..., any_jump=True)``), which the last
-    bounces, of about one impact speed, match to within 6 dB (a quarter in power,
-    :data:`_EXTENSION_LOUDNESS`). The last sound is dropped while it shows an impulse by
-    neither test; at most `at_most` go, and none that cannot be tested. Only sounds found by
-    probing the file are tested (`probed`, bool per sound; default all): a transient the
-    stream triggered on rose over the mean power before it, which a swell of a beat, rising
-    over a trough of it, does not.
+    before it [6]_ [7]_ it is an impulse. Past the last bounce the decaying sound of the last
+    impacts, their rings and echoes still beat (modes drifting in and out of phase): a swell
+    of that beating jumps over the quietest stretch before it like an onset, and is probed as
+    one where the trend puts a next bounce, but the predictor continues it. The last sound's
+    impulse (the error's power over its first 0.5 ms, ``probe(moment, tolerance,
+    predicted_sound=True, any_jump=True)``) is compared with those of the three impacts
+    before it, which the last bounces, of about one impact speed, match to within 6 dB (a
+    quarter in power, :data:`_IMPULSE_POWER_SHARE`: their speeds, and so their impulses, fall
+    by a few % per bounce, the timbre of each impact varying more).
+    A weaker one is still an impact where it jumps as much as a weak trigger's (``probe(...,
+    expected=True)``, within 0.5 ms of its onset) and is at least a tenth of theirs (10 dB,
+    :data:`_FAINT_IMPULSE_SHARE`): in a faint train every impulse barely clears the error's
+    floor, but after loud impacts a swell clears it too. The last sound is dropped while it
+    passes neither test; at most `at_most` go, and none that cannot be tested. Only sounds
+    found by probing the file are tested (`probed`, bool per sound; default all): a
+    transient the stream triggered on rose over the mean power before it, which a swell of a
+    beat, rising over a trough of it, does not.
     """
     keep = times.size
     while keep > max(5, times.size - at_most):
         if probed is not None and not probed[keep - 1]:
             break
-        if probe(times[keep - 1], _CAUSE_SEARCH_SECONDS, predicted_sound=True,
-                 expected=True) is not None:
-            break
-        # In a faint train every impact's impulse barely clears the error's floor: the last
-        # sound's impulse is then compared with those of the impacts before it, which the
-        # last bounces, of about one speed, match to within 6 dB (in power, a quarter).
+        # The last bounces, of about one speed, match the impulses of the impacts before
+        # them to within 6 dB (in power, a quarter); a weaker one needs a weak trigger's jump.
         power = [probe(moment, _CAUSE_SEARCH_SECONDS, predicted_sound=True, any_jump=True)
                  for moment in times[keep - 4:keep]]
-        if any(result is None for result in power) or (  # untestable (the file's ends)
-                power[-1][2] * _EXTENSION_LOUDNESS**2 >= median(r[2] for r in power[:-1])):
+        if any(result is None for result in power):  # untestable (the file's ends)
+            break
+        share = power[-1][2] / median(r[2] for r in power[:-1])
+        if share >= _IMPULSE_POWER_SHARE or (
+                share >= _FAINT_IMPULSE_SHARE
+                and probe(times[keep - 1], _CAUSE_SEARCH_SECONDS, predicted_sound=True,
+                          expected=True) is not None):
             break
         keep -= 1
     return keep
