@@ -1176,6 +1176,12 @@ OVERRUN_TRAINS = [
     # bounce. Its impulse is 0.07 of those of the impacts before it.
     pytest.param(20_518_485, 37, id="weak-swell-20518001"),
     pytest.param(20_518_511, 26, id="weak-swell-no-burst-20518001"),
+    # An echo 170 / 106.5 ms after each impact, 0.4 / 0.46 as loud (no burst). Where the
+    # next bounce would come, an echo of an impact 15 / 10 bounces earlier had begun 1 ms
+    # before: the probe's window opened on its rise and found its swell, which passed for
+    # one more bounce (no onset of its own rises out of the echo there).
+    pytest.param(20_518_225, 36, id="echo-swell-20518001"),
+    pytest.param(20_518_441, 26, id="echo-swell-2-20518001"),
 ]
 
 

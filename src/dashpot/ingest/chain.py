@@ -2031,9 +2031,14 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
     later and closer to the predicted time, is taken instead; so is, between impacts, a probed
     onset more than 0.3 ms early there (a swell of that sound), or else, where no onset of its
     own is closer, an impulse in the error of a predictor of that sound closer to the predicted
-    time (in its first samples a weak trigger's jump, as in :func:`_hidden_causes`). An impact
-    timed more than 0.3 ms after its predicted time but within the tolerance, less than 2 ms
-    after such a sound began, may have had its onset's fit pulled late by that sound: such an
+    time (in its first samples a weak trigger's jump, as in :func:`_hidden_causes`). Past the
+    last impact, a probed onset 0.3-2 ms after such a sound began, which may be as loud as
+    it (up to twice its usual level), is that sound's swell (the probe's window opened on
+    its rise) unless it sets off the secondaries of an impact itself: the impact, if there,
+    is an onset of its own rising out of that sound or an impulse in the error of a
+    predictor of it, whichever is closer to the predicted time. An impact timed more than
+    0.3 ms after its predicted time but within the tolerance, less than 2 ms after such a
+    sound began, may have had its onset's fit pulled late by that sound: such an
     impulse at least 0.3 ms earlier and closer to the predicted time is taken instead. Where the
     whitened power shows no onset on time, the error of a predictor of the sound is probed too
     (``predicted_sound=True``: an impact starting on the loud burst or ring of the one before),
@@ -2077,16 +2082,21 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                                    * usual[None, :])
         return bool(close.any())
 
-    def rising_secondary(moment, before):
+    def rising_secondary(moment, before, amplitude=None):
         # Start (s) of the latest ring, burst or echo of an earlier impact (from 3 ms on)
-        # that began less than 2 ms before `moment`, or None.
+        # that began less than 2 ms before `moment` (and, given the sound's `amplitude`, may
+        # be as loud: up to twice what it usually is), or None.
         if delays.size == 0:
             return None
-        starts = (np.asarray(anchors[:before + 1])[:, None]
-                  + delays[delays >= _CAUSE_DELAY_SECONDS[0]][None, :]).ravel()
-        starts = starts[(starts < moment - _PROBE_SECONDARY_SECONDS)
-                        & (starts > moment - _SECONDARY_RISE_SECONDS)]
-        return float(starts.max()) if starts.size else None
+        usable = delays >= _CAUSE_DELAY_SECONDS[0]
+        starts = np.asarray(anchors[:before + 1])[:, None] + delays[usable][None, :]
+        possible = (starts < moment - _PROBE_SECONDARY_SECONDS) & (
+            starts > moment - _SECONDARY_RISE_SECONDS)
+        if amplitude is not None:
+            possible &= amplitude <= (_SECONDARY_MARGIN * np.asarray(loudness[:before + 1])[
+                :, None] * usual[usable][None, :])
+        return float(starts[possible].max()) if possible.any() else None
+
     def beyond():
         # Past the last impact: the sums of the last intervals, a few ms each, span the
         # recurring delays closely, so a true last impact often falls within 0.3 ms of a
@@ -2308,6 +2318,19 @@ def _fill_impacts(times, amplitudes, coefficients, scatter, delays, probe, end, 
                                          impulse=True)
             if closer(own_onset):
                 result = own_onset
+        elif (result is not None and beyond()
+                and (start := rising_secondary(result[0], i, result[2])) is not None
+                and not own(result)):
+            # Past the last impact, an onset less than 2 ms after a ring, burst or echo of an
+            # earlier impact began, which may be as loud as it, is a swell of that sound (the
+            # probe's window opened on its rise), unless it sets off the secondaries of an
+            # impact itself. The impact, if there, is an onset of its own rising out of that
+            # sound, or an impulse in the error of a predictor of it: of the two, the one
+            # closer to the predicted time.
+            found = [onset for onset in (peel(predicted, tolerance, start),
+                                         on_secondary(predicted, tolerance, start, None))
+                     if onset is not None]
+            result = min(found, key=lambda onset: abs(onset[0] - predicted), default=None)
         bounded = i + 1 < len(anchors) and origin[i + 1] >= 0
         impact = False
         if result is not None and secondary(result[0], i) and not (
