@@ -28,42 +28,34 @@ from dashpot.ingest.chain import (_back_to_louder_causes, _drop_faint_between,
                                   _fill_impacts, _hidden_causes, _sets_off_secondaries,
                                   _move_to_causes, _rest_time, _robust_trend,
                                   _secondary_delays, _secondary_levels, _shift_to_causes,
-                                  _train_end, _trend, _trend_step, _trim_growing_end)
+                                  _train_end, _trend, _trend_step, _trim_growing_end,
+                                  _without_members_secondaries)
 from dashpot.plausibility import ratio_trend
 from dashpot.synth.audio import impact_sound, write_audio
 
 HELD_OUT_SEEDS = range(640_211, 640_311)  # 100 trains, drawn once; never used in development
 RATE = 22050  # Hz: the modes (2-4.9 kHz) stay below 0.45 × the rate; 4× faster than 44.1 kHz
 MATCH = 1e-3  # s: a detection within this of a true onset is that impact
-# The false-impact targets are not met yet; the figures the expected failures state:
+# The target of nothing after the last impact is not met yet; the figures its expected
+# failure states:
 MEASURED = (
-    "measured on this block: recall 0.9902 (3946 of 3985 impacts timed within 1 ms: the "
-    "target met, test_recall_at_least_99_percent), 8 false impacts (1.004 per 500: one per "
-    "500 allows 7; 3 of them after the last impact), no train refused, 1σ / 2σ coverage 0.692 / "
-    "0.957 (checked below). The same trains at 44.1 / 48 kHz: recall 0.9890 / 0.9897, 13 / "
-    "14 false (7 / 5 after the last impact). Fresh blocks: seeds 20471001 and 20481001 on "
-    "(600 trains each, at 22.05 kHz) recall 0.9923 / 0.9903 and 63 / 96 false (21 / 29 after "
-    "the last impact); seeds 20507001-20507200 at 22.05 / 48 kHz recall 0.9927 / 0.9901 and "
-    "24 / 27 false (16 / 11 after the last impact); seeds 20508001-20508300 at 48 kHz recall "
-    "0.9894 and 30 false (15 after the last impact); seeds 20509001-20509200 at 22.05 / 48 "
-    "kHz recall 0.9892 / 0.9900 and 24 / 32 false (6 / 20 after the last impact); seeds "
-    "20513001-20513300 at 22.05 / 48 kHz recall 0.9917 / 0.9901 and 43 / 39 false (21 / 20 "
-    "after the last impact); seeds 20514001-20514600, 20515301-20515900, 20517001-20517600 "
-    "and 20518001-20518600 at 22.05 kHz recall 0.9902 / 0.9935 / 0.9921 / 0.9927 and 102 / "
-    "78 / 64 / 63 false (43 / 37 / 31 / 28 after the last impact). Every false impact is a "
-    "ring, ring burst or echo of an impact, or an impact timed more than 1 ms off (none is a "
-    "quiet click: see test_no_quiet_click_is_reported). They and the misses are mostly (160 "
-    "of the 184 misses of seeds 20471001 on, at an earlier count) in the trains with a ring "
-    "burst 5-8 ms after each impact at least 0.7 as loud as it: impacts starting up to 1.5 ms "
-    "into an earlier impact's burst are found at 0.87-0.90, the others at 0.993-0.994. There "
-    "the last intervals come down to the burst's delay, so the last impacts start on the "
-    "burst of the one before and are timed on it or lost under it (timed 0.3-0.7 ms off, the "
-    "last impact leaves its own burst more than the 0.3 ms the end's check allows off the "
-    "burst's delay after it), and a burst, ring or echo of the last impacts (or an echo of an "
-    "early, louder impact) that "
-    "starts on the decaying sound of the impacts before it measures louder than such a "
-    "secondary usually is and passes for one more bounce. The history of these figures is in "
-    "the changelog")
+    "measured on this block: recall 0.9902 (3946 of 3985 impacts timed within 1 ms), 6 false "
+    "impacts (one per 500 allows 7: test_at_most_one_false_impact_per_500), 3 of them after "
+    "the last impact, no train refused, 1σ / 2σ coverage 0.692 / 0.957. The same trains at "
+    "44.1 / 48 kHz: recall 0.9892 / 0.9900, 12 / 9 false (7 / 4 after the last impact). "
+    "This block is easier than most: on the development blocks (seeds 20471001 on, 200-600 "
+    "trains each, at 22.05 and 48 kHz; figures per block in the changelog) recall was "
+    "0.989-0.994 and false impacts 10-17 per 100 trains (1.3-2.1 per 500 impacts), a "
+    "quarter to two thirds of them after the last impact. Every false impact is a "
+    "ring, ring burst or echo of an impact, or an impact timed more than 1 ms off (none is "
+    "a quiet click: see test_no_quiet_click_is_reported); most are in the trains with a "
+    "ring burst 5-8 ms after each impact at least 0.7 as loud as it. There the last "
+    "intervals come down to the burst's delay, so the last impacts start on the burst of "
+    "the one before and are timed on it or lost under it (timed 0.3-0.7 ms off, the last "
+    "impact leaves its own burst more than the 0.3 ms the end's check allows off the "
+    "burst's delay after it), and a burst, ring or echo of the last impacts (or an echo of "
+    "an early, louder impact) that starts on the decaying sound of the impacts before it "
+    "measures louder than such a secondary usually is and passes for one more bounce")
 
 
 def disturbed_train(seed, rate=RATE):
@@ -148,7 +140,6 @@ def test_recall_at_least_99_percent(held_out):
     assert held_out["recall"] >= 0.99
 
 
-@pytest.mark.xfail(strict=True, reason=MEASURED)
 def test_at_most_one_false_impact_per_500(held_out):
     assert held_out["false"] <= held_out["total"] / 500
 
@@ -183,6 +174,30 @@ def test_a_member_far_fainter_than_both_neighbours_is_not_an_impact():
     # A train fading smoothly, however far, keeps every member.
     fading = 0.5 * 0.8 ** np.arange(20)
     np.testing.assert_array_equal(_drop_faint_between(fading, np.arange(20)), np.arange(20))
+
+
+def test_echoes_splitting_the_first_intervals_leave_the_chain():
+    # Impacts 12 % shorter apart each bounce (the 8th interval exactly 60 ms), each echoed
+    # 60 ms later at 0.3 of its loudness; the chain took the echoes of the first two
+    # impacts, each splitting the interval after its impact in two.
+    intervals = 0.060 / 0.88**7 * 0.88 ** np.arange(19)
+    impacts = np.concatenate([[0.0], np.cumsum(intervals)])
+    loudness = 0.5 * 0.97 ** np.arange(impacts.size)
+    echoes = np.delete(impacts + 0.060, 7)  # the 7th impact's lands on the 8th
+    times = np.concatenate([impacts, echoes])
+    amplitude = np.concatenate([loudness, 0.3 * np.delete(loudness, 7)])
+    order = np.argsort(times)
+    times, amplitude = times[order], amplitude[order]
+    at = np.searchsorted(times, impacts)
+    chain = np.sort(np.concatenate([at, np.searchsorted(times, impacts[:2] + 0.060)]))
+    # Both go; every impact stays, the one 60 ms after the impact before it too.
+    np.testing.assert_array_equal(_without_members_secondaries(times, amplitude, chain), at)
+    # An echo as loud as the impacts around it is no echo: the chain is left as it was.
+    amplitude[chain[1]] = loudness[0]
+    kept = _without_members_secondaries(times, amplitude, chain)
+    assert chain[1] in kept and chain[3] not in kept
+    # The train alone is left as it is.
+    np.testing.assert_array_equal(_without_members_secondaries(times, amplitude, at), at)
 
 
 def test_a_chain_of_ring_bursts_moves_back_onto_the_impacts():
@@ -1165,6 +1180,22 @@ WHOLE_TRAINS = [
     # one's was asked: the search for them ended (19 of 23 timed). A weak jump now does
     # where the sound sets off the secondaries of an impact itself.
     pytest.param(20_517_477, 23, id="weak-last-impacts-20517001"),
+    # An echo 51.3 ms after each impact, 0.37 as loud (a ring at 24 ms, a burst at 6.6 ms).
+    # The first chain took the echoes of the first three impacts, each splitting the long
+    # interval after its impact in two (ratios near 1 where the train's are 0.87), and
+    # passed the bounce-train check; the search for the impacts the trend predicts then left
+    # out two impacts and took a ring and a burst in their place (20 of 22 timed, 6 false
+    # impacts). A member at a recurring delay after an earlier one, fainter than both
+    # members around it, whose ratio is an outlier of the chain's trend and without which
+    # the chain follows its trend better, is that member's echo or ring.
+    pytest.param(20_519_152, 22, id="echoes-splitting-intervals-20519001"),
+    # An echo 197 ms after each impact, 0.2 as loud: the echo of the impact at 0.346 s,
+    # midway between those at 0.476 and 0.590 s, was taken (and a burst at the end; 27 of
+    # 27 timed, 2 false impacts).
+    pytest.param(20_519_215, 27, id="echo-splitting-an-interval-20519001"),
+    # A ring 13 ms after each impact, 0.3 as loud (a burst at 5.2 ms, 1.26 as loud, an
+    # echo at 153 ms): a ring in the chain at 1.528 s (25 of 30 timed, 4 false impacts).
+    pytest.param(20_517_197, 30, id="ring-splitting-an-interval-20517001"),
 ]
 
 

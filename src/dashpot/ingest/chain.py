@@ -92,6 +92,9 @@ _HALVING_LOUDNESS = 0.5  # a stepped-over bounce is at least this loud against t
 # the members around it (impact sounds fade by a few % per bounce)
 _HALVING_SLACK = 0.01  # of the interval (plus the rough onsets' jitter): where the bounce
 # stepped over lies, to a scatter of the ratios of a few %
+_SPLITTING_LOUDNESS = 0.7  # a secondary splitting an interval is this much fainter than
+# the impacts either side (3 dB), at least
+_OUTLIER_SCATTERS = 3.0  # a ratio this many scatters off the trend is an outlier
 _COST_TIE = log(1.5)  # chain costs closer than one ratio one scatter off the trend are a tie
 
 
@@ -264,7 +267,78 @@ def _select_bounces(times, power_ratio, amplitude, strong, precise=None):
     chain = _shift_to_causes(times, _polish_chain(times, chain, trend))
     chain = _move_to_causes(times, amplitude, chain)
     chain = _back_to_louder_causes(times, amplitude, chain)
+    chain = _without_members_secondaries(times, amplitude, chain)
     return _drop_faint_between(amplitude, chain), skipped
+
+
+def _without_members_secondaries(times, amplitude, chain):
+    """Chain without members that are the rings or echoes of members before them.
+
+    An echo (or a ring) of an impact can land anywhere inside a long interval after it, and
+    a chain through it splits that interval in two: with few such members the trend of the
+    ratios stays put and the chain passes, and each missing impact later found by the trend
+    sits beside its secondary, a false impact. Such a member comes at a delay at which
+    secondaries recur after the impacts (:func:`_secondary_delays`, 10 ms or more: not a
+    ring's burst, which alternates with the impacts on the last intervals, where which one
+    is the outlier is the selection's to judge) after an earlier member (to 0.3 ms), no
+    louder than twice that secondary's usual level times that member
+    (:func:`_secondary_levels`), and fainter than both members around it (by 3 dB: an
+    impact's sound fades by a few % a bounce); its own interval ratio is more than three
+    scatters off the chain's robust trend (:func:`_robust_trend`), as a true impact there
+    is not; and the chain's Cauchy cost about its trend (:func:`_chain_cost`) falls without
+    it by more than a tie. Removed one at a time, the largest fall first. The chain's first
+    and last members stay (a ratio fewer costs less whatever the member is).
+
+    Parameters
+    ----------
+    times, amplitude : ndarray
+        Rough onsets (s, increasing) and amplitudes (full scale) of all the transients.
+    chain : ndarray of int
+        Indices of the chain's members, in time order.
+
+    Returns
+    -------
+    ndarray of int
+        The chain, in time order.
+    """
+    chain = np.asarray(chain)
+    if chain.size < 8:
+        return chain
+    delays = _secondary_delays(times, chain)
+    levels = _secondary_levels(times, amplitude, chain, delays)
+    usable = np.isfinite(levels) & (delays >= 2 * _MASK_SECONDS)
+    if not usable.any():
+        return chain
+    delays, levels = delays[usable], levels[usable]
+    lag = times[chain][:, None, None] - times[chain][None, :, None] - delays[None, None, :]
+    bound = _SECONDARY_MARGIN * levels[None, None, :] * amplitude[chain][None, :, None]
+    suspect = np.any((np.abs(lag) <= _CAUSE_TOLERANCE)
+                     & (amplitude[chain][:, None, None] <= bound), axis=(1, 2))
+    suspect[[0, -1]] = False
+    loudness = amplitude[chain]
+    suspect[1:-1] &= loudness[1:-1] < _SPLITTING_LOUDNESS * np.minimum(loudness[:-2],
+                                                                        loudness[2:])
+    coefficients, scatter = _robust_trend(times[chain])
+    moments = times[chain]
+    outlier = np.zeros(chain.size, dtype=bool)
+    outlier[1:-1] = _ratio_cost(moments[:-2], moments[1:-1], moments[2:], coefficients,
+                                scatter) > np.log1p(0.5 * _OUTLIER_SCATTERS**2)
+    candidates = set(np.flatnonzero(suspect & outlier).tolist())
+    kept = np.ones(chain.size, dtype=bool)
+    cost = _chain_cost(moments)
+    while candidates:
+        trials = {}
+        for position in candidates:
+            kept[position] = False
+            trials[position] = _chain_cost(moments[kept])
+            kept[position] = True
+        position = min(trials, key=trials.get)
+        if not trials[position] < cost - _COST_TIE:
+            break
+        kept[position] = False
+        candidates.discard(position)
+        cost = trials[position]
+    return chain[kept]
 
 
 def _back_to_louder_causes(times, amplitude, chain):
