@@ -14,6 +14,7 @@ import pytest
 from scipy import stats
 
 from dashpot.fit import fit_model, prepare_data
+from dashpot.fit.newton import positive_definite
 from dashpot.fit.noise_fit import fit_noise_model, fit_noise_models
 from dashpot.likelihood import TrainModel
 from dashpot.physics.flight import gravity_flight
@@ -249,3 +250,20 @@ def test_pingpong_recording_constant_restitution(pingpong, scene):
     z = innovations(result)
     assert 0.7 <= result.redchi <= 1.5
     assert stats.kstest(z, "norm").pvalue > 0.01
+
+
+def test_a_hessian_with_a_parameter_the_objective_does_not_feel_is_not_definite():
+    # A Hessian of a noise fit (drag trains) with a zero row: its least eigenvalue is of
+    # rounding size, positive on some platforms, and inverting it failed there.
+    felt = np.array([[335.69, 0.0, 119.02, -0.61], [0.0, 0.0, 0.0, 0.0],
+                     [119.02, 0.0, 297.85, 0.0], [-0.61, 0.0, 0.0, 7.32]])
+    for rounding in (-1e-14, 0.0, 2e-14):
+        nudged = felt.copy()
+        nudged[1, 1] = rounding
+        assert not positive_definite(nudged)
+    rng = np.random.default_rng(20261127)
+    factor = rng.normal(size=(5, 4, 4))
+    spd = factor @ np.swapaxes(factor, -1, -2) + 1e-3 * np.eye(4)
+    np.testing.assert_array_equal(positive_definite(spd), np.ones(5, dtype=bool))
+    indefinite = spd - 2.0 * np.linalg.eigvalsh(spd)[:, :1, None] * np.eye(4)
+    np.testing.assert_array_equal(positive_definite(indefinite), np.zeros(5, dtype=bool))

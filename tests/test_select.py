@@ -108,3 +108,13 @@ def test_an_effect_a_kept_fit_carries_is_required_even_where_its_own_step_failed
                                                        "Ib": -140.0}))
     assert "noise model: constant selected" in verdict
     assert "not required (ΔBIC < 6): contact duration (Ia: ΔBIC = -13.0" in verdict
+
+
+@pytest.mark.parametrize("rounding", [-1e-9, 1e-9])
+def test_models_equal_but_for_rounding_are_named_in_the_tables_order(rounding):
+    # Ia and IIa fit alike to the last digits, which the platform's arithmetic decides: the
+    # verdict must not change with it. Ib is 1 worse, hybrid far worse.
+    chisqr = np.array([30.0, 31.0, 30.0 + rounding, 31.5, 60.0])
+    _, verdict = selection_table(_results(chisqr))
+    assert verdict == ("the data do not distinguish Ia, IIa, Ib, IIb (ΔAIC < 2); Ia fits "
+                       "marginally best")

@@ -182,7 +182,9 @@ def _verdict(results, table, chosen, base_ok, c_hat):
         rows = table[(table["effect"] == effect) & np.isfinite(table["bic_gain"])]
         if rows.empty:
             continue
-        best = rows.loc[rows["bic_gain"].idxmax()]
+        # Gains equal at the precision shown go to the first in the table's order: which of
+        # them is larger by rounding noise depends on the platform's arithmetic.
+        best = rows.loc[rows["bic_gain"].round(1).idxmax()]
         text = f"{best['model']}: ΔBIC = {best['bic_gain']:.1f} against {best['simpler']}"
         # Required where some kept fit carries the effect: it adds it, or a simpler rung of
         # its own did (Ib has the contact duration of Ia even where Ia alone was not kept).

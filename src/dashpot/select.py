@@ -49,7 +49,10 @@ def _verdict(rows, c_hat):
     usable = np.flatnonzero(rows["success"])
     if usable.size == 0:
         return "no model could be fitted to these data"
-    usable = usable[np.argsort(rows["aic"][usable], kind="stable")]
+    # Best first; AICs equal to 0.1 in the table's order (models as close as Ia and IIa
+    # would swap places with the platform's rounding).
+    gap = np.round(rows["aic"][usable] - rows["aic"][usable].min(), 1)
+    usable = usable[np.argsort(gap, kind="stable")]
     if c_hat == 1.0:
         return _preference(rows, usable)
     return (f"not selectable: none describes the data within their uncertainties (best "

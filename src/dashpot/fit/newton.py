@@ -73,6 +73,16 @@ def _derivatives(values, count, pairs):
     return centre, gradient, hessian
 
 
+def positive_definite(matrices):
+    """Whether each of the symmetric `matrices` (..., n, n) is positive definite to working
+    precision: its least eigenvalue exceeds n × machine epsilon × its largest (a matrix with
+    a zero row, a parameter the objective does not feel, has a least eigenvalue of rounding
+    size and either sign, depending on the platform's linear algebra)."""
+    eigenvalues = np.linalg.eigvalsh(matrices)
+    count = eigenvalues.shape[-1]
+    return eigenvalues[..., 0] > count * np.finfo(float).eps * np.abs(eigenvalues[..., -1])
+
+
 def _batched_solve(matrices, vectors):
     """x with matrices @ x = vectors for a stack of systems (..., n, n) and (..., n).
 
@@ -192,7 +202,7 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
             factor = np.where(usable[..., None] & (diagonal > 0),
                               np.sqrt(2.0 / np.where(diagonal > 0, diagonal, 1.0)), 1.0)
             safe = np.where(usable[..., None, None], hessian, np.eye(count))
-            definite = usable & np.all(np.linalg.eigvalsh(safe) > 0, axis=-1)
+            definite = usable & positive_definite(safe)
             marginal = np.diagonal(np.linalg.inv(np.where(definite[..., None, None], safe,
                                                           np.eye(count))), axis1=-2, axis2=-1)
             factor = np.where(definite[..., None], np.sqrt(2.0 * np.abs(marginal)), factor)
@@ -230,7 +240,7 @@ def _newton(objective, start, free, units, trains, lower, upper, iterations, ref
     # A Hessian that is not finite and positive definite gives no covariance (inf).
     usable = np.all(np.isfinite(values), axis=-1)
     hessian = np.where(usable[..., None, None], hessian, np.eye(count))
-    definite = usable & np.all(np.linalg.eigvalsh(hessian) > 0, axis=-1)
+    definite = usable & positive_definite(hessian)
     inverse = np.linalg.inv(np.where(definite[..., None, None], hessian, np.eye(count)))
     covariance = 2.0 * inverse * units[..., :, None] * units[..., None, :]
     covariance = np.where(definite[..., None, None], covariance, np.inf)

@@ -144,7 +144,7 @@ import numpy as np
 
 from ..physics.laws import LAWS
 from ..scene import Scene
-from .newton import _newton, _pick
+from .newton import _newton, _pick, positive_definite
 from .noise_likelihood import NoiseProblem
 from .noise_results import NoiseFitResult, failed_noise_fit
 from .noise_settings import (
@@ -831,7 +831,7 @@ class _Problem(NoiseProblem):
                           else 1.0 for f in free])
         while keep:
             block = hessian[np.ix_(keep, keep)]
-            if np.all(np.isfinite(block)) and np.all(np.linalg.eigvalsh(block) > 0):
+            if np.all(np.isfinite(block)) and positive_definite(block):
                 break
             curvature = np.nan_to_num(np.diag(block) * scale[keep] ** 2, nan=-np.inf)
             dropped.append(free[keep.pop(int(np.argmin(curvature)))])
