@@ -310,16 +310,15 @@ def _without_members_secondaries(times, amplitude, chain):
     if not usable.any():
         return chain
     delays, levels = delays[usable], levels[usable]
-    lag = times[chain][:, None, None] - times[chain][None, :, None] - delays[None, None, :]
-    bound = _SECONDARY_MARGIN * levels[None, None, :] * amplitude[chain][None, :, None]
-    suspect = np.any((np.abs(lag) <= _CAUSE_TOLERANCE)
-                     & (amplitude[chain][:, None, None] <= bound), axis=(1, 2))
+    moments, loudness = times[chain], amplitude[chain]
+    lag = moments[:, None, None] - moments[None, :, None] - delays[None, None, :]
+    bound = _SECONDARY_MARGIN * levels[None, None, :] * loudness[None, :, None]
+    suspect = np.any((np.abs(lag) <= _CAUSE_TOLERANCE) & (loudness[:, None, None] <= bound),
+                     axis=(1, 2))
     suspect[[0, -1]] = False
-    loudness = amplitude[chain]
     suspect[1:-1] &= loudness[1:-1] < _SPLITTING_LOUDNESS * np.minimum(loudness[:-2],
                                                                         loudness[2:])
-    coefficients, scatter = _robust_trend(times[chain])
-    moments = times[chain]
+    coefficients, scatter = _robust_trend(moments)
     outlier = np.zeros(chain.size, dtype=bool)
     outlier[1:-1] = _ratio_cost(moments[:-2], moments[1:-1], moments[2:], coefficients,
                                 scatter) > np.log1p(0.5 * _OUTLIER_SCATTERS**2)
