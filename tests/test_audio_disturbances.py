@@ -192,7 +192,8 @@ def test_echoes_splitting_the_first_intervals_leave_the_chain():
     chain = np.sort(np.concatenate([at, np.searchsorted(times, impacts[:2] + 0.060)]))
     # Both go; every impact stays, the one 60 ms after the impact before it too.
     np.testing.assert_array_equal(_without_members_secondaries(times, amplitude, chain), at)
-    # An echo as loud as the impacts around it is no echo: the chain is left as it was.
+    # An echo as loud as the impacts around it cannot be told from one and stays; the other
+    # still goes.
     amplitude[chain[1]] = loudness[0]
     kept = _without_members_secondaries(times, amplitude, chain)
     assert chain[1] in kept and chain[3] not in kept
@@ -1190,8 +1191,8 @@ WHOLE_TRAINS = [
     # the chain follows its trend better, is that member's echo or ring.
     pytest.param(20_519_152, 22, id="echoes-splitting-intervals-20519001"),
     # An echo 197 ms after each impact, 0.2 as loud: the echo of the impact at 0.346 s,
-    # midway between those at 0.476 and 0.590 s, was taken (and a burst at the end; 27 of
-    # 27 timed, 2 false impacts).
+    # midway between those at 0.476 and 0.590 s, was taken, and later the burst of the
+    # impact at 0.928 s (27 of 27 timed, 2 false impacts).
     pytest.param(20_519_215, 27, id="echo-splitting-an-interval-20519001"),
     # A ring 13 ms after each impact, 0.3 as loud (a burst at 5.2 ms, 1.26 as loud, an
     # echo at 153 ms): a ring in the chain at 1.528 s (25 of 30 timed, 4 false impacts).
