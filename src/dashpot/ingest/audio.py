@@ -139,7 +139,7 @@ from .chain import (_MASK_SECONDS, _SECONDARY_MARGIN, _SECONDARY_SECONDS, _drop_
                     _echoed_tail, _echoing_members, _explained_secondaries, _fill_impacts,
                     _first_pass, _fixed_delays, _hidden_causes, _loudest_before, _louder_between,
                     _one_per_impact, _periodic_members, _probe, _rest_time, _robust_trend,
-                    _secondary_delays, _secondary_levels, _select_bounces, _train_end)
+                    _recurring_secondaries, _select_bounces, _train_end)
 from .chain import _best_chain  # noqa: F401 - where the plausibility tests import it from
 from .envelope import (_AIC_MARGIN, _HIGHPASS_ORDER, _MERGE_SECONDS, _NOISE_FLOOR,
                        _STA_SECONDS, MIN_SAMPLE_RATE, _heard, _process, _Settings, _Stream)
@@ -762,8 +762,7 @@ def _train_table(path, stream, sample_rate, duration):
         return _probe(stream, moment, tolerance, timing, not_before, predicted_sound,
                       expected, any_jump, impulse)
 
-    delays = _secondary_delays(rough, chain)
-    levels = _secondary_levels(rough, amplitude, chain, delays)
+    delays, levels = _recurring_secondaries(rough, amplitude, chain)
     uncovered = 0
     if chain.size >= 4:
         # Members that are the ring bursts of impacts hidden under the burst before them

@@ -287,25 +287,13 @@ def _without_members_secondaries(times, amplitude, chain):
     scatters off the chain's robust trend (:func:`_robust_trend`), as a true impact there
     is not; and the chain's Cauchy cost about its trend (:func:`_chain_cost`) falls without
     it by more than a tie. Removed one at a time, the largest fall first. The chain's first
-    and last members stay (a ratio fewer costs less whatever the member is).
-
-    Parameters
-    ----------
-    times, amplitude : ndarray
-        Rough onsets (s, increasing) and amplitudes (full scale) of all the transients.
-    chain : ndarray of int
-        Indices of the chain's members, in time order.
-
-    Returns
-    -------
-    ndarray of int
-        The chain, in time order.
+    and last members stay (a ratio fewer costs less whatever the member is). Parameters and
+    return as in :func:`_back_to_louder_causes`.
     """
     chain = np.asarray(chain)
     if chain.size < 8:
         return chain
-    delays = _secondary_delays(times, chain)
-    levels = _secondary_levels(times, amplitude, chain, delays)
+    delays, levels = _recurring_secondaries(times, amplitude, chain)
     usable = np.isfinite(levels) & (delays >= 2 * _MASK_SECONDS)
     if not usable.any():
         return chain
@@ -371,8 +359,7 @@ def _back_to_louder_causes(times, amplitude, chain):
     chain = np.asarray(chain)
     if chain.size < 6:
         return chain
-    delays = _secondary_delays(times, chain)
-    levels = _secondary_levels(times, amplitude, chain, delays)
+    delays, levels = _recurring_secondaries(times, amplitude, chain)
     # From 3 ms on: closer sounds are the impact's own first arrival, not a later secondary.
     usable = np.isfinite(levels) & (delays >= _CAUSE_DELAY_SECONDS[0])
     if not usable.any():
@@ -1036,8 +1023,7 @@ def _explained_secondaries(times, amplitude, chain, louder=False):
     level (:func:`_secondary_levels`) times its amplitude; with `louder`, a transient louder
     than its cause is one too (a ring's burst can outsound its impact) within that bound.
     `times` (s, increasing) and `amplitude` (full scale) are those of all the transients."""
-    delays = _secondary_delays(times, chain)
-    levels = _secondary_levels(times, amplitude, chain, delays)
+    delays, levels = _recurring_secondaries(times, amplitude, chain)
     explained = np.zeros(times.size, dtype=bool)
     for delay, level in zip(delays, levels):
         if not np.isfinite(level):
@@ -1653,6 +1639,14 @@ def _drop_faint_end(times, amplitudes, bounces=10, at_most=2):
             break
         keep -= 1
     return keep
+
+
+def _recurring_secondaries(times, amplitude, chain):
+    """Delays (s) at which rings, bursts or echoes recur after the impacts of `chain`
+    (:func:`_secondary_delays`), and their usual levels relative to the impact
+    (:func:`_secondary_levels`; NaN where none is found)."""
+    delays = _secondary_delays(times, chain)
+    return delays, _secondary_levels(times, amplitude, chain, delays)
 
 
 def _secondary_levels(times, amplitude, chain, delays):
