@@ -516,11 +516,14 @@ def test_hand_written_pasco_file_in_cm(tmp_path):
 
 # ------------------------------------------------------------------------------ photogate
 
-@pytest.mark.parametrize("mode", ["events", "sampled"])
-def test_photogate_with_gate_distance(tmp_path, stiff, mode):
+@pytest.mark.parametrize("mode, initial_row", [("events", True), ("events", False),
+                                               ("sampled", True)])
+def test_photogate_with_gate_distance(tmp_path, stiff, mode, initial_row):
+    # An event log with or without a first row of the state before the first change: the
+    # first passage is an impact's either way.
     path = tmp_path / "g.csv"
     truth = write_photogate(path, stiff, flag_length=0.02, gate_distance=0.01, mode=mode,
-                            sample_rate=2000.0)
+                            initial_row=initial_row, sample_rate=2000.0)
     frame = read_photogate(path, flag_length=0.02, gate_distance=0.01)
     check_schema(frame, "photogate")
     n = len(frame)
@@ -538,9 +541,11 @@ def test_photogate_with_gate_distance(tmp_path, stiff, mode):
     assert sniff_table(path) == "photogate"
 
 
-def test_photogate_without_gate_distance(tmp_path, stiff):
+@pytest.mark.parametrize("initial_row", [True, False])
+def test_photogate_without_gate_distance(tmp_path, stiff, initial_row):
     path = tmp_path / "g.csv"
-    truth = write_photogate(path, stiff, flag_length=0.02, gate_distance=0.01)
+    truth = write_photogate(path, stiff, flag_length=0.02, gate_distance=0.01,
+                            initial_row=initial_row)
     frame = read_photogate(path, flag_length=0.02)
     passages = pd.DataFrame(truth["passages"])
     toward = passages[passages["kind"] == "toward"]["mean_speed"].to_numpy()

@@ -51,6 +51,9 @@ def _photogate_run(path, table, run, state_index, flag_length, gate_distance, no
     event_log = change.size == state.size - 1 and state.size > 1
     resolution = np.nan_to_num(run.columns["time_resolution"], nan=0.0)
     if event_log:
+        # Its first row is a change too: a log that starts at the first blocking (no row of
+        # the state before it) starts with the first passage.
+        change = np.arange(state.size)
         change_time = time[change]
         change_sd = resolution[change] / np.sqrt(12.0)
     else:

@@ -715,7 +715,8 @@ def _gate_blocks(cart, near, far):
 
 
 def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="vernier",
-                    mode="events", sample_rate=1000.0, resolution=1e-6, rest_tail=1.0,
+                    mode="events", initial_row=True, sample_rate=1000.0, resolution=1e-6,
+                    rest_tail=1.0,
                     lead=0.5, g_eff=None, delimiter=",", decimal=".", seed=0, overwrite=False):
     """Write a photogate state log of a cart's flag passing a gate just before the bumper.
 
@@ -735,6 +736,9 @@ def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="
     mode : {"events", "sampled"}, default "events"
         "events": one row per change of state (plus the initial state at t = 0), as Vernier
         logs a photogate; "sampled": the state every 1/`sample_rate` s.
+    initial_row : bool, default True
+        Mode "events": begin with a row of the initial (unblocked) state at t = 0; without
+        it the log's first row is the first blocking (a log of the changes only).
     sample_rate : float, default 1000
         Hz, for mode "sampled".
     resolution : float, default 1e-6
@@ -777,6 +781,8 @@ def write_photogate(path, sequence, *, flag_length, gate_distance=0.02, vendor="
         edges = np.round(np.ravel(np.column_stack([on, off])), decimals)
         time = np.concatenate([[0.0], edges])
         state = np.concatenate([[0], np.tile([1, 0], on.size)])
+        if not initial_row:
+            time, state = time[1:], state[1:]
     else:
         time = np.arange(0.0, end, 1.0 / float(sample_rate))
         state = (np.searchsorted(np.ravel(np.column_stack([on, off])), time, side="right")
