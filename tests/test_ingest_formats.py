@@ -161,3 +161,84 @@ def test_the_conversion_command_runs_as_given_on_a_name_with_spaces(tmp_path):
     command = re.search(r"`(ffmpeg [^`]*)`", err).group(1)
     assert shlex.split(command) == ["ffmpeg", "-i", "New Recording 3.m4a", "-vn", "-c:a",
                                     "pcm_s16le", "New Recording 3.wav"]
+
+
+# MPEG-1 layer III bit rates (kbit/s) by the 4-bit index of a frame header (ISO/IEC 11172-3,
+# 2.4.2.3); a frame is 144 · bit rate / sample rate bytes, plus one of padding.
+_LAYER3_KBITS = (0, 32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320)
+
+
+def _drop_train(rate, seed):
+    times = 0.3 + np.cumsum(0.4 * 0.9 ** np.arange(12)) - 0.4
+    samples, onsets = impact_sound(times, 0.9 ** np.arange(12), sample_rate=rate, snr_db=45.0,
+                                   seed=seed)
+    return samples, onsets
+
+
+def test_an_mp3_without_the_frame_that_counts_its_frames_is_read_whole(tmp_path):
+    """A constant-bit-rate MP3 as a plain recorder writes it, with no Xing/Info frame first:
+    libsndfile estimates its length from the file's size, and a complete file that falls
+    short of the estimate is no cut file. One that states its length and is cut is."""
+    rate = 44100
+    samples, onsets = _drop_train(rate, seed=20520901)
+    tagged = tmp_path / "tagged.mp3"
+    sf.write(str(tagged), samples, rate, format="MP3", subtype="MPEG_LAYER_III",
+             bitrate_mode="CONSTANT", compression_level=0.3)  # 224 kbit/s
+    data = tagged.read_bytes()
+    assert data[:3] != b"ID3" and data[0] == 0xFF  # the first frame starts the file
+    length = 144 * 1000 * _LAYER3_KBITS[data[2] >> 4] // rate + (data[2] >> 1 & 1)
+    assert b"Info" in data[:length] or b"Xing" in data[:length]
+    plain = tmp_path / "recorder.mp3"
+    plain.write_bytes(data[length:])
+    with sf.SoundFile(str(plain)) as handle:  # the estimate overshoots what decodes
+        decoded = iter(lambda: handle.read(4096, dtype="float32").shape[0], 0)
+        assert handle.frames > sum(decoded)
+    table = read_impacts(plain)
+    assert len(table) == onsets.size
+    # Without the frame that states the encoder's delay, the decoder cannot remove it: every
+    # time is late by that delay (LAME's 1105 samples, 25 ms), the intervals are kept.
+    delay = table["time"].to_numpy() - onsets
+    assert 0.0 <= np.median(delay) < 0.05
+    np.testing.assert_allclose(delay, np.median(delay), atol=1e-3, rtol=0)
+
+    cut = tmp_path / "cut.mp3"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    with pytest.raises(InputError, match=r"cut\.mp3: truncated file: the header announces"):
+        read_impacts(cut)
+
+
+@pytest.mark.parametrize("name", ["take 1.bwf", "take1", "take1.dat"])
+def test_audio_is_known_by_its_first_bytes_whatever_its_name(tmp_path, name):
+    # A Broadcast WAV (.bwf), a recording saved without a suffix or under an odd one.
+    rate = 48000
+    samples, onsets = _drop_train(rate, seed=20520902)
+    path = tmp_path / name
+    sf.write(str(path), samples, rate, format="WAV", subtype="PCM_24")
+    table = read_impacts(path)
+    assert len(table) == onsets.size
+    np.testing.assert_allclose(table["time"], onsets, atol=0.2e-3, rtol=0)
+
+
+@pytest.mark.parametrize(("name", "head", "container", "converted"), [
+    ("bounce.wav", b"\x00\x00\x00\x20ftypM4A \x00\x00\x00\x00", "MP4 / M4A", "bounce-converted.wav"),
+    ("bounce", b"\x00\x00\x00\x20ftypisom\x00\x00\x02\x00", "MP4 / M4A", "bounce.wav"),
+    ("bounce.weba", b"\x1a\x45\xdf\xa3\x9f\x42\x86\x81\x01\x42\xf7\x81", "Matroska / WebM",
+     "bounce.wav"),
+    ("bounce.mka", b"\x1a\x45\xdf\xa3\x9f\x42\x86\x81\x01\x42\xf7\x81", "Matroska / WebM",
+     "bounce.wav"),
+    ("bounce.txt", b"#!AMR\n" + bytes(10), "AMR", "bounce.wav")])
+def test_media_known_by_their_first_bytes_get_the_conversion_command(tmp_path, name, head,
+                                                                     container, converted):
+    # The conversion never writes onto the file it reads (a .m4a saved as .wav).
+    path = tmp_path / name
+    path.write_bytes(head + bytes(200))
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(path), "-o", str(output)])
+    assert status == 2 and not output.exists()
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert f"{path}: {container} file cannot be decoded here" in lines[0]
+    command = re.search(r"`(ffmpeg [^`]*)`", lines[0]).group(1)
+    assert shlex.split(command) == ["ffmpeg", "-i", name, "-vn", "-c:a", "pcm_s16le", converted]
+    with pytest.raises(InputError, match="convert its sound to WAV"):
+        read_impacts(path, kind="audio")

@@ -88,6 +88,46 @@ UNREADABLE_MEDIA = (".m4a", ".mp4", ".m4v", ".aac", ".mov", ".avi", ".mkv", ".we
 containers): refused with the conversion command to a WAV file."""
 KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
 
+# The first bytes of the containers libsndfile decodes, whatever a file is named (a Broadcast
+# WAV saved as .bwf, a recording without a suffix): (offset, bytes) pairs that must all match.
+_AUDIO_SIGNATURES = (((0, b"RIFF"), (8, b"WAVE")), ((0, b"RIFX"), (8, b"WAVE")),
+                     ((0, b"RF64"),), ((0, b"BW64"),), ((0, b"riff"),), ((0, b"FORM"), (8, b"AIF")),
+                     ((0, b"fLaC"),), ((0, b"OggS"),), ((0, b"caff"),), ((0, b".snd"),),
+                     ((0, b"ID3"),))
+# ... and of those it does not: MP4 / M4A / 3GP / MOV ('ftyp' box), Matroska / WebM (EBML),
+# AMR, ASF (WMA / WMV).
+_UNREADABLE_SIGNATURES = {"MP4 / M4A": ((4, b"ftyp"),), "Matroska / WebM": ((0, b"\x1aE\xdf\xa3"),),
+                          "AMR": ((0, b"#!AMR"),),
+                          "ASF (WMA / WMV)": ((0, b"\x30\x26\xb2\x75\x8e\x66\xcf\x11"),)}
+
+
+def sniff_media(path):
+    """What the first bytes of `path` say it holds: "audio" (a container libsndfile decodes),
+    the name of a container it does not decode (:data:`UNREADABLE_MEDIA`), or None (no
+    sound file: a table, or unknown).
+
+    Container signatures: WAV/RIFF, RF64/BW64, Sony Wave64, AIFF/AIFC (``FORM``), FLAC,
+    Ogg, CAF, Sun AU, MP3 (an ID3 tag or an MPEG audio frame of layer II or III); ISO base
+    media (``ftyp``), EBML, AMR and ASF headers for those it does not.
+    """
+    with open(path, "rb") as handle:
+        head = handle.read(16)
+
+    def matches(signature):
+        return all(head[offset:offset + len(magic)] == magic for offset, magic in signature)
+
+    for container, signature in _UNREADABLE_SIGNATURES.items():
+        if matches(signature):
+            return container
+    # An MPEG audio frame starts with 11 set sync bits, then the version and the layer: layer
+    # III or II (bits 01, 10). Layer I (11) is left out: its FF FE-FF FF start is a UTF-16
+    # byte order mark, with which a spreadsheet's "Unicode text" table begins.
+    mpeg_frame = (len(head) >= 2 and head[0] == 0xFF and head[1] & 0xE0 == 0xE0
+                  and head[1] & 0x06 in (0x02, 0x04))
+    if mpeg_frame or any(matches(signature) for signature in _AUDIO_SIGNATURES):
+        return "audio"
+    return None
+
 
 def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=None,
                  bumper_position=None, track=None):
@@ -135,13 +175,15 @@ def read_impacts(path, *, kind=None, flag_length=None, gate_distance=None, unit=
     return impacts
 
 
-def unreadable_media_problem(path):
+def unreadable_media_problem(path, container=None):
     """The one-line problem for a recording libsndfile cannot decode, with its conversion.
 
     Parameters
     ----------
     path : str or os.PathLike
         The recording (e.g. a phone's ``.m4a`` or a video whose sound track holds the impacts).
+    container : str, optional
+        The container its first bytes show (:func:`sniff_media`), where its name does not.
 
     Returns
     -------
@@ -151,9 +193,13 @@ def unreadable_media_problem(path):
     path = Path(path)
     kind = "video" if path.suffix.lower() in (".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm",
                                               ".3gp", ".wmv") else "audio"
+    what = f"{path.suffix.lower()} {kind}" if container is None else f"{container} file"
     # Quoted for the shell: phone recordings are often named with spaces ("New Recording 3").
-    source, target = shlex.quote(path.name), shlex.quote(path.with_suffix(".wav").name)
-    return (f"{path.suffix.lower()} {kind} cannot be decoded here (readable: WAV, FLAC, OGG, "
+    # A file named .wav that is none is converted to another name, never onto itself.
+    target = (path.with_name(f"{path.stem}-converted.wav") if path.suffix.lower() == ".wav"
+              else path.with_suffix(".wav"))
+    source, target = shlex.quote(path.name), shlex.quote(target.name)
+    return (f"{what} cannot be decoded here (readable: WAV, FLAC, OGG, "
             f"MP3, AIFF, CAF, ...); convert its "
             f"sound to WAV first, e.g. `ffmpeg -i {source} -vn -c:a pcm_s16le {target}`")
 
@@ -182,8 +228,11 @@ def _read(path, kind, flag_length, gate_distance, unit, bumper_position, track):
     require_file(path)
     if path.suffix.lower() in UNREADABLE_MEDIA:
         raise InputError(path, unreadable_media_problem(path))
+    media = sniff_media(path)
+    if media not in (None, "audio"):
+        raise InputError(path, unreadable_media_problem(path, media))
     if kind is None:
-        if path.suffix.lower() in AUDIO_SUFFIXES:
+        if path.suffix.lower() in AUDIO_SUFFIXES or media == "audio":
             kind = "audio"
         else:
             from .tables import sniff_table

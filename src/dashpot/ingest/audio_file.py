@@ -27,6 +27,7 @@ _FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
 # reproduce the sequential decode to the last bit. Such a file is decoded once, in order,
 # into a temporary copy, which every later read seeks in.
 _INEXACT_SEEK_SUBTYPES = {"VORBIS", "OPUS", "MPEG_LAYER_I", "MPEG_LAYER_II", "MPEG_LAYER_III"}
+_MPEG_FIRST_FRAME_BYTES = 2881  # the longest MPEG audio frame (layer III, 320 kbit/s, 8 kHz)
 _DECODED_COPIES_KEPT = 4  # most recently opened lossy files whose copies are kept
 _DECODE_BLOCK_FRAMES = 1 << 18
 _DECODED_PREFIX = "dashpot-decoded-"  # then the owning process's id and a random part
@@ -199,7 +200,7 @@ def _open(path):
     opened as its decoded copy (:class:`_DecodedCopies`; its ``lossy_codec`` names the codec,
     "" for other files).
     """
-    from . import UNREADABLE_MEDIA, unreadable_media_problem
+    from . import UNREADABLE_MEDIA, sniff_media, unreadable_media_problem
 
     path = Path(path)
     if not path.is_file():
@@ -208,6 +209,9 @@ def _open(path):
         raise InputError(path, unreadable_media_problem(path))
     if path.stat().st_size == 0:
         raise InputError(path, "empty file (0 bytes)")
+    media = sniff_media(path)
+    if media not in (None, "audio"):
+        raise InputError(path, unreadable_media_problem(path, media))
     try:
         repair = _wav_with_unset_sizes(path)
         if repair is None:
@@ -255,6 +259,26 @@ def _truncation(extra_info):
     return ""
 
 
+def _counts_its_frames(handle, path):
+    """Whether the file states its number of frames, so that fewer read means a cut.
+
+    Every container does but MP3: libsndfile takes an MP3's count from the Xing/Info (or
+    VBRI) frame an encoder writes first, and without one estimates it from the file's size
+    and the first frame's bit rate, which a complete file need not meet. The tag is looked
+    for in the first frame, after an ID3v2 tag (its size is a 28-bit syncsafe integer,
+    ID3v2.4 section 3.1).
+    """
+    if handle.format != "MP3":
+        return True
+    with open(path, "rb") as stream:
+        head = stream.read(10)
+        tagged = head[:3] == b"ID3" and len(head) == 10
+        stream.seek(10 + sum((head[6 + k] & 0x7F) << (7 * (3 - k)) for k in range(4))
+                    if tagged else 0)
+        first_frame = stream.read(_MPEG_FIRST_FRAME_BYTES)
+    return any(tag in first_frame for tag in (b"Xing", b"Info", b"VBRI"))
+
+
 def _blocks(handle, path, block_frames, dtype="float64"):
     """Yield consecutive blocks of shape (frames, channels) until the end of file: float64
     in full scale, or, with ``dtype="int16"``, a 16-bit file's samples as stored."""
@@ -278,7 +302,7 @@ def _blocks(handle, path, block_frames, dtype="float64"):
         yield block
         if block.shape[0] < block_frames:
             break
-    if seen < expected:
+    if seen < expected and _counts_its_frames(handle, path):
         raise InputError(path, f"truncated file: the header announces {expected} frames, only "
                                f"{seen} could be read")
 
