@@ -323,6 +323,26 @@ def test_logger_pro_text_export_every_data_set(tmp_path, capstone_three_runs, de
     assert len(read_impact_table(tmp_path / "impacts.csv")) == len(impacts)
 
 
+def test_vernier_arduino_text_output_without_short_names(tmp_path, capstone_three_runs):
+    """Vernier's Arduino sketches (VernierMotionDetector) print "Vernier Format 2" with five
+    header lines: no short names, units in words (seconds, centimeters), the samples right
+    after them. Read as Logger Pro's six: every reversal found and timed as there."""
+    frame, truths = capstone_three_runs
+    time = frame["Time (s) Run #1"].dropna()
+    distance = frame["Position (m) Run #1"][: time.size] * 100.0
+    lines = ["Vernier Format 2", "Motion Detector Readings taken using Arduino", "Data Set",
+             "Time\tDistance", "seconds\tcentimeters"]
+    lines += [f"{t:.2f}\t{d:.2f}" for t, d in zip(time, distance)]  # a sketch's row, 0.1 mm
+    path = tmp_path / "arduino.txt"
+    path.write_text("\r\n".join(lines) + "\r\n", encoding="ascii")
+    assert sniff_table(path) == "motion_sensor"
+    impacts = read_motion_sensor(path)
+    truth = truths[0]
+    assert len(impacts) == (truth["rebound_speeds"] > 0).sum()
+    assert np.all(np.abs(z_scores(impacts, truth)["time"]) <= 4.0)
+    assert "'Data Set'" in " ".join(impacts.attrs["notes"])
+
+
 @pytest.mark.parametrize("separator, decimal", [(",", "."), (";", ",")])
 def test_capstone_names_measurements_after_the_interface_channel(tmp_path, capstone_three_runs,
                                                                  separator, decimal):

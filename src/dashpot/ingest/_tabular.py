@@ -57,7 +57,10 @@ TABLE_KINDS = ("phyphox", "timestamps", "motion_sensor", "photogate")
 
 _TIME_UNITS = {"s": 1.0, "sec": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "msec": 1e-3,
                "millisecond": 1e-3, "milliseconds": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6}
-_LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+_LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "meter": 1.0, "meters": 1.0, "metre": 1.0,
+                 "metres": 1.0, "centimeter": 1e-2, "centimeters": 1e-2, "centimetre": 1e-2,
+                 "centimetres": 1e-2, "millimeter": 1e-3, "millimeters": 1e-3,
+                 "millimetre": 1e-3, "millimetres": 1e-3}
 _SPEED_UNITS = {"m/s": 1.0, "cm/s": 1e-2, "mm/s": 1e-3, "m s-1": 1.0, "m·s⁻¹": 1.0}
 
 _TIME_NAMES = {"time", "t", "zeit", "timestamp", "timestamps", "impact time", "impact times",
