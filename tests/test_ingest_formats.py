@@ -242,3 +242,26 @@ def test_media_known_by_their_first_bytes_get_the_conversion_command(tmp_path, n
     assert shlex.split(command) == ["ffmpeg", "-i", name, "-vn", "-c:a", "pcm_s16le", converted]
     with pytest.raises(InputError, match="convert its sound to WAV"):
         read_impacts(path, kind="audio")
+
+
+@pytest.mark.parametrize(("suffix", "container", "subtype"),
+                         [("aif", "AIFF", "PCM_24"), ("aifc", "AIFF", "FLOAT"),
+                          ("au", "AU", "PCM_16"), ("w64", "W64", "PCM_16"),
+                          ("rf64", "RF64", "PCM_16"), ("wav", "WAV", "PCM_16")])
+def test_a_cut_file_of_any_container_is_refused_not_read_short(tmp_path, suffix, container,
+                                                              subtype):
+    # libsndfile reads a cut AIFF, AU, Wave64 or RF64 as a shorter recording without a word;
+    # its header log shows the sizes the header states against those present.
+    rate = 22050
+    samples, onsets = _drop_train(rate, seed=20520903)
+    whole = tmp_path / f"whole.{suffix}"
+    sf.write(str(whole), samples, rate, format=container, subtype=subtype)
+    assert len(read_impacts(whole)) == onsets.size
+    data = whole.read_bytes()
+    cut = tmp_path / f"cut.{suffix}"
+    cut.write_bytes(data[: len(data) * 6 // 10])
+    output = tmp_path / "impacts.csv"
+    status, _, err = run_cli(["impacts", str(cut), "-o", str(output)])
+    assert status == 2 and not output.exists()
+    assert err.strip().splitlines() == [err.strip()]
+    assert f"{cut}: truncated file: the header announces" in err

@@ -27,6 +27,7 @@ _FILE_FORMATS = set(sf.available_formats()) - {"RAW"}
 # reproduce the sequential decode to the last bit. Such a file is decoded once, in order,
 # into a temporary copy, which every later read seeks in.
 _INEXACT_SEEK_SUBTYPES = {"VORBIS", "OPUS", "MPEG_LAYER_I", "MPEG_LAYER_II", "MPEG_LAYER_III"}
+_SLIPPED_BYTES = 4096  # a stated file size this far off is a writer's slip, not a cut
 _MPEG_FIRST_FRAME_BYTES = 2881  # the longest MPEG audio frame (layer III, 320 kbit/s, 8 kHz)
 _DECODED_COPIES_KEPT = 4  # most recently opened lossy files whose copies are kept
 _DECODE_BLOCK_FRAMES = 1 << 18
@@ -246,13 +247,21 @@ def _open(path):
 
 def _truncation(extra_info):
     """Plain-words problem if libsndfile's header log shows a cut-off file, else ''."""
-    # WAV: the data chunk claims more bytes than the file holds ("data : 352800 (should be
-    # 176360)"); libsndfile then silently shortens the recording.
-    for claimed, present in re.findall(r"^data\s*:\s*(\d+)\s*\(should be (\d+)\)", extra_info,
-                                       flags=re.MULTILINE):
+    # The chunk of samples claims more bytes than the file holds (WAV "data : 352800 (should
+    # be 176360)", AIFF "SSND", AU "Data Size"); libsndfile then silently shortens the
+    # recording.
+    for claimed, present in re.findall(r"^\s*(?:data|SSND|Data Size)\s*:\s*(\d+)\s*"
+                                       r"\(should be (\d+)\)", extra_info, flags=re.MULTILINE):
         if int(claimed) > int(present):
             return (f"truncated file: the header announces {claimed} bytes of samples but only "
                     f"{present} are present")
+    # Wave64 and RF64 state only the whole file's size ("riff : 340702 (should be 204421)"):
+    # a cut where it falls short by more than a writer's slip (a pad byte, a trailing chunk).
+    for claimed, present in re.findall(r"^\s*(?:riff|Riff size)\s*:\s*(\d+)\s*"
+                                       r"\(should be (\d+)\)", extra_info, flags=re.MULTILINE):
+        if int(claimed) - int(present) > max(_SLIPPED_BYTES, 0.01 * int(claimed)):
+            return (f"truncated file: the header announces {claimed} bytes but only {present} "
+                    f"are present")
     # OGG: a complete stream ends with a page carrying the end-of-stream flag.
     if "Last page lacks an end-of-stream bit" in extra_info:
         return "truncated file: the Ogg stream ends without its end-of-stream page"
