@@ -265,3 +265,22 @@ def test_a_cut_file_of_any_container_is_refused_not_read_short(tmp_path, suffix,
     assert status == 2 and not output.exists()
     assert err.strip().splitlines() == [err.strip()]
     assert f"{cut}: truncated file: the header announces" in err
+
+
+def test_a_cut_flac_says_where_its_decoding_failed(tmp_path):
+    # FLAC frames fail to decode where the file is cut: the error names the stretch of the
+    # recording being read, not the start of the file.
+    rate = 22050
+    samples, _ = _drop_train(rate, seed=20520904)
+    whole = tmp_path / "whole.flac"
+    sf.write(str(whole), samples, rate, format="FLAC", subtype="PCM_16")
+    data = whole.read_bytes()
+    cut = tmp_path / "cut.flac"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputError) as error:
+        read_impacts(cut)
+    message = str(error.value)
+    assert "\n" not in message and message.startswith(f"{cut}: truncated")
+    start, end = (float(value) for value in re.search(
+        r"decoding failed between (\d+\.\d+) s and (\d+\.\d+) s", message).groups())
+    assert start <= 0.5 * samples.size / rate <= end

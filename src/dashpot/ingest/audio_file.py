@@ -299,8 +299,11 @@ def _blocks(handle, path, block_frames, dtype="float64"):
         try:
             block = handle.read(block_frames, dtype=dtype, always_2d=True)
         except (sf.LibsndfileError, RuntimeError) as error:
-            raise InputError(path, f"truncated or corrupt file: decoding failed after "
-                                   f"{seen / handle.samplerate:.3f} s ({error})") from None
+            # The block read at once fails as a whole: where inside it is not known.
+            end = min(seen + block_frames, max(expected, seen))
+            raise InputError(path, f"truncated or corrupt file: decoding failed between "
+                                   f"{seen / handle.samplerate:.3f} s and "
+                                   f"{end / handle.samplerate:.3f} s ({error})") from None
         if block.shape[0] == 0:
             break
         if not integer and not np.all(np.isfinite(block)):
