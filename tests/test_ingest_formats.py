@@ -220,7 +220,8 @@ def test_audio_is_known_by_its_first_bytes_whatever_its_name(tmp_path, name):
 
 
 @pytest.mark.parametrize(("name", "head", "container", "converted"), [
-    ("bounce.wav", b"\x00\x00\x00\x20ftypM4A \x00\x00\x00\x00", "MP4 / M4A", "bounce-converted.wav"),
+    ("bounce.wav", b"\x00\x00\x00\x20ftypM4A \x00\x00\x00\x00", "MP4 / M4A",
+     "bounce-converted.wav"),
     ("bounce", b"\x00\x00\x00\x20ftypisom\x00\x00\x02\x00", "MP4 / M4A", "bounce.wav"),
     ("bounce.weba", b"\x1a\x45\xdf\xa3\x9f\x42\x86\x81\x01\x42\xf7\x81", "Matroska / WebM",
      "bounce.wav"),

@@ -91,12 +91,13 @@ KINDS = ("audio", "phyphox", "timestamps", "motion_sensor", "photogate")
 # The first bytes of the containers libsndfile decodes, whatever a file is named (a Broadcast
 # WAV saved as .bwf, a recording without a suffix): (offset, bytes) pairs that must all match.
 _AUDIO_SIGNATURES = (((0, b"RIFF"), (8, b"WAVE")), ((0, b"RIFX"), (8, b"WAVE")),
-                     ((0, b"RF64"),), ((0, b"BW64"),), ((0, b"riff"),), ((0, b"FORM"), (8, b"AIF")),
-                     ((0, b"fLaC"),), ((0, b"OggS"),), ((0, b"caff"),), ((0, b".snd"),),
-                     ((0, b"ID3"),))
+                     ((0, b"RF64"),), ((0, b"BW64"),), ((0, b"riff"),),
+                     ((0, b"FORM"), (8, b"AIF")), ((0, b"fLaC"),), ((0, b"OggS"),),
+                     ((0, b"caff"),), ((0, b".snd"),), ((0, b"ID3"),))
 # ... and of those it does not: MP4 / M4A / 3GP / MOV ('ftyp' box), Matroska / WebM (EBML),
 # AMR, ASF (WMA / WMV).
-_UNREADABLE_SIGNATURES = {"MP4 / M4A": ((4, b"ftyp"),), "Matroska / WebM": ((0, b"\x1aE\xdf\xa3"),),
+_UNREADABLE_SIGNATURES = {"MP4 / M4A": ((4, b"ftyp"),),
+                          "Matroska / WebM": ((0, b"\x1aE\xdf\xa3"),),
                           "AMR": ((0, b"#!AMR"),),
                           "ASF (WMA / WMV)": ((0, b"\x30\x26\xb2\x75\x8e\x66\xcf\x11"),)}
 
