@@ -195,8 +195,9 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         number of channels.
     highpass_hz : float, default 100
         Cut-off (Hz) of the 2nd-order causal Butterworth high-pass applied before detection
-        and timing: removes DC offset, hum and rumble. Being causal it cannot move an onset
-        earlier.
+        and timing: removes DC offset and rumble. Being causal it cannot move an onset
+        earlier. Mains hum and buzz (lines at 50 or 60 Hz and their harmonics to 1 kHz, found
+        at the file's start) are notched out with it, and a note lists the lines.
     min_snr_db : float, default 12
         A transient must carry at least this power over the noise floor in its first 0.5 ms
         (dB, noise-normalised power averaged over channels).
@@ -331,6 +332,8 @@ def detect_impacts(path, *, highpass_hz=100.0, min_snr_db=12.0, min_jump_db=9.0,
         # bounce train fills have too few quiet stretches for a noise estimate of their own.
         for block in _blocks(handle, path, block_frames,
                              dtype="int16" if sixteen_bit else "float64"):
+            if pending is None:
+                stream.notch_mains_hum(block)
             stream.recording.keep(block)
             if pending is not None:
                 if block.shape[0] < block_frames // 2:
@@ -856,6 +859,9 @@ def _train_table(path, stream, sample_rate, duration):
     if stream.dc_offset > 1e-3:
         notes.append(f"DC offset of about {stream.dc_offset:.3g} (full scale) removed by the "
                      f"high-pass; amplitudes are measured from the local level")
+    if stream.hum.size:
+        notes.append(f"mains hum notched out before detection: {stream.hum.size} line(s) at "
+                     f"{', '.join(f'{frequency:.1f}' for frequency in stream.hum)} Hz")
     left_out = len(candidates) - chain.size
     if left_out:
         delay, count = _fixed_delays(rough, chain)

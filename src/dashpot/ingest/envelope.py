@@ -9,10 +9,16 @@ References
 .. [2] R. Sleeman and T. van Eck, "Robust automatic P-phase picking: an on-line implementation
    in the analysis of broadband seismogram recordings", Phys. Earth Planet. Inter. 113,
    265-275 (1999) (the AIC picker of N. Maeda, Zisin 38, 365-379, 1985).
+.. [5] S. M. Kay, "Fundamentals of Statistical Signal Processing: Estimation Theory",
+   Prentice Hall (1993), ch. 4 (the linear model: sinusoids of known frequencies fitted by
+   least squares, and the variance noise leaves in their amplitudes).
+.. [6] S. J. Orfanidis, "Introduction to Signal Processing", Prentice Hall (1996), section 6.4
+   (the second-order notch filter, :func:`scipy.signal.iirnotch`).
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +27,23 @@ from scipy import signal
 
 # Detection (step 1).
 _HIGHPASS_ORDER = 2
+# Mains hum (_mains_hum): a hum is steady, so it fills the quiet stretches between the
+# impacts, where the detection measures its noise. Frames of 80 ms (four periods of 50 Hz) of
+# the first 8 s, the quietest quarter of them, are each fitted with the harmonics of 50 Hz,
+# and of 60 Hz, up to 1 kHz (a buzz's), the frequencies halfway between them, a line and a
+# constant (rumble); a harmonic is hum where its median power over the frames is 20 times
+# that halfway either side, and is notched out. The 100 Hz high-pass alone leaves a hum of
+# -26 dBFS louder than the last impacts. Notches of Q 15: 3-7 Hz wide at 50-100 Hz (mains
+# wanders by tenths of a hertz), far from the impacts' kHz. On 500 synthetic trains without
+# hum (white or pink noise, rings, bursts, echoes) none was found.
+_HUM_FUNDAMENTALS_HZ = (50.0, 60.0)
+_HUM_TOP_HZ = 1000.0
+_HUM_FRAME_SECONDS = 0.08
+_HUM_ANALYSIS_SECONDS = 8.0
+_HUM_QUIET_SHARE = 0.25
+_HUM_LEAST_FRAMES = 8
+_HUM_LINE_RATIO = 20.0
+_HUM_NOTCH_Q = 15.0
 _STA_SECONDS = 0.5e-3  # short window after a sample: the first half millisecond of a transient
 _BACKGROUND_SECONDS = 2e-3  # the level just before it
 _NOISE_FRAME_SECONDS = 5e-3  # frames whose RMS gives the noise floor
@@ -181,6 +204,86 @@ class _Settings:
         return self.history + self.lookahead + self.background
 
 
+@functools.lru_cache(maxsize=8)
+def _harmonic_fit(length, sample_rate, fundamental):
+    """(harmonic numbers, least-squares projector) of `length` samples onto the sines and
+    cosines of the harmonics k·`fundamental` (Hz) up to :data:`_HUM_TOP_HZ` and of the
+    frequencies halfway between them, (k - 1/2)·`fundamental` and one more above, beside a
+    constant and a line; the projector (pseudo-inverse of the design, columns by samples)
+    gives the coefficients: harmonics' sines, their cosines, then the halfway ones'."""
+    order = np.arange(1, int(min(_HUM_TOP_HZ, 0.45 * sample_rate) // fundamental) + 1)
+    halfway = np.arange(order.size + 1) + 0.5
+    frequencies = fundamental * np.concatenate([order, halfway])
+    phase = 2.0 * np.pi * np.arange(length)[:, None] * frequencies[None, :] / sample_rate
+    design = np.column_stack([np.sin(phase[:, :order.size]), np.cos(phase[:, :order.size]),
+                              np.sin(phase[:, order.size:]), np.cos(phase[:, order.size:]),
+                              np.ones(length), np.linspace(-1.0, 1.0, length)])
+    return order, np.linalg.pinv(design)
+
+
+def _mains_hum(samples, sample_rate):
+    """Frequencies (Hz) of the mains hum lines in `samples`.
+
+    The first :data:`_HUM_ANALYSIS_SECONDS` of each channel are cut into frames of
+    :data:`_HUM_FRAME_SECONDS`; the quietest :data:`_HUM_QUIET_SHARE` of them (between the
+    impacts) are each fitted by least squares with sines and cosines at the harmonics of
+    50 Hz (and, again, of 60 Hz) up to :data:`_HUM_TOP_HZ` and halfway between them, a line
+    and a constant [5]_. A harmonic is hum where the median over those frames of its fitted
+    power exceeds :data:`_HUM_LINE_RATIO` times that of the halfway frequencies either side
+    (the background there, whatever its colour). The mains frequency with the more hum lines wins
+    (none: no hum). They are named by the nominal frequency: mains wanders by tenths of a
+    hertz, within the notches.
+
+    Parameters
+    ----------
+    samples : ndarray, shape (frames, channels)
+        The recording's first block, in any scale (the test compares powers).
+    sample_rate : float
+        Hz.
+
+    Returns
+    -------
+    ndarray
+        Frequencies (Hz) of the harmonics found, increasing; empty if none, or if `samples`
+        holds fewer than 4 × :data:`_HUM_LEAST_FRAMES` frames.
+    """
+    length = int(round(_HUM_FRAME_SECONDS * sample_rate))
+    count = min(samples.shape[0], int(_HUM_ANALYSIS_SECONDS * sample_rate)) // length
+    quiet = int(count * _HUM_QUIET_SHARE)
+    if quiet < _HUM_LEAST_FRAMES:
+        return np.empty(0)
+    channels = samples.shape[1]
+    # Single precision to rank the frames by their energy; the chosen ones in double.
+    frames = np.asarray(samples[:count * length], dtype=np.float32).reshape(
+        count, length, channels).transpose(2, 0, 1).reshape(-1, length)
+    frames -= frames.mean(axis=1, keepdims=True)
+    order_by_energy = np.argsort(np.einsum("ij,ij->i", frames, frames))
+    chosen = frames[order_by_energy[:quiet * channels]].astype(float)
+    found = np.empty(0)
+    for fundamental in _HUM_FUNDAMENTALS_HZ:
+        order, projector = _harmonic_fit(length, sample_rate, fundamental)
+        coefficients = chosen @ projector.T  # frames by columns
+        size = order.size
+        # A sinusoid of amplitude a carries a²/2 of power per sample.
+        harmonic = 0.5 * np.median(coefficients[:, :size] ** 2
+                                   + coefficients[:, size:2 * size] ** 2, axis=0)
+        halfway = 0.5 * np.median(coefficients[:, 2 * size:3 * size + 1] ** 2
+                                  + coefficients[:, 3 * size + 1:4 * size + 2] ** 2, axis=0)
+        background = 0.5 * (halfway[:-1] + halfway[1:])
+        is_hum = harmonic > _HUM_LINE_RATIO * np.maximum(background, np.finfo(float).tiny)
+        if is_hum.sum() > found.size:
+            found = fundamental * order[is_hum]
+    return found
+
+
+def _hum_notches(frequencies, sample_rate):
+    """Second-order sections of a notch (quality :data:`_HUM_NOTCH_Q`) at each of
+    `frequencies` (Hz) [6]_: shape (len(frequencies), 6)."""
+    sections = [signal.tf2sos(*signal.iirnotch(frequency, _HUM_NOTCH_Q, fs=sample_rate))
+                for frequency in frequencies]
+    return np.concatenate(sections) if sections else np.empty((0, 6))
+
+
 @dataclass
 class _Stream:
     """State carried from one block to the next while streaming a file."""
@@ -216,10 +319,20 @@ class _Stream:
     # (moment, tolerance, predicted_sound) of the last stretch probed and what it holds
     # (:func:`.chain._probed_stretch`), for a probe asked again there.
     probe_memo: tuple | None = None
+    hum: np.ndarray = field(default_factory=lambda: np.empty(0))  # hum lines notched (Hz)
     steady_state: np.ndarray = field(init=False)  # high-pass state for a unit input at rest
 
     def __post_init__(self):
         self.steady_state = signal.sosfilt_zi(self.sos)
+
+    def notch_mains_hum(self, start):
+        """Add a notch at each mains hum line in `start` (the file's first block, frames by
+        channels, as read) to the high-pass (:func:`_mains_hum`); before any filtering."""
+        self.hum = _mains_hum(start, self.settings.sample_rate)  # ratios: scale-free
+        if self.hum.size:
+            self.sos = np.concatenate([self.sos, _hum_notches(self.hum,
+                                                              self.settings.sample_rate)])
+            self.steady_state = signal.sosfilt_zi(self.sos)
 
     def noise_at(self, seconds):
         """Noise RMS and lag-1 correlation of each channel (arrays of shape (..., channels))

@@ -124,7 +124,7 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
                  clip_level=None, dc_offset=0.0, seed=0, peak_level=0.5, speed_exponent=1.0,
                  noise_color="white", apex_click_db=None, rest_click_period=None,
                  rest_click_level=0.5, rest_click_duration=1.0, burst_delays=(),
-                 burst_levels=()):
+                 burst_levels=(), hum_level=0.0, hum_hz=50.0, hum_harmonics=1):
     """Microphone signal of a bounce train, and the true onset of every impact transient.
 
     Parameters
@@ -187,6 +187,14 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         after the impact's onset with peaks `burst_levels` × the impact's peak (may exceed 1:
         the swell of a ring can be louder than its first burst). The impact's onset is the
         start of its first burst.
+    hum_level : float, default 0
+        Amplitude (full scale) of mains hum: a sine of `hum_hz` and, for a buzz, its
+        harmonics k = 2 ... `hum_harmonics` at amplitude `hum_level` / k (phase k rad each).
+        0 (default): no hum.
+    hum_hz : float, default 50
+        Mains frequency (Hz): 50 or 60, or a little off.
+    hum_harmonics : int, default 1
+        Number of hum lines (1: a pure hum).
 
     Returns
     -------
@@ -231,6 +239,10 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         _check_array("clip_level", clip_level, positive=True)
     if noise_color not in _NOISE_COLORS:
         raise ValueError(f"noise_color must be one of {_NOISE_COLORS}; got {noise_color!r}")
+    _check_array("hum_level", hum_level, nonnegative=True)
+    _check_array("hum_hz", hum_hz, positive=True)
+    if int(hum_harmonics) != hum_harmonics or hum_harmonics < 1:
+        raise ValueError(f"hum_harmonics must be a whole number >= 1; got {hum_harmonics!r}")
     if apex_click_db is not None:
         _check_array("apex_click_db", apex_click_db)
     if rest_click_period is not None:
@@ -280,6 +292,12 @@ def impact_sound(impact_times, impact_speeds, *, sample_rate=44100, duration=Non
         rest_click_period, rest_click_level, rest_click_duration, burst_delays, burst_levels)
     noise_rms = peak_level * 10.0 ** (-float(snr_db) / 20.0)
     samples += noise_rms * _noise(rng, n_samples, noise_color, sample_rate)
+    if hum_level > 0:
+        harmonic = np.arange(1, int(hum_harmonics) + 1)
+        time = np.arange(n_samples) / sample_rate
+        samples += hum_level * np.sum(np.sin(2.0 * np.pi * hum_hz * harmonic[:, None]
+                                             * time[None, :] + harmonic[:, None])
+                                      / harmonic[:, None], axis=0)
     samples += dc_offset
     if clip_level is not None:
         samples = np.clip(samples, -clip_level, clip_level)
